@@ -1,0 +1,30 @@
+# crosshead: two commands do everything on a fresh Debian 12 machine, set-up included.
+#   make run    hook No. 05, default mesh, all outputs in results/05/
+#   make test   the test suite (coarse meshes; a few minutes)
+# Longer studies: make converge, make bench, make sizes (one target per size: make 05, make 1.6, ...)
+SHELL := /bin/bash
+PY := .venv/bin/python
+SETUP := .venv/.setup-done
+SIZES := $(shell awk -F, '!/^\#/ && $$1 != "size" && NF > 1 {print $$1}' geometry/sizes.csv)
+
+.PHONY: run test converge bench sizes setup clean $(SIZES)
+
+run: $(SETUP)
+	$(PY) -m pipeline run --size 05 --out results/05
+
+test: $(SETUP)
+	$(PY) -m pytest -q tests
+
+converge: $(SETUP)
+	$(PY) -m pipeline converge --size 05 --out results/05-converge
+
+setup: $(SETUP)
+
+$(SETUP): tools/setup.sh requirements.txt constraints.txt
+	bash tools/setup.sh
+
+$(SIZES): $(SETUP)
+	$(PY) -m pipeline run --size $@ --out results/$@
+
+clean:
+	rm -rf results

@@ -1,0 +1,316 @@
+"""Parametric gmsh/OpenCASCADE model of a DIN 15412 type A crosshead (units: mm).
+
+Axes (DESIGN §2): x along the journals, y across, z up; origin on the bore axis at the
+bottom face. The quarter model is x >= 0, y >= 0; the full model is the whole part.
+
+The journals are never made by cutting a filleted cylinder (OpenCASCADE booleans through
+the journal axis can silently return nothing, STACK.md). Each journal is a profile
+(end-face disk + concave shoulder fillet + cylinder) revolved about its axis in pieces:
+lower and upper halves, so the loaded lower half of the bearing surface is a surface of
+its own. Every boolean is followed by a volume check against the closed form.
+
+Physical groups (names are the interface; code looks tags up by name):
+  volume "body"; surfaces "seat" (loaded annulus on the top face), "journal_bearing"
+  (lower half of each journal's bearing cylinder), "symmetry_x" (x = 0), "symmetry_y"
+  (y = 0; both quarter model only), and "constraint_points" (points used to remove the
+  rigid-body motion that the symmetry planes leave free).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import gmsh
+import numpy as np
+
+from .table import Dimensions
+
+MODELS = ("quarter", "full")
+
+
+class GeometryError(RuntimeError):
+    """The CAD kernel produced something other than the part (a silent boolean failure)."""
+
+
+@dataclass(frozen=True)
+class MeshSpec:
+    """Mesh size controls, mm. ``factor`` scales every size together (refinement studies).
+
+    size_body: size far from features; size_feature: size on the bore edges and the seat
+    band edges; size_fillet: size on the shoulder fillets (the journal-root stress peak
+    sits there); grading: distance over which sizes grow to size_body; order: geometric
+    order of the elements (1 or 2).
+    """
+
+    size_body: float
+    size_feature: float
+    size_fillet: float
+    grading: float
+    factor: float = 1.0
+    order: int = 2
+
+    @staticmethod
+    def default_for(d: Dimensions, factor: float = 1.0, order: int = 2) -> "MeshSpec":
+        """Sizes proportional to the part so every row meshes alike.
+
+        The ratios were chosen for No. 05 by the convergence study (`make converge`).
+        """
+        fillet = 0.25 * d.rf if d.rf > 0 else 0.02 * d.h3
+        return MeshSpec(size_body=0.16 * d.h3, size_feature=0.05 * d.h3,
+                        size_fillet=fillet, grading=0.4 * d.h3, factor=factor, order=order)
+
+
+@dataclass(frozen=True)
+class BuiltGeometry:
+    """What the builder made: volume (mm³) and the points where constraints go (mm)."""
+
+    model: str
+    volume: float
+    constraint_points: tuple[tuple[float, float, float], ...]
+
+
+def analytic_volume(d: Dimensions, model: str = "quarter") -> float:
+    """Closed-form volume of the part, mm³ (body − bore + two journals with fillets).
+
+    The fillet ring (section rf² − π rf²/4 revolved about the journal axis) uses Pappus'
+    theorem with the centroid of a square less a quarter disk.
+    """
+    rj, rf = d.dj / 2, d.rf
+    body = d.b1 * d.b1 * d.h3 - math.pi * (d.d2 / 2) ** 2 * d.h3
+    journal = math.pi * rj ** 2 * d.b2
+    area = rf ** 2 * (1 - math.pi / 4)
+    if area > 0:
+        t_bar = rf * (5 / 6 - math.pi / 4) / (1 - math.pi / 4)
+        journal += 2 * math.pi * (rj + t_bar) * area
+    full = body + 2 * journal
+    return full / 4 if model == "quarter" else full
+
+
+def _journal_piece(d: Dimensions, side: int, phi0: float, dphi: float) -> int:
+    """One angular piece of a journal (with fillet), revolved by dphi from angle phi0.
+
+    The profile lies in the half-plane through the journal axis in direction
+    e(phi) = (0, sin phi, -cos phi): phi = 0 points down, pi/2 to +y. side = +1 or -1
+    picks the journal at +x or -x. Returns the OCC volume tag.
+    """
+    occ = gmsh.model.occ
+    zc = d.h3 / 2
+    rj, rf = d.dj / 2, d.rf
+    x0, x1 = d.b1 / 2, d.b6 / 2
+    ey, ez = math.sin(phi0), -math.cos(phi0)
+
+    def pt(x: float, r: float) -> int:
+        return occ.addPoint(side * x, r * ey, zc + r * ez)
+
+    p_axis0 = pt(x0, 0.0)
+    p_axis1 = pt(x1, 0.0)
+    p_tip = pt(x1, rj)
+    p_fil1 = pt(x0 + rf, rj)
+    curves = []
+    if rf > 0:
+        p_fil0 = pt(x0, rj + rf)
+        p_centre = pt(x0 + rf, rj + rf)
+        curves.append(occ.addLine(p_axis0, p_fil0))
+        curves.append(occ.addCircleArc(p_fil0, p_centre, p_fil1))
+    else:
+        curves.append(occ.addLine(p_axis0, p_fil1))
+    curves += [occ.addLine(p_fil1, p_tip), occ.addLine(p_tip, p_axis1),
+               occ.addLine(p_axis1, p_axis0)]
+    face = occ.addPlaneSurface([occ.addCurveLoop(curves)])
+    out = occ.revolve([(2, face)], 0, 0, zc, side * 1.0, 0, 0, side * dphi)
+    vols = [t for dim, t in out if dim == 3]
+    if len(vols) != 1:
+        raise GeometryError(f"journal revolve gave {len(vols)} volumes")
+    if rf > 0:
+        occ.remove([(0, p_centre)])
+    return vols[0]
+
+
+def build(d: Dimensions, model: str = "quarter") -> BuiltGeometry:
+    """Create the part in the current gmsh model with named physical groups.
+
+    Assumes ``d`` has passed :func:`geometry.table.validate`. Raises GeometryError if the
+    kernel's volume differs from the closed form by more than 1e-6 relative.
+    """
+    if model not in MODELS:
+        raise ValueError(f"model must be one of {MODELS}, got {model!r}")
+    occ = gmsh.model.occ
+    quarter = model == "quarter"
+    a, h = d.b1 / 2, d.h3
+    if quarter:
+        box = occ.addBox(0, 0, 0, a, a, h)
+        bore = occ.addCylinder(0, 0, -1, 0, 0, h + 2, d.d2 / 2)
+    else:
+        box = occ.addBox(-a, -a, 0, 2 * a, 2 * a, h)
+        bore = occ.addCylinder(0, 0, -1, 0, 0, h + 2, d.d2 / 2)
+    body, _ = occ.cut([(3, box)], [(3, bore)])
+    if quarter:
+        # Quarter journals: the lower quarter (phi 0..90°, the loaded half) and the upper.
+        pieces = [_journal_piece(d, +1, 0.0, math.pi / 2),
+                  _journal_piece(d, +1, math.pi / 2, math.pi / 2)]
+    else:
+        pieces = []
+        for side in (+1, -1):
+            pieces.append(_journal_piece(d, side, -math.pi / 2, math.pi))   # lower half
+            pieces.append(_journal_piece(d, side, math.pi / 2, math.pi))    # upper half
+    ro, ri = d.seat_outer / 2, d.seat_inner / 2
+    outer = occ.addDisk(0, 0, h, ro, ro)
+    inner = occ.addDisk(0, 0, h, ri, ri)
+    seat, _ = occ.cut([(2, outer)], [(2, inner)])
+    if quarter:
+        clip = occ.addRectangle(0, 0, h, ro + 1, ro + 1)
+        seat, _ = occ.intersect(seat, [(2, clip)])
+    # Points for the constraints that remove rigid-body motion (see pipeline.solve).
+    if quarter:
+        cpts = ((0.0, a, 0.0),)
+    else:
+        cpts = ((0.0, a, 0.0), (0.0, -a, 0.0), (a, 0.0, 0.0))
+    point_tags = [occ.addPoint(*p) for p in cpts]
+    objects = body + [(3, t) for t in pieces]
+    out, out_map = occ.fragment(objects, seat + [(0, t) for t in point_tags])
+    occ.synchronize()
+
+    n_obj = len(objects)
+    seat_surfs = sorted({t for i in range(len(seat)) for dim, t in out_map[n_obj + i] if dim == 2})
+    cpt_tags = sorted({t for i in range(len(point_tags))
+                       for dim, t in out_map[n_obj + len(seat) + i] if dim == 0})
+    volumes = [t for dim, t in gmsh.model.getEntities(3)]
+    vol = sum(occ.getMass(3, t) for t in volumes)
+    expected = analytic_volume(d, model)
+    if abs(vol - expected) > 1e-6 * expected:
+        raise GeometryError(f"CAD volume {vol:.6g} mm³ differs from closed form {expected:.6g} mm³")
+    seat_area = sum(occ.getMass(2, t) for t in seat_surfs)
+    seat_expected = math.pi * (ro ** 2 - ri ** 2) / (4 if quarter else 1)
+    if abs(seat_area - seat_expected) > 1e-6 * seat_expected:
+        raise GeometryError(f"seat area {seat_area:.6g} mm² differs from {seat_expected:.6g} mm²")
+    if len(cpt_tags) != len(cpts):
+        raise GeometryError("constraint points were not imprinted on the part")
+
+    groups = {"seat": seat_surfs, "journal_bearing": _bearing_surfaces(d)}
+    if quarter:
+        groups["symmetry_x"] = _planar_surfaces(axis=0, value=0.0)
+        groups["symmetry_y"] = _planar_surfaces(axis=1, value=0.0)
+    for name, tags in groups.items():
+        if not tags:
+            raise GeometryError(f"physical group {name!r} would be empty")
+        gmsh.model.setPhysicalName(2, gmsh.model.addPhysicalGroup(2, tags), name)
+    gmsh.model.setPhysicalName(3, gmsh.model.addPhysicalGroup(3, volumes), "body")
+    gmsh.model.setPhysicalName(0, gmsh.model.addPhysicalGroup(0, cpt_tags), "constraint_points")
+    return BuiltGeometry(model=model, volume=vol, constraint_points=cpts)
+
+
+def _tol(d: Dimensions | None = None) -> float:
+    return 1e-4 if d is None else 1e-6 * d.b6
+
+
+def _planar_surfaces(axis: int, value: float, tol: float = 1e-6) -> list[int]:
+    """Surfaces lying in the plane x_axis = value (from their bounding boxes)."""
+    tags = []
+    for _, t in gmsh.model.getEntities(2):
+        bb = gmsh.model.getBoundingBox(2, t)
+        if abs(bb[axis] - value) < tol and abs(bb[axis + 3] - value) < tol:
+            tags.append(t)
+    return tags
+
+
+def _bearing_surfaces(d: Dimensions) -> list[int]:
+    """Lower-half journal bearing cylinders: from |x| = b1/2 + rf to the tip, below the axis."""
+    tol = 1e-6 * d.b6 + 1e-7
+    x0, x1, zc = d.b1 / 2 + d.rf, d.b6 / 2, d.h3 / 2
+    tags = []
+    for _, t in gmsh.model.getEntities(2):
+        xmin, ymin, zmin, xmax, ymax, zmax = gmsh.model.getBoundingBox(2, t)
+        lo, hi = (xmin, xmax) if xmin >= 0 else (-xmax, -xmin)
+        if (abs(lo - x0) < 1e-3 and abs(hi - x1) < 1e-3 and zmax < zc + 1e-3
+                and zmin < zc - d.dj / 4 and gmsh.model.getType(2, t) != "Plane"):
+            tags.append(t)
+    del tol
+    return tags
+
+
+def mesh(d: Dimensions, spec: MeshSpec) -> None:
+    """Mesh the current gmsh model: graded sizes, refined at the stress raisers.
+
+    Size fields: distance from the bore edges, the seat band edges and the shoulder
+    fillets; size_feature within that distance, growing linearly to size_body over
+    ``grading``. Every size is multiplied by spec.factor. Second order if spec.order == 2.
+    """
+    f = spec.factor
+    hmax = spec.size_body * f
+    edges, fillets = _feature_curves(d)
+    field = gmsh.model.mesh.field
+
+    def threshold(curves: list[int], size: float, dist_min: float, dist_max: float) -> int:
+        dist = field.add("Distance")
+        field.setNumbers(dist, "EdgesList", curves)
+        field.setNumber(dist, "NNodesByEdge", 200)
+        thr = field.add("Threshold")
+        field.setNumber(thr, "IField", dist)
+        field.setNumber(thr, "LcMin", size)
+        field.setNumber(thr, "LcMax", hmax)
+        field.setNumber(thr, "DistMin", dist_min)
+        field.setNumber(thr, "DistMax", dist_max)
+        return thr
+
+    fields_ = [threshold(edges, spec.size_feature * f, 0.25 * spec.grading * f, spec.grading)]
+    if fillets:
+        # The fillet region is small (rf); its fine size must not spill far.
+        fields_.append(threshold(fillets, spec.size_fillet * f, 0.5 * d.rf, 4.0 * d.rf))
+    fmin = field.add("Min")
+    field.setNumbers(fmin, "FieldsList", fields_)
+    field.setAsBackgroundMesh(fmin)
+    hmin = min(spec.size_feature, spec.size_fillet) * f
+    opt = gmsh.option.setNumber
+    opt("Mesh.MeshSizeExtendFromBoundary", 0)
+    opt("Mesh.MeshSizeFromPoints", 0)
+    opt("Mesh.MeshSizeFromCurvature", 0)
+    opt("Mesh.MeshSizeMax", hmax)
+    opt("Mesh.MeshSizeMin", 0.5 * hmin)
+    opt("Mesh.Algorithm", 6)
+    opt("Mesh.Algorithm3D", 1)
+    opt("Mesh.ElementOrder", spec.order)
+    # Curving second-order tets onto the 1.5 mm shoulder fillet inverts some of them
+    # (det J < 0 seen on No. 05); gmsh's optimiser (mode 1) repairs them, ~1 s.
+    opt("Mesh.HighOrderOptimize", 1 if spec.order >= 2 else 0)
+    opt("General.NumThreads", 1)
+    gmsh.model.mesh.generate(3)
+
+
+def _feature_curves(d: Dimensions) -> tuple[list[int], list[int]]:
+    """Curves where stress varies fast: (bore edges and seat circles, fillet edges)."""
+    rb, rsi, rso = d.d2 / 2, d.seat_inner / 2, d.seat_outer / 2
+    x_fillet = (d.b1 / 2, d.b1 / 2 + d.rf)
+    tags, fillet = [], []
+    for _, t in gmsh.model.getEntities(1):
+        xmin, ymin, zmin, xmax, ymax, zmax = gmsh.model.getBoundingBox(1, t)
+        if gmsh.model.getType(1, t) not in ("Circle", "Ellipse", "BSpline", "TrimmedCurve"):
+            continue
+        horizontal = abs(zmax - zmin) < 1e-6
+        rmax = max(abs(xmin), abs(xmax), abs(ymin), abs(ymax))
+        if horizontal and any(abs(rmax - r) < 1e-3 for r in (rb, rsi, rso)):
+            tags.append(t)
+            continue
+        lo = min(abs(xmin), abs(xmax))
+        hi = max(abs(xmin), abs(xmax))
+        if abs(hi - lo) < 1e-6 and any(abs(lo - xf) < 1e-3 for xf in x_fillet):
+            fillet.append(t)
+    return tags, fillet
+
+
+_SAMPLE = [(0, 0, 0), (1, 0, 0), (0, 1, 0), (0, 0, 1), (.5, 0, 0), (0, .5, 0), (0, 0, .5),
+           (.5, .5, 0), (0, .5, .5), (.5, 0, .5), (.25, .25, .25)]
+
+
+def jacobian_ratio() -> float:
+    """Worst element quality of the current gmsh mesh: min over tets of min det J / max det J.
+
+    1 for straight undistorted tets; <= 0 means an inverted (tangled) curved element.
+    Sampled at the vertices, edge midpoints and centroid of each tetrahedron.
+    """
+    worst = 1.0
+    for etype in gmsh.model.mesh.getElementTypes(3):
+        _, det, _ = gmsh.model.mesh.getJacobians(etype, [c for p in _SAMPLE for c in p])
+        if len(det):
+            det_arr = np.asarray(det).reshape(-1, len(_SAMPLE))
+            worst = min(worst, float((det_arr.min(1) / det_arr.max(1)).min()))
+    return worst

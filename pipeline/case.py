@@ -1,0 +1,196 @@
+"""A resolved analysis case: every input of a run, defaults included (mm, N, MPa).
+
+Sources, later ones winning: the size table row (geometry/sizes.csv), a case file
+(TOML, see cases/05.toml), then command-line options. Every value is checked before any
+geometry is built; a bad one raises InputError naming the field and the rule.
+"""
+from __future__ import annotations
+
+import math
+import tomllib
+from dataclasses import asdict, dataclass, field, fields, replace
+from pathlib import Path
+from typing import Any
+
+from geometry.builder import MODELS, MeshSpec
+from geometry.table import Dimensions, InputError, lookup, validate
+
+from .crosshead import SUPPORTS
+from .solve import SOLVERS
+
+DIMENSION_KEYS = tuple(f.name for f in fields(Dimensions))
+
+
+@dataclass(frozen=True)
+class Case:
+    """Everything a run needs. Lengths mm, loads N, stresses and moduli MPa."""
+
+    name: str
+    size: str
+    source: str
+    dims: Dimensions
+    load_N: float
+    E_MPa: float = 210_000.0
+    nu: float = 0.3
+    allowable_MPa: float = 80.0
+    model: str = "quarter"
+    support: str = "bearing"
+    order: int = 2
+    solver: str = "gamg"
+    rtol: float = 1e-10
+    mesh_factor: float = 1.0
+    size_body_mm: float | None = None
+    size_feature_mm: float | None = None
+    size_fillet_mm: float | None = None
+    grading_mm: float | None = None
+    approximate_span_mm: float | None = None
+    exact_span_mm: float | None = None
+    assumed: tuple[str, ...] = field(default_factory=tuple)
+
+    def mesh_spec(self, factor: float | None = None) -> MeshSpec:
+        """The mesh sizes of this case (defaults scaled to the part), times ``factor``."""
+        base = MeshSpec.default_for(self.dims, order=min(self.order, 2))
+        return replace(
+            base,
+            size_body=self.size_body_mm or base.size_body,
+            size_feature=self.size_feature_mm or base.size_feature,
+            size_fillet=self.size_fillet_mm or base.size_fillet,
+            grading=self.grading_mm or base.grading,
+            factor=self.mesh_factor if factor is None else factor,
+        )
+
+    def as_dict(self) -> dict[str, Any]:
+        out = asdict(self)
+        out["dims"] = asdict(self.dims)
+        out["assumed"] = list(self.assumed)
+        spec = self.mesh_spec()
+        out["mesh_sizes_mm"] = {"size_body": spec.size_body, "size_feature": spec.size_feature,
+                                "size_fillet": spec.size_fillet, "grading": spec.grading}
+        return out
+
+
+# Case-file layout: section -> key -> (Case field or "dims.<name>", type).
+_NUM = (int, float)
+SCHEMA: dict[str, dict[str, tuple[str, tuple[type, ...]]]] = {
+    "": {"name": ("name", (str,)), "size": ("size", (str,))},
+    "dimensions": {k: (f"dims.{k}", _NUM) for k in DIMENSION_KEYS},
+    "load": {"load_N": ("load_N", _NUM)},
+    "material": {"E_MPa": ("E_MPa", _NUM), "nu": ("nu", _NUM),
+                 "allowable_MPa": ("allowable_MPa", _NUM)},
+    "model": {"model": ("model", (str,)), "support": ("support", (str,))},
+    "mesh": {"order": ("order", (int,)), "factor": ("mesh_factor", _NUM),
+             "size_body_mm": ("size_body_mm", _NUM), "size_feature_mm": ("size_feature_mm", _NUM),
+             "size_fillet_mm": ("size_fillet_mm", _NUM), "grading_mm": ("grading_mm", _NUM)},
+    "solver": {"solver": ("solver", (str,)), "rtol": ("rtol", _NUM)},
+    "analytic": {"approximate_span_mm": ("approximate_span_mm", _NUM),
+                 "exact_span_mm": ("exact_span_mm", _NUM)},
+}
+
+
+def read_case_file(path: Path) -> dict[str, Any]:
+    """Flatten a TOML case file into {Case field or 'dims.x': value}, checking keys and types."""
+    try:
+        text = Path(path).read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise InputError(f"case: file not found: {path}") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise InputError(f"case: cannot read {path}: {exc}") from None
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise InputError(f"case: {path} is not valid TOML: {exc}") from None
+    flat: dict[str, Any] = {}
+    for section, content in data.items():
+        if isinstance(content, dict):
+            if section not in SCHEMA or section == "":
+                raise InputError(f"{section}: unknown section in {path}; known: "
+                                 f"{', '.join(s for s in SCHEMA if s)}")
+            items = [(section, k, v) for k, v in content.items()]
+        else:
+            items = [("", section, content)]
+        for sec, key, value in items:
+            spec = SCHEMA[sec].get(key)
+            where = f"{sec}.{key}" if sec else key
+            if spec is None:
+                raise InputError(f"{where}: unknown key in {path}; known in [{sec or 'top level'}]: "
+                                 f"{', '.join(SCHEMA[sec])}")
+            target, types = spec
+            if isinstance(value, bool) or not isinstance(value, types):
+                raise InputError(f"{where}: expected {' or '.join(t.__name__ for t in types)}, got {value!r}")
+            flat[target] = value
+    return flat
+
+
+def resolve(size: str | None = None, case_file: Path | None = None,
+            overrides: dict[str, Any] | None = None) -> Case:
+    """Build and check a Case from a size, a case file and overrides (same keys as the file).
+
+    Overrides use Case field names, or 'dims.<name>' for a dimension.
+    """
+    values: dict[str, Any] = {}
+    if case_file is not None:
+        values.update(read_case_file(case_file))
+    values.update({k: v for k, v in (overrides or {}).items() if v is not None})
+    if size is not None:
+        values["size"] = size
+    if "size" not in values:
+        raise InputError("size: no hook number given (use --size or size = \"05\" in the case file)")
+    row = lookup(str(values.pop("size")))
+    dim_over = {k.split(".", 1)[1]: float(v) for k, v in list(values.items()) if k.startswith("dims.")}
+    for k in list(values):
+        if k.startswith("dims."):
+            del values[k]
+    dims = replace(row.dims, **dim_over)
+    name = values.pop("name", None) or row.size
+    load = values.pop("load_N", row.load_N)
+    assumed = tuple(k for k in ("dj", "rf", "seat_inner", "seat_outer") if k not in dim_over)
+    case = Case(name=str(name), size=row.size, source=row.source, dims=dims, load_N=load,
+                assumed=assumed, **values)
+    return check(case)
+
+
+def _finite_positive(name: str, v: Any, allow_zero: bool = False) -> None:
+    if isinstance(v, bool) or not isinstance(v, (int, float)):
+        raise InputError(f"{name}: must be a number, got {v!r}")
+    if not math.isfinite(v):
+        raise InputError(f"{name}: must be finite, got {v!r}")
+    if v < 0 or (v == 0 and not allow_zero):
+        raise InputError(f"{name}: must be > 0, got {v:g}")
+
+
+def check(case: Case) -> Case:
+    """Return case if every field is usable, else raise InputError for the first bad one."""
+    validate(case.dims)
+    _finite_positive("load_N", case.load_N)
+    _finite_positive("E_MPa", case.E_MPa)
+    _finite_positive("allowable_MPa", case.allowable_MPa)
+    if isinstance(case.nu, bool) or not isinstance(case.nu, (int, float)) or not (-1 < case.nu < 0.5):
+        raise InputError(f"nu: Poisson's ratio must lie in (-1, 0.5), got {case.nu!r}")
+    if case.model not in MODELS:
+        raise InputError(f"model: must be one of {', '.join(MODELS)}, got {case.model!r}")
+    if case.support not in SUPPORTS:
+        raise InputError(f"support: must be one of {', '.join(SUPPORTS)}, got {case.support!r}")
+    if case.solver not in SOLVERS:
+        raise InputError(f"solver: must be one of {', '.join(SOLVERS)}, got {case.solver!r}")
+    if isinstance(case.order, bool) or case.order not in (1, 2, 3):
+        raise InputError(f"order: element order must be 1, 2 or 3, got {case.order!r}")
+    _finite_positive("rtol", case.rtol)
+    if case.rtol >= 1e-3:
+        raise InputError(f"rtol: solver tolerance must be below 1e-3, got {case.rtol:g}")
+    _finite_positive("mesh_factor", case.mesh_factor)
+    if not 0.05 <= case.mesh_factor <= 20:
+        raise InputError(f"mesh_factor: must lie in [0.05, 20], got {case.mesh_factor:g}")
+    for k in ("size_body_mm", "size_feature_mm", "size_fillet_mm", "grading_mm",
+              "approximate_span_mm", "exact_span_mm"):
+        v = getattr(case, k)
+        if v is not None:
+            _finite_positive(k, v)
+    spec = case.mesh_spec()
+    if spec.size_body * spec.factor < 1e-3 * case.dims.b6 or \
+            min(spec.size_feature, spec.size_fillet) * spec.factor < 2e-4 * case.dims.b6:
+        raise InputError("mesh_factor: mesh sizes this small would need more elements than this tool allows")
+    if spec.size_body * spec.factor > case.dims.b6:
+        raise InputError(f"size_body_mm: {spec.size_body * spec.factor:g} mm is larger than the part ({case.dims.b6:g} mm)")
+    if not case.name or any(c in case.name for c in "/\\\0") or case.name in (".", ".."):
+        raise InputError(f"name: {case.name!r} cannot be used as a folder name")
+    return case

@@ -1,0 +1,138 @@
+"""Writing a run's files all-or-nothing, and the ParaView fields.
+
+Everything goes into a hidden staging folder beside the output folder; only a complete
+run is renamed into place, so a failed or interrupted run leaves no results behind.
+"""
+from __future__ import annotations
+
+import contextlib
+import json
+import math
+import os
+import shutil
+import tempfile
+from pathlib import Path
+from typing import Iterator
+
+from dolfinx import io
+from mpi4py import MPI
+
+from .errors import InputError
+
+
+@contextlib.contextmanager
+def staged_dir(out_dir: Path, comm=MPI.COMM_WORLD) -> Iterator[Path]:
+    """Yield a fresh staging folder; on success it replaces ``out_dir``, on error it is removed.
+
+    An output location that cannot be written raises InputError before any work is done.
+    """
+    out_dir = Path(out_dir).resolve()
+    tmp = None
+    if comm.rank == 0:
+        try:
+            out_dir.parent.mkdir(parents=True, exist_ok=True)
+            if out_dir.exists() and not out_dir.is_dir():
+                raise InputError(f"out: {out_dir} exists and is not a folder")
+            tmp = tempfile.mkdtemp(prefix=f".{out_dir.name}.", suffix=".partial", dir=out_dir.parent)
+        except InputError as exc:
+            tmp = exc
+        except OSError as exc:
+            tmp = InputError(f"out: cannot write to {out_dir.parent}: {exc.strerror or exc}")
+    tmp = comm.bcast(tmp, root=0)
+    if isinstance(tmp, Exception):
+        raise tmp
+    staging = Path(tmp)
+    try:
+        yield staging
+        comm.barrier()
+        if comm.rank == 0:
+            old = None
+            if out_dir.exists():
+                old = out_dir.with_name(f".{out_dir.name}.old-{os.getpid()}")
+                out_dir.rename(old)
+            staging.rename(out_dir)
+            if old is not None:
+                shutil.rmtree(old, ignore_errors=True)
+    except BaseException:
+        if comm.rank == 0:
+            shutil.rmtree(staging, ignore_errors=True)
+        raise
+
+
+def _clean(obj):
+    """JSON-safe copy: NaN/Inf become None (strict JSON has neither)."""
+    if isinstance(obj, float):
+        return obj if math.isfinite(obj) else None
+    if isinstance(obj, dict):
+        return {k: _clean(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_clean(v) for v in obj]
+    return obj
+
+
+def write_json(path: Path, data: dict, comm=MPI.COMM_WORLD) -> None:
+    """Write results as indented strict JSON (rank 0)."""
+    if comm.rank == 0:
+        Path(path).write_text(json.dumps(_clean(data), indent=2, allow_nan=False) + "\n",
+                              encoding="utf-8")
+
+
+def write_fields(folder: Path, u, vm) -> dict[str, str]:
+    """Fields for ParaView: displacement (full P2, mm) and von Mises (DG, MPa).
+
+    displacement.pvd: the P2 displacement (DOLFINx VTKFile). von_mises.vtu: one file
+    with the element-node von Mises values the peaks were taken from and the displacement
+    at the same nodes (use Warp By Vector). VTK, not XDMF: DOLFINx 0.5.2's XDMF writer
+    drops P2 mid-edge values and cannot place DG values on this curved mesh.
+    """
+    comm = u.function_space.mesh.comm
+    files = {"displacement": "displacement.pvd", "von_mises": "von_mises.vtu"}
+    with io.VTKFile(comm, str(Path(folder) / files["displacement"]), "w") as f:
+        f.write_function(u)
+    grid = _gather_dg_grid(vm, u)
+    if comm.rank == 0:
+        import meshio
+        points, cells, vals, disp = grid
+        meshio.write(Path(folder) / files["von_mises"],
+                     meshio.Mesh(points, [("tetra", cells)],
+                                 point_data={"von_mises_MPa": vals, "displacement_mm": disp}),
+                     binary=True)
+    return files
+
+
+def _gather_dg_grid(vm, u):
+    """(points, linear tets, von Mises, displacement) of the DG space of vm, on rank 0.
+
+    Each cell has its own nodes (discontinuous); the geometry uses the cell vertices.
+    """
+    import numpy as np
+    from dolfinx import fem
+    W = vm.function_space
+    mesh = W.mesh
+    comm = mesh.comm
+    degree = W.ufl_element().degree()
+    if degree == 1:
+        Wv = fem.VectorFunctionSpace(mesh, ("DG", 1))
+        ud = fem.Function(Wv)
+        ud.interpolate(u)
+        n_cells = mesh.topology.index_map(3).size_local
+        dofs = W.dofmap.list.array.reshape(-1, 4)[:n_cells]
+        xyz = W.tabulate_dof_coordinates()
+        points = xyz[dofs.ravel()]
+        vals = vm.x.array[dofs.ravel()]
+        disp = ud.x.array.reshape(-1, 3)[Wv.dofmap.list.array.reshape(-1, 4)[:n_cells].ravel()]
+    else:
+        # DG0 (P1) or DG2 (P3): draw each cell's vertices with the cell's value at
+        # its nearest DG node; exact for DG0, a vertex sample for DG2.
+        W1 = fem.FunctionSpace(mesh, ("DG", 1))
+        v1 = fem.Function(W1)
+        v1.interpolate(vm)
+        return _gather_dg_grid(v1, u)
+    parts = comm.gather((points, vals, disp), root=0)
+    if comm.rank != 0:
+        return None
+    points = np.vstack([p[0] for p in parts])
+    vals = np.concatenate([p[1] for p in parts])
+    disp = np.vstack([p[2] for p in parts])
+    cells = np.arange(points.shape[0], dtype=np.int64).reshape(-1, 4)
+    return points, cells, vals, disp

@@ -1,0 +1,58 @@
+"""Off-screen picture of von Mises stress on the deformed part, peaks marked (mm, MPa).
+
+Runs in its own process (``python -m pipeline.render FOLDER``) and reads only files the
+run wrote: von_mises.vtu (element-node von Mises and displacement, the exact field the
+peaks were taken from) and results.json (the peaks). A separate process because VTK's
+wheel crashes (std::regex, bad_alloc) when DOLFINx's libraries are loaded first.
+"""
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+
+
+def render_folder(folder: Path, out_name: str = "von_mises.png") -> Path:
+    """Draw folder/von_mises.vtu with the peaks of folder/results.json into a PNG."""
+    import pyvista
+    pyvista.OFF_SCREEN = True
+    folder = Path(folder)
+    res = json.loads((folder / "results.json").read_text(encoding="utf-8"))
+    grid = pyvista.read(folder / "von_mises.vtu")
+    disp = np.asarray(grid.point_data["displacement_mm"])
+    length = float(res["case"]["dims"]["b6"])
+    umax = float(np.linalg.norm(disp, axis=1).max()) or 1.0
+    scale = 0.04 * length / umax
+    points0 = np.asarray(grid.points).copy()
+    grid.points = points0 + scale * disp
+    fe, case = res["fe"], res["case"]
+    pl = pyvista.Plotter(off_screen=True, window_size=(1400, 1000))
+    pl.add_mesh(grid, scalars="von_mises_MPa", cmap="turbo",
+                scalar_bar_args={"title": "von Mises (MPa)", "vertical": True,
+                                 "position_x": 0.86, "position_y": 0.15})
+    marks = (("global peak", fe["peak_MPa"], fe["peak_location_mm"], "black"),
+             ("critical peak", fe["critical_peak_MPa"], fe["critical_location_mm"], "magenta"))
+    for label, value, loc, colour in marks:
+        idx = int(np.argmin(np.linalg.norm(points0 - np.asarray(loc), axis=1)))
+        p = grid.points[idx]
+        pl.add_mesh(pyvista.Sphere(radius=0.012 * length, center=p), color=colour)
+        pl.add_point_labels([p], [f"{label}: {value:.1f} MPa"], font_size=20, point_size=1,
+                            text_color=colour, shape_opacity=0.7, always_visible=True)
+    pl.add_text(f"Crosshead No. {case['size']}, Q = {case['load_N']:g} N, {case['model']} model, "
+                f"{case['support']} support\nvon Mises (MPa) on the deformed part, displacement x{scale:.0f}",
+                font_size=11)
+    # Look into the cut faces (symmetry planes x = 0 and y = 0 of the quarter model):
+    # they show the ligament beside the bore and the journal root in section.
+    c = np.asarray(grid.center)
+    pl.camera_position = [tuple(c + length * np.array([-0.9, -1.5, 0.9])), tuple(c), (0, 0, 1)]
+    pl.add_axes()
+    out = folder / out_name
+    pl.screenshot(str(out))
+    pl.close()
+    return out
+
+
+if __name__ == "__main__":
+    render_folder(Path(sys.argv[1]))

@@ -1,0 +1,217 @@
+"""One analysis, case → geometry → mesh → solve → post-process → outputs (mm, N, MPa).
+
+``run`` solves the case on the requested mesh and on coarser meshes (every size ×ratio,
+×ratio², …) so that each peak it reports carries a Richardson/GCI error bar; the
+finest (requested) mesh is the one whose fields are written. Stages talk through the
+dataclasses below and files in the output folder; nothing is kept in module state.
+"""
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+from mpi4py import MPI
+
+from . import analytic
+from .case import Case
+from .convergence import Estimate, estimate, representative_size
+from .crosshead import crosshead_loads, equilibrium
+from .errors import NumericalError
+from .mesh_io import make_mesh
+from .post import Peak, peak, von_mises
+from .solve import Material, solve
+
+Progress = Callable[[str], None]
+
+
+@dataclass
+class Level:
+    """The result of one mesh: peaks (MPa, mm), sizes, solver data, times (s)."""
+
+    factor: float
+    dofs: int
+    cells: int
+    peak: Peak
+    critical: Peak
+    iterations: int
+    residual_rel: float
+    seat_force_N: float
+    support_force_N: float
+    equilibrium_error_N: float
+    constraint_reaction_N: float
+    jacobian_ratio: float
+    timings: dict[str, float]
+    fields: tuple | None = None  # (u, von_mises) on the requested mesh only
+
+
+def critical_region(case: Case) -> Callable[[np.ndarray], np.ndarray]:
+    """The ligaments beside the bore: |x| <= di/2 (DESIGN §5)."""
+    half = case.dims.d2 / 2 * (1 + 1e-9)
+    return lambda xyz: np.abs(xyz[:, 0]) <= half
+
+
+def solve_level(case: Case, factor: float, msh_path: Path | None = None,
+                keep_fields: bool = False, comm=MPI.COMM_WORLD,
+                progress: Progress | None = None) -> Level:
+    """Build, mesh and solve the case with every mesh size times ``factor``; find the peaks.
+
+    Raises NumericalError if the mesh has an inverted element, the solver fails, the
+    result is not finite, or the loads do not balance to 1e-6·Q.
+    """
+    say = progress or (lambda s: None)
+    spec = case.mesh_spec(factor)
+    m = make_mesh(case.dims, case.model, spec, comm=comm, msh_path=msh_path)
+    say(f"mesh ×{factor:.3g}: {m.mesh.topology.index_map(3).size_global} tets, "
+        f"geometry {m.timings['geometry']:.2f} s, mesh {m.timings['mesh']:.2f} s, "
+        f"import {m.timings['import']:.2f} s")
+    if not m.jacobian_ratio > 0:
+        raise NumericalError(f"mesh has an inverted element (worst det J ratio {m.jacobian_ratio:.3g})")
+    mat = Material(E=case.E_MPa, nu=case.nu)
+    lc = crosshead_loads(m, case.dims, case.load_N, case.support)
+    sol = solve(m.mesh, m.facet_tags, case.order, mat, lc.tractions, lc.constraints,
+                solver=case.solver, rtol=case.rtol)
+    support, eq_err, point_r = equilibrium(lc, sol.reactions)
+    limit = 1e-6 * case.load_N
+    if not (eq_err <= limit and point_r <= limit):
+        raise NumericalError(f"loads out of balance: equilibrium error {eq_err:.3g} N, "
+                             f"constraint reaction {point_r:.3g} N (limit {limit:.3g} N)")
+    t0 = time.perf_counter()
+    vm = von_mises(sol.u, mat)
+    pk = peak(vm)
+    crit = peak(vm, critical_region(case))
+    t_post = time.perf_counter() - t0
+    timings = dict(m.timings, **sol.timings, post=t_post)
+    say(f"solve ×{factor:.3g}: {sol.dofs} DOFs, {sol.iterations} iterations ({case.solver}), "
+        f"assemble {sol.timings['assemble']:.2f} s, solve {sol.timings['solve']:.2f} s; "
+        f"peak {pk.value_MPa:.2f} MPa, critical {crit.value_MPa:.2f} MPa")
+    return Level(factor=factor, dofs=sol.dofs, cells=m.mesh.topology.index_map(3).size_global,
+                 peak=pk, critical=crit, iterations=sol.iterations,
+                 residual_rel=sol.residual_rel, seat_force_N=lc.seat_force_z_N,
+                 support_force_N=support, equilibrium_error_N=eq_err,
+                 constraint_reaction_N=point_r, jacobian_ratio=m.jacobian_ratio,
+                 timings=timings, fields=(sol.u, vm) if keep_fields else None)
+
+
+def describe_location(case: Case, xyz: tuple[float, float, float]) -> str:
+    """Plain-words name of the feature at point xyz (mm), for the report."""
+    d = case.dims
+    x, y, z = (abs(xyz[0]), abs(xyz[1]), xyz[2])
+    r_axis = math.hypot(x, y)
+    tol = 0.02 * d.h3
+    vertical = "bottom" if z < tol else "top" if z > d.h3 - tol else "mid-height"
+    if abs(r_axis - d.d2 / 2) < tol:
+        return f"bore edge ({vertical} face)" if vertical != "mid-height" else "bore wall"
+    if d.b1 / 2 - tol <= x <= d.b1 / 2 + d.rf + tol and x >= d.b1 / 2 - tol and \
+            math.hypot(y, z - d.h3 / 2) < d.dj / 2 + d.rf + tol and d.rf > 0:
+        return "journal shoulder fillet"
+    if x > d.b1 / 2 + tol:
+        return "journal"
+    if z > d.h3 - tol and min(abs(r_axis - d.seat_inner / 2), abs(r_axis - d.seat_outer / 2)) < tol:
+        return "seat band edge (top face)"
+    if x <= d.d2 / 2:
+        return f"ligament beside the bore ({vertical})"
+    return f"body ({vertical})"
+
+
+def estimate_levels(levels: list[Level], case: Case, attr: str) -> Estimate:
+    """Error estimate of one peak ("peak" or "critical") over levels given finest first."""
+    values = [getattr(lv, attr).value_MPa for lv in levels]
+    h = [representative_size(lv.dofs) for lv in levels]
+    return estimate(values, h, p_formal=float(case.order))
+
+
+def analyse(case: Case, levels: int = 3, ratio: float = 1.3, msh_path: Path | None = None,
+            progress: Progress | None = None, comm=MPI.COMM_WORLD) -> list[Level]:
+    """Solve on ``levels`` meshes, the requested one and coarser by ``ratio`` each; finest first.
+
+    Coarse meshes first, so a failure shows up early and cheaply.
+    """
+    factors = [case.mesh_factor * ratio ** k for k in range(levels)]
+    out = []
+    for k in reversed(range(levels)):
+        out.append(solve_level(case, factors[k], msh_path=msh_path if k == 0 else None,
+                               keep_fields=(k == 0), comm=comm, progress=progress))
+    return out[::-1]
+
+
+def pct(a: float, b: float) -> float:
+    """Percentage difference of a relative to b."""
+    return 100.0 * (a - b) / b
+
+
+def build_results(case: Case, levels: list[Level], timings: dict[str, float],
+                  comm=MPI.COMM_WORLD) -> dict:
+    """The results.json content of DESIGN §7 from the solved levels (finest first)."""
+    fine = levels[0]
+    hand = analytic.hand_results(case.dims, case.load_N, case.approximate_span_mm,
+                                 case.exact_span_mm)
+    est_peak = estimate_levels(levels, case, "peak") if len(levels) >= 3 else None
+    est_crit = estimate_levels(levels, case, "critical") if len(levels) >= 3 else None
+
+    def peak_block(p: Peak, est: Estimate | None) -> dict:
+        block = {"value_MPa": p.value_MPa, "location_mm": list(p.location_mm),
+                 "feature": describe_location(case, p.location_mm)}
+        if est is not None:
+            block["error_estimate"] = est.as_dict()
+        return block
+
+    ex, ap = hand.exact, hand.approximate
+    fe = {
+        "peak_MPa": fine.peak.value_MPa,
+        "peak_location_mm": list(fine.peak.location_mm),
+        "critical_peak_MPa": fine.critical.value_MPa,
+        "critical_location_mm": list(fine.critical.location_mm),
+        "peak": peak_block(fine.peak, est_peak),
+        "critical": peak_block(fine.critical, est_crit),
+        "dofs": fine.dofs, "cells": fine.cells, "order": case.order,
+        "model": case.model, "support": case.support, "solver": case.solver,
+        "iterations": fine.iterations, "residual_rel": fine.residual_rel,
+        "equilibrium_error_N": fine.equilibrium_error_N,
+        "constraint_reaction_N": fine.constraint_reaction_N,
+        "seat_force_N": fine.seat_force_N, "support_force_N": fine.support_force_N,
+        "model_load_share": 0.25 if case.model == "quarter" else 1.0,
+        "mesh_min_jacobian_ratio": fine.jacobian_ratio,
+        "safety_factor": case.allowable_MPa / fine.peak.value_MPa,
+        "critical_safety_factor": case.allowable_MPa / fine.critical.value_MPa,
+        "mpi_ranks": comm.size,
+        "levels": [{"mesh_factor": lv.factor, "dofs": lv.dofs, "cells": lv.cells,
+                    "peak_MPa": lv.peak.value_MPa, "critical_peak_MPa": lv.critical.value_MPa,
+                    "iterations": lv.iterations, "time_s": sum(lv.timings.values())}
+                   for lv in levels],
+    }
+    return {
+        "units": {"length": "mm", "force": "N", "stress": "MPa"},
+        "case": case.as_dict(),
+        "analytic": {
+            "approximate_MPa": ap.sigma_MPa, "exact_MPa": ex.sigma_MPa,
+            "approximate_span_mm": ap.span_mm, "exact_span_mm": ex.span_mm,
+            "approximate_terms": {"lever_mm": ap.lever_mm, "Me_Nmm": ap.Me_Nmm},
+            "exact_terms": {"N1_N": ex.N1_N, "M1_Nmm": ex.M1_Nmm, "N2_N": ex.N2_N,
+                            "M2_Nmm": ex.M2_Nmm, "R_mm": ex.R_mm, "F_mm2": ex.F_mm2,
+                            "W_mm3": ex.W_mm3},
+            "consistent_span": {
+                "approximate_at_exact_span_MPa": hand.approximate_at_exact_span.sigma_MPa,
+                "exact_at_approximate_span_MPa": hand.exact_at_approximate_span.sigma_MPa},
+            "paper_MPa": {"approximate": 37.8, "exact": 43.75, "fe_catia": 42.10},
+        },
+        "fe": fe,
+        "comparison_pct": {
+            "critical_vs_exact": pct(fine.critical.value_MPa, ex.sigma_MPa),
+            "critical_vs_approximate": pct(fine.critical.value_MPa, ap.sigma_MPa),
+            "peak_vs_exact": pct(fine.peak.value_MPa, ex.sigma_MPa),
+            "peak_vs_approximate": pct(fine.peak.value_MPa, ap.sigma_MPa),
+        },
+        "timings_s": timings,
+    }
+
+
+def sum_timings(levels: list[Level]) -> dict[str, float]:
+    """Per-stage times (s): the requested mesh's stages plus the error-bar meshes' total."""
+    stages = ("geometry", "mesh", "import", "assemble", "solve", "post")
+    out = {k: levels[0].timings.get(k, 0.0) for k in stages}
+    out["error_bar_meshes"] = sum(sum(lv.timings.values()) for lv in levels[1:])
+    return out

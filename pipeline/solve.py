@@ -1,0 +1,253 @@
+"""3-D linear elasticity with DOLFINx 0.5.2 (units: mm, N, MPa).
+
+Generic on purpose: the crosshead (pipeline.crosshead) and the verification problems of
+the tests (Lamé cylinder, plate with a hole, beam, patch test) go through this same code.
+Loads are surface tractions on tagged facets; constraints fix displacement components on
+tagged facets or at points. Default solver: CG + GAMG with the rigid-body near-nullspace
+(as in the DOLFINx elasticity demo); "hypre" (BoomerAMG) and "mumps" (direct) on request.
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from typing import Callable, Sequence
+
+import numpy as np
+import ufl
+from dolfinx import fem
+from dolfinx.fem.petsc import (apply_lifting, assemble_matrix, assemble_vector, set_bc)
+from mpi4py import MPI
+from petsc4py import PETSc
+
+from .errors import NumericalError
+
+SOLVERS = ("gamg", "hypre", "mumps")
+
+
+@dataclass(frozen=True)
+class Material:
+    """Isotropic linear elastic material: Young's modulus E (MPa), Poisson's ratio nu."""
+
+    E: float = 210_000.0
+    nu: float = 0.3
+
+    @property
+    def lame(self) -> tuple[float, float]:
+        """Lamé parameters (mu, lambda), MPa."""
+        mu = self.E / (2 * (1 + self.nu))
+        lam = self.E * self.nu / ((1 + self.nu) * (1 - 2 * self.nu))
+        return mu, lam
+
+
+@dataclass
+class Traction:
+    """Surface load t (MPa, a UFL vector of x) on the facets marked ``marker``."""
+
+    marker: int
+    value: object
+
+
+@dataclass
+class Constraint:
+    """u_component = value (mm) on facets marked ``marker`` or at ``points`` (n×3, mm).
+
+    component None fixes all three components. ``points`` are matched to mesh nodes
+    within ``tol`` mm; a point that matches no node is an error.
+    """
+
+    component: int | None
+    value: float = 0.0
+    marker: int | None = None
+    points: np.ndarray | None = None
+    tol: float = 1e-6
+
+
+@dataclass
+class Solution:
+    """Displacement (mm) and what the solver did: iterations, residuals, DOFs, times (s)."""
+
+    u: fem.Function
+    iterations: int
+    reason: int
+    residual_rel: float
+    dofs: int
+    solver: str
+    bc_dofs: list[np.ndarray]
+    reactions: list[np.ndarray]  # per Constraint: reaction force vector (N), summed
+    timings: dict[str, float] = field(default_factory=dict)
+
+
+def strain(u):
+    """Small-strain tensor of displacement u (mm/mm)."""
+    return ufl.sym(ufl.grad(u))
+
+
+def stress(u, mat: Material):
+    """Cauchy stress (MPa) of displacement u."""
+    mu, lam = mat.lame
+    return 2.0 * mu * strain(u) + lam * ufl.tr(strain(u)) * ufl.Identity(len(u))
+
+
+def von_mises_expr(u, mat: Material):
+    """Von Mises equivalent stress (MPa) as a UFL expression."""
+    s = stress(u, mat)
+    dev = s - ufl.tr(s) / 3 * ufl.Identity(len(u))
+    return ufl.sqrt(1.5 * ufl.inner(dev, dev))
+
+
+def _point_dofs(V, component: int, points: np.ndarray, tol: float) -> np.ndarray:
+    """Local DOFs of ``component`` at the given points (collapsed-space pairs)."""
+    Vc, _ = V.sub(component).collapse()
+
+    def marker(x):
+        hit = np.zeros(x.shape[1], dtype=bool)
+        for p in points:
+            hit |= np.linalg.norm(x.T - p[None, :], axis=1) < tol
+        return hit
+
+    return fem.locate_dofs_geometrical((V.sub(component), Vc), marker)
+
+
+def _dirichlet(V, facet_tags, c: Constraint):
+    """A DirichletBC and the (V-numbered) DOFs it fixes, for one Constraint."""
+    mesh = V.mesh
+    fdim = mesh.topology.dim - 1
+    comps = [0, 1, 2] if c.component is None else [c.component]
+    bcs, dofs_all = [], []
+    for comp in comps:
+        Vc, _ = V.sub(comp).collapse()
+        if c.points is not None:
+            dofs = _point_dofs(V, comp, np.asarray(c.points, dtype=float), c.tol)
+            n = mesh.comm.allreduce(len(dofs[0]), op=MPI.SUM)
+            if n < len(c.points):
+                raise NumericalError(f"constraint point(s) {c.points.tolist()} not found among the mesh nodes")
+        else:
+            facets = facet_tags.indices[facet_tags.values == c.marker]
+            dofs = fem.locate_dofs_topological((V.sub(comp), Vc), fdim, facets)
+        g = fem.Function(Vc)
+        g.x.array[:] = c.value
+        bcs.append(fem.dirichletbc(g, dofs, V.sub(comp)))
+        dofs_all.append(dofs[0])
+    return bcs, dofs_all
+
+
+def rigid_body_nullspace(V) -> PETSc.NullSpace:
+    """The six rigid-body modes of the vector space V as a PETSc near-nullspace.
+
+    Built from the owned node coordinates (mm); PETSc orthonormalises them.
+    """
+    n_owned = V.dofmap.index_map.size_local
+    xyz = V.tabulate_dof_coordinates()[:n_owned].reshape(-1).copy()
+    coords = PETSc.Vec().createWithArray(xyz, bsize=3, comm=V.mesh.comm)
+    return PETSc.NullSpace().createRigidBody(coords)
+
+
+def solver_options(name: str, rtol: float) -> dict[str, object]:
+    """PETSc options for the named solver."""
+    if name == "gamg":
+        return {"ksp_type": "cg", "ksp_rtol": rtol, "ksp_max_it": 1000,
+                "pc_type": "gamg", "pc_gamg_type": "agg", "pc_gamg_agg_nsmooths": 1,
+                "pc_gamg_threshold": 0.02, "pc_gamg_square_graph": 2,
+                "mg_levels_ksp_type": "chebyshev", "mg_levels_pc_type": "jacobi",
+                "mg_levels_ksp_chebyshev_esteig_steps": 20}
+    if name == "hypre":
+        return {"ksp_type": "cg", "ksp_rtol": rtol, "ksp_max_it": 1000,
+                "pc_type": "hypre", "pc_hypre_type": "boomeramg",
+                "pc_hypre_boomeramg_strong_threshold": 0.7,
+                "pc_hypre_boomeramg_nodal_coarsen": 6,
+                "pc_hypre_boomeramg_vec_interp_variant": 3,
+                "pc_hypre_boomeramg_agg_nl": 2}
+    if name == "mumps":
+        return {"ksp_type": "preonly", "pc_type": "lu",
+                "pc_factor_mat_solver_type": "mumps"}
+    raise ValueError(f"solver must be one of {SOLVERS}, got {name!r}")
+
+
+_counter = [0]
+
+
+def solve(mesh, facet_tags, order: int, mat: Material, tractions: Sequence[Traction],
+          constraints: Sequence[Constraint], solver: str = "gamg", rtol: float = 1e-10,
+          progress: Callable[[str], None] | None = None) -> Solution:
+    """Solve div σ(u) = 0 with the given tractions and constraints.
+
+    Checks the solver's converged reason and the true relative residual ‖b − A u‖/‖b‖
+    (must be below 1e-6 for iterative solvers, 1e-8 for MUMPS) and that u is finite.
+    Reaction forces (N) at each Constraint come from the unconstrained residual.
+    """
+    t0 = time.perf_counter()
+    V = fem.VectorFunctionSpace(mesh, ("Lagrange", order))
+    u, v = ufl.TrialFunction(V), ufl.TestFunction(V)
+    ds = ufl.Measure("ds", domain=mesh, subdomain_data=facet_tags)
+    a_form = ufl.inner(stress(u, mat), strain(v)) * ufl.dx
+    zero = fem.Constant(mesh, PETSc.ScalarType((0.0, 0.0, 0.0)))
+    L_form = ufl.inner(zero, v) * ufl.dx
+    for t in tractions:
+        L_form += ufl.inner(t.value, v) * ds(t.marker)
+    bcs, bc_dofs = [], []
+    for c in constraints:
+        b_, d_ = _dirichlet(V, facet_tags, c)
+        bcs += b_
+        bc_dofs.append(np.concatenate(d_) if d_ else np.array([], dtype=np.int32))
+    a = fem.form(a_form)
+    L = fem.form(L_form)
+    A = assemble_matrix(a, bcs=bcs)
+    A.assemble()
+    b = assemble_vector(L)
+    apply_lifting(b, [a], bcs=[bcs])
+    b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+    set_bc(b, bcs)
+    if solver != "mumps":
+        A.setNearNullSpace(rigid_body_nullspace(V))
+    t_assemble = time.perf_counter() - t0
+
+    t0 = time.perf_counter()
+    ksp = PETSc.KSP().create(mesh.comm)
+    _counter[0] += 1
+    prefix = f"crosshead_{_counter[0]}_"
+    ksp.setOptionsPrefix(prefix)
+    opts = PETSc.Options()
+    for k, val in solver_options(solver, rtol).items():
+        opts[prefix + k] = val
+    ksp.setOperators(A)
+    ksp.setFromOptions()
+    for k in solver_options(solver, rtol):
+        del opts[prefix + k]
+    uh = fem.Function(V, name="displacement_mm")
+    ksp.solve(b, uh.vector)
+    uh.x.scatter_forward()
+    reason, its = ksp.getConvergedReason(), ksp.getIterationNumber()
+    r = b.duplicate()
+    A.mult(uh.vector, r)
+    r.axpy(-1.0, b)
+    bnorm = b.norm()
+    res_rel = r.norm() / bnorm if bnorm > 0 else r.norm()
+    t_solve = time.perf_counter() - t0
+    if reason <= 0:
+        raise NumericalError(f"solver {solver} did not converge (PETSc reason {reason}, {its} iterations)")
+    if not np.all(np.isfinite(uh.x.array)) or not np.isfinite(res_rel):
+        raise NumericalError("the displacement contains NaN or Inf")
+    limit = 1e-8 if solver == "mumps" else max(1e3 * rtol, 1e-6)
+    if res_rel > limit:
+        raise NumericalError(f"true residual {res_rel:.3g} above {limit:.1g} after solve")
+
+    # Reactions: residual of the unconstrained system, R = K u - f, at the fixed DOFs.
+    t0 = time.perf_counter()
+    R = fem.petsc.assemble_vector(fem.form(ufl.inner(stress(uh, mat), strain(v)) * ufl.dx - L_form))
+    R.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+    n_owned = V.dofmap.index_map.size_local * V.dofmap.index_map_bs
+    Ra = R.array_r
+    reactions = []
+    for d_ in bc_dofs:
+        owned = d_[d_ < n_owned]
+        f = np.zeros(3)
+        for comp in range(3):
+            sel = owned[owned % 3 == comp]
+            f[comp] = Ra[sel].sum()
+        reactions.append(mesh.comm.allreduce(f, op=MPI.SUM))
+    t_assemble += time.perf_counter() - t0
+    ksp.destroy()
+    dofs = V.dofmap.index_map.size_global * V.dofmap.index_map_bs
+    return Solution(u=uh, iterations=its, reason=reason, residual_rel=float(res_rel), dofs=dofs,
+                    solver=solver, bc_dofs=bc_dofs, reactions=reactions,
+                    timings={"assemble": t_assemble, "solve": t_solve})

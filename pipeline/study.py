@@ -1,0 +1,104 @@
+"""The two commands' work: a run (one case, with error bar) and a convergence study.
+
+Both write into a staging folder that replaces the output folder only when complete.
+"""
+from __future__ import annotations
+
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+from mpi4py import MPI
+
+from .case import Case
+from .output import staged_dir, write_fields, write_json
+from .report import write_report
+from .run import Progress, analyse, build_results, describe_location, sum_timings
+
+
+def execute_run(case: Case, out_dir: Path, levels: int = 3, ratio: float = 1.3,
+                progress: Progress | None = None, write_fields: bool = True,
+                comm=MPI.COMM_WORLD) -> dict:
+    """Analyse ``case`` and write results.json, report.md, mesh.msh, VTK fields and a PNG."""
+    say = progress or (lambda s: None)
+    t_all = time.perf_counter()
+    with staged_dir(out_dir, comm) as stage:
+        lv = analyse(case, levels=levels, ratio=ratio, msh_path=stage / "mesh.msh",
+                     progress=say, comm=comm)
+        timings = sum_timings(lv)
+        res = build_results(case, lv, timings, comm)
+        t0 = time.perf_counter()
+        files = {"results": "results.json", "mesh": "mesh.msh"}
+        if write_fields:
+            u, vm = lv[0].fields
+            files.update(write_fields_(stage, u, vm))
+            files["picture"] = "von_mises.png"
+            files["report"] = "report.md"
+        res["files"] = files
+        res["timings_s"]["output"] = time.perf_counter() - t0
+        res["timings_s"]["total"] = time.perf_counter() - t_all
+        write_json(stage / "results.json", res, comm)
+        if write_fields and comm.rank == 0:
+            t0 = time.perf_counter()
+            render_picture(stage)
+            res["timings_s"]["picture"] = time.perf_counter() - t0
+            res["timings_s"]["total"] = time.perf_counter() - t_all
+            write_json(stage / "results.json", res, comm)
+            write_report(stage)
+        say(f"output: {', '.join(files.values())} ({res['timings_s']['output']:.2f} s)")
+    return res
+
+
+write_fields_ = write_fields
+
+
+def render_picture(folder: Path) -> None:
+    """Run pipeline.render in its own process (VTK cannot share one with DOLFINx)."""
+    proc = subprocess.run([sys.executable, "-m", "pipeline.render", str(folder)],
+                          capture_output=True, text=True, cwd=Path(__file__).resolve().parents[1])
+    if proc.returncode != 0 or not (folder / "von_mises.png").exists():
+        tail = (proc.stderr.strip().splitlines() or ["no message"])[-1]
+        raise RuntimeError(f"picture rendering failed: {tail}")
+
+
+def execute_converge(case: Case, out_dir: Path, levels: int = 4, ratio: float = 1.3,
+                     progress: Progress | None = None, comm=MPI.COMM_WORLD) -> dict:
+    """Solve on ``levels`` meshes refined by ``ratio`` from the case's mesh, finest first.
+
+    Writes results.json (with a ``convergence`` block), report.md and convergence.png.
+    The finest mesh is the case's own mesh factor divided by ratio^(levels−3), so the
+    default mesh sits inside the study and its error can be read off directly.
+    """
+    say = progress or (lambda s: None)
+    t_all = time.perf_counter()
+    finest = case.mesh_factor / ratio ** max(levels - 3, 0)
+    from dataclasses import replace
+    fine_case = replace(case, mesh_factor=finest)
+    with staged_dir(out_dir, comm) as stage:
+        lv = analyse(fine_case, levels=levels, ratio=ratio, msh_path=stage / "mesh.msh",
+                     progress=say, comm=comm)
+        timings = sum_timings(lv)
+        res = build_results(fine_case, lv, timings, comm)
+        conv = {"ratio": ratio, "levels": res["fe"]["levels"],
+                "peak": res["fe"]["peak"]["error_estimate"],
+                "critical": res["fe"]["critical"]["error_estimate"],
+                "peak_features": [describe_location(case, l.peak.location_mm) for l in lv],
+                "critical_features": [describe_location(case, l.critical.location_mm) for l in lv]}
+        # Error of each level against the extrapolated value (only if converged).
+        for key in ("peak", "critical"):
+            ext = conv[key].get("extrapolated")
+            for row in conv["levels"]:
+                v = row["peak_MPa" if key == "peak" else "critical_peak_MPa"]
+                row[f"{key}_error_pct"] = None if ext is None else 100 * (v - ext) / ext
+        if comm.rank == 0:
+            from .plots import convergence_plot
+            if convergence_plot(stage / "convergence.png", conv, case):
+                conv["plot"] = "convergence.png"
+        res["convergence"] = conv
+        res["files"] = {"results": "results.json", "report": "report.md", "mesh": "mesh.msh"}
+        res["timings_s"]["total"] = time.perf_counter() - t_all
+        write_json(stage / "results.json", res, comm)
+        if comm.rank == 0:
+            write_report(stage)
+    return res

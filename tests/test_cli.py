@@ -1,0 +1,83 @@
+"""End-to-end: the CLI on a coarse mesh writes every key of the contract (DESIGN §7)."""
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def cli(*args, cwd=ROOT):
+    return subprocess.run([sys.executable, "-m", "pipeline", *args], cwd=cwd,
+                          capture_output=True, text=True, timeout=600)
+
+
+@pytest.fixture(scope="module")
+def coarse_run(tmp_path_factory):
+    out = tmp_path_factory.mktemp("run") / "r05"
+    p = cli("run", "--size", "05", "--mesh-factor", "2.0", "--out", str(out))
+    assert p.returncode == 0, p.stderr
+    return out, p
+
+
+def test_contract_keys(coarse_run):
+    out, _ = coarse_run
+    res = json.loads((out / "results.json").read_text())
+    assert res["units"] == {"length": "mm", "force": "N", "stress": "MPa"}
+    for k in ("dims", "load_N", "E_MPa", "nu", "model", "support", "order", "assumed"):
+        assert k in res["case"]
+    an = res["analytic"]
+    for k in ("approximate_MPa", "exact_MPa", "approximate_span_mm", "exact_span_mm"):
+        assert isinstance(an[k], float)
+    assert set(an["exact_terms"]) >= {"N1_N", "M1_Nmm", "N2_N", "M2_Nmm"}
+    assert an["exact_MPa"] == pytest.approx(43.81, abs=0.05)
+    fe = res["fe"]
+    for k in ("peak_MPa", "critical_peak_MPa", "dofs", "cells", "order", "equilibrium_error_N"):
+        assert k in fe
+    assert len(fe["peak_location_mm"]) == 3 and len(fe["critical_location_mm"]) == 3
+    assert fe["model"] == "quarter" and fe["support"] == "bearing" and fe["order"] == 2
+    assert fe["equilibrium_error_N"] < 1e-6 * 10_000
+    assert fe["peak_MPa"] >= fe["critical_peak_MPa"] > 0
+    assert abs(fe["critical_location_mm"][0]) <= 10.5 + 1e-9
+    assert fe["critical"]["error_estimate"]["status"] in ("converged", "oscillatory")
+    for k in ("geometry", "mesh", "import", "assemble", "solve", "post", "output", "total"):
+        assert res["timings_s"][k] >= 0
+    for name in ("results.json", "report.md", "mesh.msh", "displacement.pvd", "von_mises.vtu", "von_mises.png"):
+        assert (out / name).stat().st_size > 0, name
+
+
+def test_msh_has_physical_names(coarse_run):
+    out, _ = coarse_run
+    text = (out / "mesh.msh").read_text(errors="replace")
+    head = text[text.index("$PhysicalNames"):text.index("$EndPhysicalNames")]
+    for name in ("seat", "journal_bearing", "symmetry_x", "symmetry_y", "body"):
+        assert f'"{name}"' in head
+
+
+def test_report_mentions_inputs_formulas_and_units(coarse_run):
+    out, _ = coarse_run
+    rep = (out / "report.md").read_text()
+    for s in ("mm", "MPa", "assumed", "43.8", "37.76", "Safety factor", "Timings", "von_mises.png"):
+        assert s in rep, s
+
+
+def test_progress_lines(coarse_run):
+    _, p = coarse_run
+    assert p.stdout.count("] solve") == 3 and "output:" in p.stdout
+
+
+@pytest.mark.parametrize("args,field", [
+    (["run", "--size", "99"], "size"),
+    (["run", "--size", "05", "--dim", "d2=50"], "d2"),
+    (["run", "--size", "05", "--load", "-5"], "load_N"),
+    (["run", "--size", "05", "--support", "glued"], "support"),
+])
+def test_bad_input_exit_2_one_line(tmp_path, args, field):
+    out = tmp_path / "never"
+    p = cli(*args, "--out", str(out))
+    assert p.returncode == 2
+    lines = p.stderr.strip().splitlines()
+    assert len(lines) == 1 and field in lines[0] and "Traceback" not in p.stderr
+    assert not out.exists()

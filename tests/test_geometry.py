@@ -1,0 +1,84 @@
+"""Geometry: table row, validator, CAD volume against an independent volume, groups."""
+import math
+
+import gmsh
+import pytest
+from scipy.integrate import quad
+
+from geometry.builder import build
+from geometry.table import InputError, lookup, validate, with_overrides
+
+D05 = lookup("05").dims
+
+
+def volume_by_quadrature(d, model):
+    """Body box − bore + journals, the fillet ring integrated numerically (independent of
+    the Pappus formula the builder uses)."""
+    rj, rf = d.dj / 2, d.rf
+    body = d.b1 ** 2 * d.h3 - math.pi * d.d2 ** 2 / 4 * d.h3
+    cyl = math.pi * rj ** 2 * d.b2
+    ring, _ = quad(lambda s: math.pi * ((rj + rf - math.sqrt(rf ** 2 - (s - rf) ** 2)) ** 2 - rj ** 2), 0, rf)
+    full = body + 2 * (cyl + ring)
+    return full / 4 if model == "quarter" else full
+
+
+@pytest.fixture
+def gmsh_session():
+    gmsh.initialize(readConfigFiles=False)
+    gmsh.option.setNumber("General.Terminal", 0)
+    yield
+    gmsh.finalize()
+
+
+def test_no05_row_is_the_paper_table():
+    row = lookup("05")
+    d = row.dims
+    assert (d.b1, d.b2, d.b6, d.d14, d.d2, d.h3) == (45, 12.5, 70, 31, 21, 25)
+    assert (d.dj, d.rf, d.seat_inner, d.seat_outer) == (20, 1.5, 25, 37)   # DESIGN §2 defaults
+    assert row.load_N == 10_000 and "Imrak" in row.source
+
+
+@pytest.mark.parametrize("model", ["quarter", "full"])
+def test_cad_volume_matches_independent_volume(gmsh_session, model):
+    g = build(D05, model)
+    vol = sum(gmsh.model.occ.getMass(3, t) for _, t in gmsh.model.getEntities(3))
+    assert vol == pytest.approx(volume_by_quadrature(D05, model), rel=1e-7)
+    assert g.volume == pytest.approx(vol, rel=1e-12)
+
+
+@pytest.mark.parametrize("rf", [0.0, 0.5, 2.0])
+def test_volume_with_other_fillets(gmsh_session, rf):
+    d = validate(with_overrides(D05, rf=rf))
+    build(d, "quarter")
+    vol = sum(gmsh.model.occ.getMass(3, t) for _, t in gmsh.model.getEntities(3))
+    assert vol == pytest.approx(volume_by_quadrature(d, "quarter"), rel=1e-7)
+
+
+@pytest.mark.parametrize("model,names", [
+    ("quarter", {"seat", "journal_bearing", "symmetry_x", "symmetry_y", "body", "constraint_points"}),
+    ("full", {"seat", "journal_bearing", "body", "constraint_points"})])
+def test_physical_groups_present_and_non_empty(gmsh_session, model, names):
+    build(D05, model)
+    found = {}
+    for dim, tag in gmsh.model.getPhysicalGroups():
+        found[gmsh.model.getPhysicalName(dim, tag)] = gmsh.model.getEntitiesForPhysicalGroup(dim, tag)
+    assert set(found) == names
+    assert all(len(v) > 0 for v in found.values())
+    share = 0.25 if model == "quarter" else 1.0
+    seat_area = sum(gmsh.model.occ.getMass(2, t) for t in found["seat"])
+    assert seat_area == pytest.approx(share * math.pi / 4 * (37 ** 2 - 25 ** 2), rel=1e-9)
+    # Lower half of each journal bearing cylinder: half the lateral area π·dj·(b2 − rf).
+    bearing_area = sum(gmsh.model.occ.getMass(2, t) for t in found["journal_bearing"])
+    assert bearing_area == pytest.approx(share * 2 * 0.5 * math.pi * 20 * 11, rel=1e-9)
+
+
+@pytest.mark.parametrize("field,over", [
+    ("d2", {"d2": 45.0}), ("d2", {"d2": 50.0}), ("seat_inner", {"seat_inner": 20.0}),
+    ("seat_outer", {"seat_outer": 46.0}), ("dj", {"dj": 24.0}), ("dj", {"rf": 3.0, "dj": 19.0}),
+    ("b6", {"b6": 71.0}), ("b1", {"b1": -45.0}), ("h3", {"h3": float("nan")}),
+    ("b2", {"b2": float("inf")}), ("rf", {"rf": -1.0}), ("h3", {"h3": 0.0}),
+])
+def test_unbuildable_rows_name_the_field(field, over):
+    d = with_overrides(D05, **over)
+    with pytest.raises(InputError, match=rf"^{field}:"):
+        validate(d)

@@ -1,0 +1,31 @@
+#!/usr/bin/env bash
+# Install what crosshead needs on Debian 12, skipping whatever is already there.
+#   Debian: python3-dolfinx (0.5.2, PETSc with MUMPS/hypre), python3-gmsh, python3-meshio,
+#           an optimised BLAS (MUMPS is ~5x slower on the reference BLAS), calculix-ccx (bench).
+#   .venv:  made from /usr/bin/python3 with --system-site-packages; pyvista, pytest, ...
+#           from PyPI, constrained to Debian's numpy (numpy 2 breaks Debian's petsc4py).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+APT_PKGS="python3-dolfinx python3-gmsh python3-meshio python3-venv python3-pip libopenblas0-pthread calculix-ccx mpi-default-bin"
+missing=""
+for p in $APT_PKGS; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing="$missing $p"
+done
+if [ -n "$missing" ]; then
+  echo "setup: installing Debian packages:$missing"
+  SUDO=""; [ "$(id -u)" -ne 0 ] && SUDO="sudo"
+  $SUDO apt-get update -qq
+  DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq $missing >/dev/null
+fi
+
+stamp=.venv/.setup-done
+want="$(cat requirements.txt constraints.txt | sha1sum | cut -c1-40)"
+if [ ! -x .venv/bin/python ] || [ "$(cat "$stamp" 2>/dev/null)" != "$want" ]; then
+  echo "setup: creating .venv (system site packages + PyPI requirements)"
+  [ -x .venv/bin/python ] || /usr/bin/python3 -m venv --system-site-packages .venv
+  .venv/bin/pip install -q --disable-pip-version-check -c constraints.txt -r requirements.txt
+  .venv/bin/python -c "import dolfinx, gmsh, petsc4py, pyvista, numpy; assert numpy.__version__.startswith('1.'), numpy.__version__" \
+    || { echo "setup: the venv cannot import dolfinx/pyvista with Debian's numpy" >&2; exit 1; }
+  echo "$want" > "$stamp"
+fi
