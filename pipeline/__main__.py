@@ -37,7 +37,7 @@ class OneLineParser(argparse.ArgumentParser):
     """argparse that reports a usage error as one line and exit status 2."""
 
     def error(self, message: str) -> None:  # type: ignore[override]
-        sys.stderr.write(f"error: {message} (see --help)\n")
+        sys.stderr.write(f"error: {' '.join(message.split())} (see --help)\n")
         sys.exit(2)
 
 
@@ -57,7 +57,10 @@ def _dim(text: str) -> tuple[str, float]:
     k, v = text.split("=", 1)
     if k not in names:
         raise argparse.ArgumentTypeError(f"unknown dimension {k!r}; known: {', '.join(names)}")
-    return k, _positive_float(v)
+    try:
+        return k, _positive_float(v)
+    except argparse.ArgumentTypeError as exc:
+        raise argparse.ArgumentTypeError(f"{k}: {exc}") from None
 
 
 def add_case_options(p: argparse.ArgumentParser) -> None:
@@ -124,6 +127,7 @@ def main(argv: list[str] | None = None) -> int:
     args = make_parser().parse_args(argv)
     if args.command is None:
         make_parser().print_help()
+        sys.stderr.write("error: command: choose run or converge (see --help)\n")
         return 2
     try:
         return _dispatch(args)
@@ -151,6 +155,16 @@ def _dispatch(args) -> int:
             raise InputError("levels/ratio: a convergence study needs at least 4 meshes and ratio >= 1.3")
         if not 1.1 <= args.ratio <= 3:
             raise InputError(f"ratio: must lie in [1.1, 3], got {args.ratio:g}")
+        if args.command == "converge":  # the study's finest mesh must pass the case's mesh checks too
+            from dataclasses import replace
+
+            from pipeline.case import check
+            finest = case.mesh_factor / args.ratio ** max(args.levels - 3, 0)
+            try:
+                check(replace(case, mesh_factor=finest))
+            except InputError as exc:
+                raise InputError(f"levels: the finest mesh of this study (mesh factor {case.mesh_factor:g} / "
+                                 f"{args.ratio:g}^{args.levels - 3} = {finest:.3g}) is not allowed: {exc}") from None
         out = args.out or Path("results") / (case.name if args.command == "run" else f"{case.name}-converge")
         say = (lambda s: None) if (args.quiet or not rank0) else _progress
         _progress(f"imports {time.perf_counter() - T_START:.2f} s; case {case.name}: hook No. {case.size}, "

@@ -97,15 +97,17 @@ def read_case_file(path: Path) -> dict[str, Any]:
         raise InputError(f"case: cannot read {path}: {exc}") from None
     try:
         data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
+    except ValueError as exc:  # TOMLDecodeError, or an integer too long to convert
         raise InputError(f"case: {path} is not valid TOML: {exc}") from None
     flat: dict[str, Any] = {}
     for section, content in data.items():
         if isinstance(content, dict):
             if section not in SCHEMA or section == "":
-                raise InputError(f"{section}: unknown section in {path}; known: "
+                raise InputError(f"{section or '[]'}: unknown section in {path}; known: "
                                  f"{', '.join(s for s in SCHEMA if s)}")
             items = [(section, k, v) for k, v in content.items()]
+        elif section in SCHEMA and section not in SCHEMA[""]:
+            raise InputError(f"{section}: must be a [{section}] section in {path}, got {type(content).__name__}")
         else:
             items = [("", section, content)]
         for sec, key, value in items:
@@ -117,6 +119,8 @@ def read_case_file(path: Path) -> dict[str, Any]:
             target, types = spec
             if isinstance(value, bool) or not isinstance(value, types):
                 raise InputError(f"{where}: expected {' or '.join(t.__name__ for t in types)}, got {value!r}")
+            if isinstance(value, int) and abs(value) > 1e300:
+                raise InputError(f"{where}: integer too large ({len(str(abs(value)))} digits)")
             flat[target] = value
     return flat
 
@@ -186,11 +190,14 @@ def check(case: Case) -> Case:
         if v is not None:
             _finite_positive(k, v)
     spec = case.mesh_spec()
-    if spec.size_body * spec.factor < 1e-3 * case.dims.b6 or \
-            min(spec.size_feature, spec.size_fillet) * spec.factor < 2e-4 * case.dims.b6:
-        raise InputError("mesh_factor: mesh sizes this small would need more elements than this tool allows")
+    for k, size, least in (("size_body_mm", spec.size_body, 1e-3), ("size_feature_mm", spec.size_feature, 2e-4),
+                           ("size_fillet_mm", spec.size_fillet, 2e-4)):
+        if size * spec.factor < least * case.dims.b6:
+            raise InputError(f"{k}: {size:g} mm x mesh_factor {spec.factor:g} is below {least:g} * b6 = "
+                             f"{least * case.dims.b6:g} mm; a mesh this fine would need more elements than this tool allows")
     if spec.size_body * spec.factor > case.dims.b6:
         raise InputError(f"size_body_mm: {spec.size_body * spec.factor:g} mm is larger than the part ({case.dims.b6:g} mm)")
-    if not case.name or any(c in case.name for c in "/\\\0") or case.name in (".", ".."):
+    if not case.name or any(c in case.name for c in "/\\") or case.name in (".", "..") or \
+            not case.name.isprintable() or len(case.name.encode("utf-8", "replace")) > 200:
         raise InputError(f"name: {case.name!r} cannot be used as a folder name")
     return case
