@@ -76,23 +76,23 @@ def crosshead_loads(m: ImportedMesh, d: Dimensions, load_N: float, support: str)
         bearing_t = p0 * shape
         tractions.append(Traction(bearing_id, bearing_t))
         support_fz = _integral(mesh, bearing_t[2], ds(bearing_id))
-        pts = m.constraint_points
+        pts, tol = m.constraint_points, 1e-6 * d.b6
         if m.model == "quarter":
-            constraints.append(Constraint(component=2, points=pts))
+            constraints.append(Constraint(component=2, points=pts, tol=tol))
         else:
             # Statically determinate: u_x at (0, ±a, 0), u_y at (a, 0, 0), u_z at all three.
-            constraints.append(Constraint(component=0, points=pts[:2]))
-            constraints.append(Constraint(component=1, points=pts[2:]))
-            constraints.append(Constraint(component=2, points=pts))
+            constraints.append(Constraint(component=0, points=pts[:2], tol=tol))
+            constraints.append(Constraint(component=1, points=pts[2:], tol=tol))
+            constraints.append(Constraint(component=2, points=pts, tol=tol))
         point_idx = len(constraints) - 1
     elif support == "rigid":
         constraints.append(Constraint(component=2, marker=bearing_id))
         rigid_idx = len(constraints) - 1
         support_fz = float("nan")  # known only after the solve, from the reaction
         if m.model == "full":
-            pts = m.constraint_points
-            constraints.append(Constraint(component=0, points=pts[:2]))
-            constraints.append(Constraint(component=1, points=pts[2:]))
+            pts, tol = m.constraint_points, 1e-6 * d.b6
+            constraints.append(Constraint(component=0, points=pts[:2], tol=tol))
+            constraints.append(Constraint(component=1, points=pts[2:], tol=tol))
     else:
         raise ValueError(f"support must be one of {SUPPORTS}, got {support!r}")
     return LoadCase(tractions=tractions, constraints=constraints, seat_force_z_N=seat_fz,

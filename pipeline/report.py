@@ -51,7 +51,9 @@ def why_sentence(res: dict) -> str:
         f"the {crit} where the ligament's bending stress peaks, the local bearing pressure and the "
         "3-D load path, so its node-level peak is higher than the nominal value. "
         f"The global peak ({fe['peak']['feature']}) is a different mechanism, the journal bending "
-        "at its root, which neither formula covers."
+        "at its root, which neither formula covers; it depends directly on the assumed journal "
+        "diameter dj and shoulder fillet radius rf, which the paper does not give, so check them "
+        "against the real part before acting on it."
         if fe["peak"]["feature"] != crit else
         "The hand formulas give a nominal bending stress averaged over the ligament beside the "
         "bore; the FE field resolves the stress concentration at the bore edge and the 3-D load "

@@ -69,7 +69,8 @@ def solve_level(case: Case, factor: float, msh_path: Path | None = None,
         f"geometry {m.timings['geometry']:.2f} s, mesh {m.timings['mesh']:.2f} s, "
         f"import {m.timings['import']:.2f} s")
     if not m.jacobian_ratio > 0:
-        raise NumericalError(f"mesh has an inverted element (worst det J ratio {m.jacobian_ratio:.3g})")
+        raise NumericalError(f"mesh: a curved element is inverted (worst det J ratio {m.jacobian_ratio:.3g}) "
+                             f"at mesh factor {factor:.3g}; try a slightly different --mesh-factor")
     mat = Material(E=case.E_MPa, nu=case.nu)
     lc = crosshead_loads(m, case.dims, case.load_N, case.support)
     sol = solve(m.mesh, m.facet_tags, case.order, mat, lc.tractions, lc.constraints,
