@@ -145,13 +145,16 @@ def rigid_body_nullspace(V) -> PETSc.NullSpace:
 def solver_options(name: str, rtol: float) -> dict[str, object]:
     """PETSc options for the named solver."""
     if name == "gamg":
+        # Stop on the true (unpreconditioned) residual: the same norm solve() checks after.
         return {"ksp_type": "cg", "ksp_rtol": rtol, "ksp_max_it": 1000,
+                "ksp_norm_type": "unpreconditioned",
                 "pc_type": "gamg", "pc_gamg_type": "agg", "pc_gamg_agg_nsmooths": 1,
                 "pc_gamg_threshold": 0.02, "pc_gamg_square_graph": 2,
                 "mg_levels_ksp_type": "chebyshev", "mg_levels_pc_type": "jacobi",
                 "mg_levels_ksp_chebyshev_esteig_steps": 20}
     if name == "hypre":
         return {"ksp_type": "cg", "ksp_rtol": rtol, "ksp_max_it": 1000,
+                "ksp_norm_type": "unpreconditioned",
                 "pc_type": "hypre", "pc_hypre_type": "boomeramg",
                 "pc_hypre_boomeramg_strong_threshold": 0.7,
                 "pc_hypre_boomeramg_nodal_coarsen": 6,
