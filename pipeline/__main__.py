@@ -49,6 +49,26 @@ def _positive_float(text: str) -> float:
     return v
 
 
+def _loads(text: str) -> list[float]:
+    """--load: one value, a comma list (5000,10000) or a range START:STOP:COUNT, in N."""
+    parts = text.split(":")
+    if len(parts) == 3:
+        a, b = _positive_float(parts[0]), _positive_float(parts[1])
+        try:
+            n = int(parts[2])
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"load_N: range count {parts[2]!r} is not an integer") from None
+        if not 2 <= n <= 1000:
+            raise argparse.ArgumentTypeError(f"load_N: range count must lie in 2..1000, got {n}")
+        return [a + (b - a) * k / (n - 1) for k in range(n)]
+    if len(parts) != 1:
+        raise argparse.ArgumentTypeError(f"load_N: {text!r}: give N, N1,N2,... or START:STOP:COUNT")
+    values = [_positive_float(v) for v in text.split(",")]
+    if not values or len(values) > 1000:
+        raise argparse.ArgumentTypeError("load_N: give between 1 and 1000 loads")
+    return values
+
+
 def _dim(text: str) -> tuple[str, float]:
     from geometry.table import Dimensions
     names = list(Dimensions.__dataclass_fields__)
@@ -68,8 +88,9 @@ def add_case_options(p: argparse.ArgumentParser) -> None:
     g = p.add_argument_group("what to analyse")
     g.add_argument("--size", help="hook number from geometry/sizes.csv, e.g. 05, 1.6, 10")
     g.add_argument("--case", type=Path, help="case file (TOML), e.g. cases/05.toml")
-    g.add_argument("--load", type=_positive_float, dest="load_N", metavar="N",
-                   help="hook load Q in N (default: the size's rated load)")
+    g.add_argument("--load", type=_loads, dest="loads", metavar="N",
+                   help="hook load Q in N (default: the size's rated load); a list 5000,10000 or a range "
+                        "5000:20000:4 is solved once and scaled (linear elasticity)")
     g.add_argument("--dim", type=_dim, action="append", default=[], metavar="NAME=MM",
                    help="override one dimension in mm (b1 b2 b6 d14 d2 h3 dj rf seat_inner seat_outer); repeatable")
     g.add_argument("--support", choices=("bearing", "rigid"),
@@ -105,20 +126,21 @@ def make_parser() -> argparse.ArgumentParser:
                          description=DESCRIPTION, epilog=EPILOG,
                          formatter_class=argparse.RawDescriptionHelpFormatter)
     add_case_options(run)
-    run.add_argument("--levels", type=int, default=3,
-                     help="meshes solved for the error bar: the requested one and coarser ones (default 3; 1 = no error bar)")
+    run.add_argument("--levels", type=int, default=4,
+                     help="meshes solved for the error bar: the requested one and coarser ones (default 4; 1 = no error bar)")
     run.add_argument("--ratio", type=_positive_float, default=1.3, help="mesh-size ratio between those meshes (default 1.3)")
     run.add_argument("--no-fields", action="store_true", help="skip ParaView files, picture and report (benchmarks)")
     conv = sub.add_parser("converge", help="mesh convergence study: >= 4 meshes, extrapolation, GCI, plot",
                           description=DESCRIPTION, epilog=EPILOG,
                           formatter_class=argparse.RawDescriptionHelpFormatter)
     add_case_options(conv)
-    conv.add_argument("--levels", type=int, default=4, help="number of meshes (default 4, at least 4)")
+    conv.add_argument("--levels", type=int, default=5,
+                      help="number of meshes (default 5, at least 4); the finest is the case's mesh / ratio^(levels-3)")
     conv.add_argument("--ratio", type=_positive_float, default=1.3, help="mesh-size ratio between meshes, >= 1.3 (default 1.3)")
     return parser
 
 
-CASE_KEYS = ("load_N", "support", "model", "E_MPa", "nu", "allowable_MPa", "approximate_span_mm",
+CASE_KEYS = ("support", "model", "E_MPa", "nu", "allowable_MPa", "approximate_span_mm",
              "exact_span_mm", "order", "mesh_factor", "size_body_mm", "size_feature_mm",
              "size_fillet_mm", "grading_mm", "solver", "rtol")
 
@@ -143,9 +165,16 @@ def _dispatch(args) -> int:
     from pipeline.errors import InputError, NumericalError
     rank0 = MPI.COMM_WORLD.rank == 0
     try:
-        from pipeline.case import resolve
+        from dataclasses import replace
+
+        from pipeline.case import check, resolve
         overrides = {k: getattr(args, k) for k in CASE_KEYS}
         overrides.update({f"dims.{k}": v for k, v in args.dim})
+        loads = args.loads or []
+        if loads:
+            overrides["load_N"] = loads[0]
+        for q in loads[1:]:  # every load of a sweep must pass the same checks as the first
+            check(replace(resolve(args.size, args.case, overrides), load_N=q))
         if args.size is None and args.case is None:
             raise InputError("size: give --size (hook number) or --case (case file)")
         case = resolve(args.size, args.case, overrides)
@@ -156,9 +185,6 @@ def _dispatch(args) -> int:
         if not 1.1 <= args.ratio <= 3:
             raise InputError(f"ratio: must lie in [1.1, 3], got {args.ratio:g}")
         if args.command == "converge":  # the study's finest mesh must pass the case's mesh checks too
-            from dataclasses import replace
-
-            from pipeline.case import check
             finest = case.mesh_factor / args.ratio ** max(args.levels - 3, 0)
             try:
                 check(replace(case, mesh_factor=finest))
@@ -173,7 +199,7 @@ def _dispatch(args) -> int:
         if args.command == "run":
             from pipeline.study import execute_run
             res = execute_run(case, out, levels=args.levels, ratio=args.ratio, progress=say,
-                              write_fields=not args.no_fields)
+                              write_fields=not args.no_fields, loads=loads if len(loads) > 1 else None)
         else:
             from pipeline.study import execute_converge
             res = execute_converge(case, out, levels=args.levels, ratio=args.ratio, progress=say)

@@ -6,6 +6,14 @@ of an unstructured 3-D mesh is h = N^(-1/3) (N = DOFs), the observed order p com
 the finest three meshes by fixed-point iteration (refinement ratios may differ), and
 GCI_fine = Fs·|e21/f1| / (r21^p − 1) with Fs = 1.25.
 
+With four or more meshes the estimate is a least-squares fit instead (Eça & Hoekstra
+2014, "A procedure for the estimation of the numerical uncertainty of CFD calculations
+based on grid refinement studies", J. Comput. Phys. 262): f = f0 + C·h^p fitted over all
+meshes, the scatter σ of the fit measured, and the uncertainty U = Fs·|f1 − f0| + σ +
+|f1 − fit(h1)| with Fs = 1.25 when the data are smooth (σ below the data range per step)
+and Fs = 3 when they scatter. Peaks of unstructured meshes scatter by about 1 % from
+mesh to mesh, which a three-mesh Richardson estimate cannot see.
+
 A peak at a singular feature (re-entrant corner, edge of a rigid constraint) has no
 finite limit: its values keep growing under refinement with p → 0. Such a study gets
 status "singular" and no extrapolated value.
@@ -16,6 +24,8 @@ import math
 from dataclasses import asdict, dataclass
 from typing import Sequence
 
+import numpy as np
+
 FS = 1.25          # Roache's safety factor for three or more meshes
 P_SINGULAR = 0.5   # observed order below this: the peak is not converging
 
@@ -24,9 +34,11 @@ P_SINGULAR = 0.5   # observed order below this: the peak is not converging
 class Estimate:
     """Discretisation error estimate of one quantity (MPa) on the finest mesh.
 
-    status: "converged" (monotone, p >= 0.5), "oscillatory" (differences change sign;
-    band = largest difference), "singular" (growing with refinement, p < 0.5: no finite
-    limit), "diverging" (decreasing with p < 0.5), "exact" (no change between meshes).
+    status: "converged" (monotone, p >= 0.5), "oscillatory" (three meshes, differences
+    change sign; band = largest difference), "scattered" (four or more meshes whose values
+    scatter about the fit by more than the data range per step; band with Fs = 3),
+    "singular" (growing with refinement, p < 0.5: no finite limit), "diverging"
+    (decreasing with p < 0.5), "exact" (no change between meshes).
     p_used is min(p, p_formal): the order used for extrapolation and GCI, never above
     the element's formal order for stress so the band is not optimistic.
     """
@@ -46,10 +58,10 @@ class Estimate:
 
     @property
     def trustworthy(self) -> bool:
-        return self.status in ("converged", "exact", "oscillatory")
+        return self.status in ("converged", "exact", "oscillatory", "scattered")
 
 
-def observed_order(f: Sequence[float], h: Sequence[float], max_iter: int = 100) -> float | None:
+def observed_order(f: Sequence[float], h: Sequence[float]) -> float | None:
     """Observed order p from three values f (finest first) on sizes h (finest first).
 
     None if the differences change sign (oscillatory) or one of them is zero.
@@ -59,25 +71,93 @@ def observed_order(f: Sequence[float], h: Sequence[float], max_iter: int = 100) 
     e21, e32 = f2 - f1, f3 - f2
     if e21 == 0 or e32 == 0 or (e32 / e21) < 0:
         return None
-    s = 1.0
-    p = math.log(abs(e32 / e21)) / math.log(r21)
-    for _ in range(max_iter):
-        try:
-            q = math.log((r21 ** p - s) / (r32 ** p - s)) if p > 0 else 0.0
-        except (ValueError, ZeroDivisionError):
-            q = 0.0
-        p_new = (math.log(abs(e32 / e21)) + q) / math.log(r21)
-        if abs(p_new - p) < 1e-10:
-            p = p_new
-            break
-        p = p_new
-    return p
+    lr = math.log(abs(e32 / e21))
+    if abs(r21 - r32) < 1e-12 * r21:
+        return lr / math.log(r21)
+    # Celik's equation p·ln r21 = ln|e32/e21| + ln((r21^p − s)/(r32^p − s)), s = +1 here;
+    # solved by bracketing (the fixed-point iteration diverges for unequal ratios).
+    from scipy.optimize import brentq
+
+    def g(p: float) -> float:
+        return p * math.log(r21) - lr - math.log((r21 ** p - 1.0) / (r32 ** p - 1.0))
+
+    # Negative p (differences growing under refinement) marks a singularity: search there too.
+    for lo, hi in ((1e-6, 30.0), (-30.0, -1e-6)):
+        if g(lo) * g(hi) <= 0:
+            return brentq(g, lo, hi, xtol=1e-12)
+    return None
 
 
 def estimate(values: Sequence[float], h: Sequence[float], p_formal: float) -> Estimate:
-    """Error estimate from >= 3 values (finest first) on sizes h (finest first)."""
+    """Error estimate from >= 3 values (finest first) on sizes h (finest first).
+
+    Three meshes: Richardson/GCI of Celik et al. Four or more: least squares with scatter.
+    """
     if len(values) < 3 or len(values) != len(h):
         raise ValueError("need at least three meshes, finest first, with one size each")
+    if len(values) >= 4:
+        return least_squares_estimate(values, h, p_formal)
+    return three_mesh_estimate(values, h, p_formal)
+
+
+def _fit(values: np.ndarray, h: np.ndarray, p: float) -> tuple[float, float, float]:
+    """Weighted least-squares f0, C of f = f0 + C h^p (weights ∝ 1/h: fine meshes count
+    more, as Eça & Hoekstra do); returns (f0, C, weighted sum of squared residuals)."""
+    w = np.sqrt((1.0 / h) / np.sum(1.0 / h))
+    A = np.column_stack([np.ones_like(h), h ** p])
+    (f0, C), *_ = np.linalg.lstsq(A * w[:, None], values * w, rcond=None)
+    r = (values - A @ np.array([f0, C])) * w
+    return float(f0), float(C), float(r @ r)
+
+
+def _best_order(f: np.ndarray, h: np.ndarray, lo: float, hi: float) -> float:
+    """Order p in [lo, hi] minimising the weighted fit residual (grid, then bounded search)."""
+    from scipy.optimize import minimize_scalar
+    grid = np.linspace(lo, hi, 200)
+    k = int(np.argmin([_fit(f, h, p)[2] for p in grid]))
+    a, b = grid[max(k - 1, 0)], grid[min(k + 1, len(grid) - 1)]
+    res = minimize_scalar(lambda p: _fit(f, h, p)[2], bounds=(a, b), method="bounded",
+                          options={"xatol": 1e-10})
+    return float(res.x)
+
+
+def least_squares_estimate(values: Sequence[float], h: Sequence[float], p_formal: float) -> Estimate:
+    """Eça–Hoekstra style estimate from >= 4 meshes (finest first)."""
+    f = np.asarray(values, dtype=float)
+    hh = np.asarray(h, dtype=float) / float(h[0])   # sizes relative to the finest
+    vals, hs = tuple(float(v) for v in values), tuple(float(x) for x in h)
+    scale = max(abs(f[0]), 1e-300)
+    n = len(f)
+    if np.ptp(f) <= 1e-12 * scale:
+        return Estimate(vals, hs, "exact", None, None, float(f[0]), 0.0, 0.0, 0.0)
+    p_obs = _best_order(f, hh, 0.05, 2.0 * p_formal + 1.0)
+    growing = bool(np.all(np.diff(f) < 0))           # finest first: each coarser one smaller
+    if p_obs < P_SINGULAR and growing:
+        return Estimate(vals, hs, "singular", p_obs, None, None, None, None, None)
+    delta_step = float(np.ptp(f)) / (n - 1)
+    if P_SINGULAR <= p_obs <= p_formal:
+        p_used = p_obs
+        f0, C, ssr = _fit(f, hh, p_used)
+        sigma = math.sqrt(ssr * n / (n - 3)) if n > 3 else 0.0
+        smooth = sigma < delta_step
+        fs = FS if smooth else 3.0
+    else:
+        # Order outside [0.5, formal]: the data do not fix it. Fits with p = 1 and the formal
+        # order; the one that fits better, and the safety factor of scattered data.
+        fits = [(_fit(f, hh, p)[2], p) for p in (1.0, p_formal)]
+        p_used = min(fits)[1]
+        f0, C, ssr = _fit(f, hh, p_used)
+        sigma = math.sqrt(ssr * n / (n - 2))
+        smooth = False
+        fs = 3.0
+    band = fs * abs(f[0] - f0) + sigma + abs(f[0] - (f0 + C))
+    status = "converged" if smooth else "scattered"
+    return Estimate(vals, hs, status, p_obs, p_used, f0, band / scale, band,
+                    abs(f[0] - f0) / abs(f0))
+
+
+def three_mesh_estimate(values: Sequence[float], h: Sequence[float], p_formal: float) -> Estimate:
+    """Celik et al. (2008) Richardson/GCI from exactly the finest three meshes."""
     f1, f2, f3 = values[:3]
     vals, hs = tuple(float(v) for v in values), tuple(float(x) for x in h)
     scale = max(abs(f1), 1e-300)

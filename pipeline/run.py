@@ -118,6 +118,29 @@ def describe_location(case: Case, xyz: tuple[float, float, float]) -> str:
     return f"body ({vertical})"
 
 
+def singular_feature(case: Case, xyz: tuple[float, float, float]) -> str | None:
+    """Name of the known stress singularity at point xyz (mm), or None.
+
+    Theory, not numerics: a shoulder without fillet (rf = 0) is a re-entrant 90° edge; the
+    boundary of a rigid support patch (support "rigid") is an edge where a displacement
+    constraint meets a free surface. Stresses there grow without bound under refinement.
+    """
+    d = case.dims
+    x, y, z = abs(xyz[0]), abs(xyz[1]), xyz[2]
+    tol = max(0.03 * d.h3, 1e-9)
+    r = math.hypot(y, z - d.h3 / 2)
+    if d.rf == 0 and abs(x - d.b1 / 2) < tol and abs(r - d.dj / 2) < tol:
+        return "re-entrant edge at the journal shoulder (rf = 0, no fillet)"
+    if case.support == "rigid" and x >= d.b1 / 2 + d.rf - tol and abs(r - d.dj / 2) < tol and z <= d.h3 / 2 + tol:
+        if abs(x - (d.b1 / 2 + d.rf)) < tol:
+            return "edge of the rigid support patch at the fillet run-out"
+        if abs(z - d.h3 / 2) < tol:
+            return "edge of the rigid support patch at journal mid-height (θ = 90°)"
+        if abs(x - d.b6 / 2) < tol:
+            return "edge of the rigid support patch at the journal tip"
+    return None
+
+
 def estimate_levels(levels: list[Level], case: Case, attr: str) -> Estimate:
     """Error estimate of one peak ("peak" or "critical") over levels given finest first."""
     values = [getattr(lv, attr).value_MPa for lv in levels]
@@ -125,7 +148,7 @@ def estimate_levels(levels: list[Level], case: Case, attr: str) -> Estimate:
     return estimate(values, h, p_formal=float(case.order))
 
 
-def analyse(case: Case, levels: int = 3, ratio: float = 1.3, msh_path: Path | None = None,
+def analyse(case: Case, levels: int = 4, ratio: float = 1.3, msh_path: Path | None = None,
             progress: Progress | None = None, comm=MPI.COMM_WORLD) -> list[Level]:
     """Solve on ``levels`` meshes, the requested one and coarser by ``ratio`` each; finest first.
 
@@ -156,8 +179,17 @@ def build_results(case: Case, levels: list[Level], timings: dict[str, float],
     def peak_block(p: Peak, est: Estimate | None) -> dict:
         block = {"value_MPa": p.value_MPa, "location_mm": list(p.location_mm),
                  "feature": describe_location(case, p.location_mm)}
+        singular = singular_feature(case, p.location_mm)
         if est is not None:
             block["error_estimate"] = est.as_dict()
+            if est.status in ("singular", "diverging") and singular is None:
+                singular = f"{block['feature']} (values do not converge under refinement)"
+        if singular is not None:
+            block["singular_feature"] = singular
+            if est is not None:
+                # Not a converged number, whatever the fit of a few meshes says.
+                block["error_estimate"].update(status="singular", extrapolated=None, band=None,
+                                               gci_fine=None, error_fine=None)
         return block
 
     ex, ap = hand.exact, hand.approximate

@@ -17,10 +17,14 @@ from .report import write_report
 from .run import Progress, analyse, build_results, describe_location, sum_timings
 
 
-def execute_run(case: Case, out_dir: Path, levels: int = 3, ratio: float = 1.3,
+def execute_run(case: Case, out_dir: Path, levels: int = 4, ratio: float = 1.3,
                 progress: Progress | None = None, write_fields: bool = True,
-                comm=MPI.COMM_WORLD) -> dict:
-    """Analyse ``case`` and write results.json, report.md, mesh.msh, VTK fields and a PNG."""
+                loads: list[float] | None = None, comm=MPI.COMM_WORLD) -> dict:
+    """Analyse ``case`` and write results.json, report.md, mesh.msh, VTK fields and a PNG.
+
+    ``loads`` (N): a load sweep. The case is solved once at case.load_N; since the model is
+    linear elastic with traction loads only, every stress scales with Q/case.load_N.
+    """
     say = progress or (lambda s: None)
     t_all = time.perf_counter()
     with staged_dir(out_dir, comm) as stage:
@@ -28,6 +32,8 @@ def execute_run(case: Case, out_dir: Path, levels: int = 3, ratio: float = 1.3,
                      progress=say, comm=comm)
         timings = sum_timings(lv)
         res = build_results(case, lv, timings, comm)
+        if loads:
+            res["load_sweep"] = load_sweep(res, case, loads)
         t0 = time.perf_counter()
         files = {"results": "results.json", "mesh": "mesh.msh"}
         if write_fields:
@@ -53,6 +59,23 @@ def execute_run(case: Case, out_dir: Path, levels: int = 3, ratio: float = 1.3,
 write_fields_ = write_fields
 
 
+def load_sweep(res: dict, case: Case, loads: list[float]) -> list[dict]:
+    """Peaks, formula stresses and safety factors (MPa) at each load (N), scaled linearly."""
+    fe, an = res["fe"], res["analytic"]
+    rows = []
+    for q in loads:
+        k = q / case.load_N
+        row = {"load_N": q, "peak_MPa": k * fe["peak_MPa"], "critical_peak_MPa": k * fe["critical_peak_MPa"],
+               "approximate_MPa": k * an["approximate_MPa"], "exact_MPa": k * an["exact_MPa"]}
+        for key, name in (("peak", "peak_band_MPa"), ("critical", "critical_band_MPa")):
+            band = (fe[key].get("error_estimate") or {}).get("band")
+            row[name] = None if band is None else k * band
+        row["safety_factor"] = case.allowable_MPa / row["peak_MPa"]
+        row["critical_safety_factor"] = case.allowable_MPa / row["critical_peak_MPa"]
+        rows.append(row)
+    return rows
+
+
 def render_picture(folder: Path) -> None:
     """Run pipeline.render in its own process (VTK cannot share one with DOLFINx)."""
     proc = subprocess.run([sys.executable, "-m", "pipeline.render", str(folder)],
@@ -62,7 +85,7 @@ def render_picture(folder: Path) -> None:
         raise RuntimeError(f"picture rendering failed: {tail}")
 
 
-def execute_converge(case: Case, out_dir: Path, levels: int = 4, ratio: float = 1.3,
+def execute_converge(case: Case, out_dir: Path, levels: int = 5, ratio: float = 1.3,
                      progress: Progress | None = None, comm=MPI.COMM_WORLD) -> dict:
     """Solve on ``levels`` meshes refined by ``ratio`` from the case's mesh, finest first.
 

@@ -1,0 +1,87 @@
+"""Richardson/GCI on closed-form sequences, and singularity detection on the real part."""
+import math
+
+import pytest
+
+from pipeline.case import resolve
+from pipeline.convergence import estimate, observed_order
+from pipeline.run import analyse, build_results, singular_feature
+
+H = [1.0, 1.3, 1.69]
+
+
+@pytest.mark.parametrize("p", [1.0, 1.5, 2.0])
+def test_recovers_order_and_limit_of_power_law(p):
+    f = [50.0 + 7.0 * h ** p for h in H]
+    est = estimate(f, H, p_formal=2.0)
+    assert est.status == "converged"
+    assert est.order_observed == pytest.approx(p, abs=1e-8)
+    assert est.extrapolated == pytest.approx(50.0, rel=1e-10)
+    # Roache: GCI = Fs |e21/f1| / (r^p - 1), Fs = 1.25.
+    r = 1.3
+    gci = 1.25 * abs((f[1] - f[0]) / f[0]) / (r ** p - 1)
+    assert est.gci_fine == pytest.approx(gci, rel=1e-10)
+
+
+def test_unequal_ratios_use_celik_iteration():
+    h = [1.0, 1.25, 1.9]
+    f = [3.0 + 2.0 * x ** 2 for x in h]
+    assert observed_order(f, h) == pytest.approx(2.0, abs=1e-6)
+
+
+def test_order_above_formal_is_capped_for_the_band():
+    f = [10.0 + h ** 4 for h in H]
+    est = estimate(f, H, p_formal=2.0)
+    assert est.order_observed == pytest.approx(4.0, abs=1e-8) and est.order_used == 2.0
+    assert est.band > abs(f[0] - 10.0)          # capped order gives a wider, safe band
+
+
+def test_growing_values_are_singular_and_not_extrapolated():
+    f = [10.0 * h ** -0.3 for h in H]           # grows without bound as h -> 0
+    est = estimate(f, H, p_formal=2.0)
+    assert est.status == "singular" and est.extrapolated is None and not est.trustworthy
+
+
+def test_oscillating_values_get_a_band_not_an_order():
+    est = estimate([10.0, 10.2, 9.9], H, p_formal=2.0)
+    assert est.status == "oscillatory" and est.band == pytest.approx(0.3)
+
+
+def _study(overrides, factor):
+    case = resolve("05", overrides=dict(overrides, mesh_factor=factor))
+    levels = analyse(case, levels=3, ratio=1.4)
+    return case, levels, build_results(case, levels, {})
+
+
+def test_rigid_support_peak_is_reported_singular():
+    """u_z = 0 on the journal halves: the patch edge is a singularity, the peak grows."""
+    case, levels, res = _study({"support": "rigid"}, 1.6)
+    values = [lv.peak.value_MPa for lv in levels]
+    assert values[0] > values[1] > values[2], values           # grows under refinement
+    # Three coarse meshes alone can look "converged" (pre-asymptotic); the report still
+    # names the singularity because the peak sits on the patch edge.
+    block = res["fe"]["peak"]
+    assert block["error_estimate"]["status"] == "singular"
+    assert "rigid support patch" in block["singular_feature"]  # and it is named
+    assert block["error_estimate"]["extrapolated"] is None
+
+
+def test_zero_fillet_peak_is_reported_singular():
+    """rf = 0: a re-entrant 90° corner at the journal root, the peak grows without bound."""
+    case, levels, res = _study({"dims.rf": 0.0, "size_fillet_mm": 0.5}, 1.2)
+    values = [lv.peak.value_MPa for lv in levels]
+    assert values[0] > values[1] > values[2], values           # grows under refinement
+    block = res["fe"]["peak"]
+    assert "re-entrant edge" in block["singular_feature"], block
+    assert block["error_estimate"]["status"] == "singular"
+    assert block["error_estimate"]["extrapolated"] is None
+
+
+def test_singular_feature_names_only_true_singularities():
+    case = resolve("05")
+    assert singular_feature(case, (22.9, 6.9, 4.8)) is None            # filleted shoulder
+    assert singular_feature(case, (0.0, 10.5, 0.0)) is None             # bore edge
+    rigid = resolve("05", overrides={"support": "rigid"})
+    assert "fillet run-out" in singular_feature(rigid, (24.0, 0.0, 2.5))
+    sharp = resolve("05", overrides={"dims.rf": 0.0})
+    assert "re-entrant" in singular_feature(sharp, (22.5, 0.0, 2.5))
