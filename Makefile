@@ -18,6 +18,11 @@ test: $(SETUP)
 converge: $(SETUP)
 	$(PY) -m pipeline converge --size 05 --out results/05-converge
 
+# Run time against error (P1/P2/P3 x mesh levels x gamg/hypre/mumps, CalculiX, 1 and 2 ranks);
+# makes the convergence study first if results/05-converge/results.json is missing.
+bench: $(SETUP)
+	$(PY) -m pipeline.bench --out results/bench --ranks 1,2
+
 setup: $(SETUP)
 
 $(SETUP): tools/setup.sh requirements.txt constraints.txt
@@ -25,6 +30,10 @@ $(SETUP): tools/setup.sh requirements.txt constraints.txt
 
 $(SIZES): $(SETUP)
 	$(PY) -m pipeline run --size $@ --out results/$@
+
+# Every size (make -j2 sizes runs two at a time), then the batch summary in results/summary/.
+sizes: $(SIZES)
+	$(PY) -m pipeline.summary results --out results/summary
 
 clean:
 	rm -rf results
