@@ -37,7 +37,7 @@ class Case:
     support: str = "bearing"
     order: int = 2
     solver: str = "gamg"
-    rtol: float = 1e-10
+    rtol: float = 1e-8
     mesh_factor: float = 1.0
     size_body_mm: float | None = None
     size_feature_mm: float | None = None

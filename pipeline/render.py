@@ -28,26 +28,31 @@ def render_folder(folder: Path, out_name: str = "von_mises.png") -> Path:
     points0 = np.asarray(grid.points).copy()
     grid.points = points0 + scale * disp
     fe, case = res["fe"], res["case"]
-    pl = pyvista.Plotter(off_screen=True, window_size=(1400, 1000))
-    pl.add_mesh(grid, scalars="von_mises_MPa", cmap="turbo",
-                scalar_bar_args={"title": "von Mises (MPa)", "vertical": True,
-                                 "position_x": 0.86, "position_y": 0.15})
     marks = (("global peak", fe["peak_MPa"], fe["peak_location_mm"], "black"),
              ("critical peak", fe["critical_peak_MPa"], fe["critical_location_mm"], "magenta"))
-    for label, value, loc, colour in marks:
-        idx = int(np.argmin(np.linalg.norm(points0 - np.asarray(loc), axis=1)))
-        p = grid.points[idx]
-        pl.add_mesh(pyvista.Sphere(radius=0.012 * length, center=p), color=colour)
-        pl.add_point_labels([p], [f"{label}: {value:.1f} MPa"], font_size=20, point_size=1,
-                            text_color=colour, shape_opacity=0.7, always_visible=True)
+    c = np.asarray(grid.center)
+    # Left: into the cut faces (symmetry planes), showing the ligament beside the bore and
+    # the critical peak. Right: from below and outside, the journal root, its shoulder
+    # fillet and the global peak. Each panel labels only the peak it shows.
+    views = ([-0.9, -1.5, 0.9], [0.5, 1.6, -1.0])
+    pl = pyvista.Plotter(off_screen=True, window_size=(2000, 950), shape=(1, 2), border=False)
+    for col, direction in enumerate(views):
+        pl.subplot(0, col)
+        pl.add_mesh(grid.copy(), scalars="von_mises_MPa", cmap="turbo", show_scalar_bar=(col == 1),
+                    scalar_bar_args={"title": "von Mises (MPa)", "vertical": True,
+                                     "position_x": 0.85, "position_y": 0.15})
+        for label, value, loc, colour in (marks[1],) if col == 0 else (marks[0],):
+            idx = int(np.argmin(np.linalg.norm(points0 - np.asarray(loc), axis=1)))
+            p = grid.points[idx]
+            pl.add_mesh(pyvista.Sphere(radius=0.012 * length, center=p), color=colour)
+            pl.add_point_labels([p], [f"{label}: {value:.1f} MPa"], font_size=18, point_size=1,
+                                text_color=colour, shape_opacity=0.7, always_visible=True)
+        pl.camera_position = [tuple(c + length * np.array(direction)), tuple(c), (0, 0, 1)]
+        pl.add_axes()
+    pl.subplot(0, 0)
     pl.add_text(f"Crosshead No. {case['size']}, Q = {case['load_N']:g} N, {case['model']} model, "
                 f"{case['support']} support\nvon Mises (MPa) on the deformed part, displacement x{scale:.0f}",
                 font_size=11)
-    # Look into the cut faces (symmetry planes x = 0 and y = 0 of the quarter model):
-    # they show the ligament beside the bore and the journal root in section.
-    c = np.asarray(grid.center)
-    pl.camera_position = [tuple(c + length * np.array([-0.9, -1.5, 0.9])), tuple(c), (0, 0, 1)]
-    pl.add_axes()
     out = folder / out_name
     pl.screenshot(str(out))
     pl.close()
