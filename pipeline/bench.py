@@ -46,6 +46,8 @@ import subprocess  # noqa: E402
 import sys  # noqa: E402
 from pathlib import Path  # noqa: E402
 
+from pipeline.jsonio import json_safe  # noqa: E402
+
 ROOT = Path(__file__).resolve().parents[1]
 DEFAULT_REFERENCE = Path("results/05-converge/results.json")
 FULL_FACTORS = (2.0, 1.5, 1.15, 0.9, 0.7)
@@ -555,7 +557,7 @@ def main(argv: list[str] | None = None) -> int:
                       "errors are relative to the Richardson extrapolation of the convergence study"]}
     data = {"units": {"time": "s", "stress": "MPa", "memory": "MiB"}, "meta": meta,
             "reference": ref, "rows": rows, "summary": summ, "table": text}
-    (out / "bench.json").write_text(json.dumps(_clean(data), indent=2) + "\n")
+    (out / "bench.json").write_text(json.dumps(json_safe(data), indent=2) + "\n")
     write_csv(out / "bench.csv", rows)
     plotted = pareto_plot(out / "bench.png", rows, ref)
     say(f"wrote {out}/bench.json, bench.csv" + (", bench.png" if plotted else ""))
@@ -614,16 +616,6 @@ def _versions() -> dict:
     except Exception:  # noqa: BLE001
         pass
     return out
-
-
-def _clean(obj):
-    if isinstance(obj, float):
-        return obj if math.isfinite(obj) else None
-    if isinstance(obj, dict):
-        return {k: _clean(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [_clean(v) for v in obj]
-    return obj
 
 
 if __name__ == "__main__":

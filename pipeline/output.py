@@ -7,15 +7,15 @@ from __future__ import annotations
 
 import contextlib
 import json
-import math
 import os
 import shutil
 import tempfile
 from pathlib import Path
 from typing import Iterator
 
-from dolfinx import io
 from mpi4py import MPI
+
+from .jsonio import json_safe
 
 from .errors import InputError
 
@@ -59,21 +59,10 @@ def staged_dir(out_dir: Path, comm=MPI.COMM_WORLD) -> Iterator[Path]:
         raise
 
 
-def _clean(obj):
-    """JSON-safe copy: NaN/Inf become None (strict JSON has neither)."""
-    if isinstance(obj, float):
-        return obj if math.isfinite(obj) else None
-    if isinstance(obj, dict):
-        return {k: _clean(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [_clean(v) for v in obj]
-    return obj
-
-
 def write_json(path: Path, data: dict, comm=MPI.COMM_WORLD) -> None:
     """Write results as indented strict JSON (rank 0)."""
     if comm.rank == 0:
-        Path(path).write_text(json.dumps(_clean(data), indent=2, allow_nan=False) + "\n",
+        Path(path).write_text(json.dumps(json_safe(data), indent=2, allow_nan=False) + "\n",
                               encoding="utf-8")
 
 
@@ -85,6 +74,7 @@ def write_fields(folder: Path, u, vm) -> dict[str, str]:
     at the same nodes (use Warp By Vector). VTK, not XDMF: DOLFINx 0.5.2's XDMF writer
     drops P2 mid-edge values and cannot place DG values on this curved mesh.
     """
+    from dolfinx import io
     comm = u.function_space.mesh.comm
     files = {"displacement": "displacement.pvd", "von_mises": "von_mises.vtu"}
     with io.VTKFile(comm, str(Path(folder) / files["displacement"]), "w") as f:

@@ -12,7 +12,8 @@ from pathlib import Path
 from mpi4py import MPI
 
 from .case import Case
-from .output import staged_dir, write_fields, write_json
+from .output import staged_dir, write_json
+from .output import write_fields as write_field_files
 from .report import write_report
 from .run import Progress, analyse, build_results, describe_location, sum_timings
 
@@ -38,7 +39,7 @@ def execute_run(case: Case, out_dir: Path, levels: int = 4, ratio: float = 1.3,
         files = {"results": "results.json", "mesh": "mesh.msh"}
         if write_fields:
             u, vm = lv[0].fields
-            files.update(write_fields_(stage, u, vm))
+            files.update(write_field_files(stage, u, vm))
             files["picture"] = "von_mises.png"
             files["report"] = "report.md"
         res["files"] = files
@@ -54,9 +55,6 @@ def execute_run(case: Case, out_dir: Path, levels: int = 4, ratio: float = 1.3,
             write_report(stage)
         say(f"output: {', '.join(files.values())} ({res['timings_s']['output']:.2f} s)")
     return res
-
-
-write_fields_ = write_fields
 
 
 def load_sweep(res: dict, case: Case, loads: list[float]) -> list[dict]:
