@@ -326,8 +326,16 @@ def _ensure_curved_quality(order: int) -> None:
        element left after that goes to the elastic analogy.
     """
     opt = gmsh.option.setNumber
-    if max(gmsh.model.mesh.getElementTypes(3)) == 4:   # 4 = straight 4-node tet
+
+    def curved() -> bool:
+        return any(gmsh.model.mesh.getElementProperties(t)[2] >= 2
+                   for t in gmsh.model.mesh.getElementTypes(3))
+
+    if not curved():
         gmsh.model.mesh.setOrder(order)
+    if not curved():
+        raise GeometryError("mesh: gmsh could not make curved second-order elements for this part; "
+                            "try another --mesh-factor")
     for method, threshold in (("HighOrder", 0.3), ("HighOrderElastic", 0.3)):
         if jacobian_ratio() >= QUALITY_MIN:
             return
@@ -349,7 +357,7 @@ def jacobian_ratio() -> float:
     1 for straight undistorted tets; <= 0 means an inverted (tangled) curved element.
     Sampled at the vertices, edge midpoints and centroid of each tetrahedron.
     """
-    worst = 1.0
+    worst = -math.inf if len(gmsh.model.mesh.getElementTypes(3)) == 0 else 1.0
     for etype in gmsh.model.mesh.getElementTypes(3):
         _, det, _ = gmsh.model.mesh.getJacobians(etype, [c for p in _SAMPLE for c in p])
         if len(det):

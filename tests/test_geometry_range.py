@@ -1,0 +1,133 @@
+"""Near-limit rows (issue 5 item 4): solve with a mesh-quality figure, or refuse clearly.
+
+Units mm, N, MPa. Each row is No. 05 with a few dimensions pushed towards a rule of
+geometry.table.validate. A row either
+
+- meshes and solves: then it reports the worst curved-element quality
+  (Level.jacobian_ratio = min over tets of min det J / max det J; <= 0 is an inverted
+  element and the pipeline refuses it), warns below QUALITY_WARN, and the solver must
+  converge in fewer than MAX_ITERATIONS with a true residual <= 1e-6; or
+- is refused with InputError (a rule of the table broken: exit 2 in the CLI) or with
+  NumericalError / GeometryError (exit 3), whose message is one line that says what.
+
+Rows marked "solve" must solve (they do today; a regression would show here); rows marked
+"either" sit where gmsh's curved-element optimiser may or may not untangle the coarse
+mesh, and may fail cleanly. Run with ``pytest -s`` for the table of iteration counts.
+Coarse meshes (factor 2.5): about one to two minutes in all.
+"""
+from __future__ import annotations
+
+import math
+import time
+import warnings
+
+import pytest
+
+from geometry.builder import GeometryError
+from pipeline.case import resolve
+from pipeline.errors import InputError, NumericalError
+from pipeline.run import solve_level
+
+FACTOR = 2.5
+MAX_ITERATIONS = 200      # CG + GAMG needs ~40-130 here; 1000 is the solver's own cap
+QUALITY_WARN = 0.1        # min det J ratio below this: poor curved elements (report.md says so too)
+
+# name: (dimension overrides in mm, expected outcome, what it tests). No. 05: b1 45, b2 12.5,
+# b6 70, d14 31, d2 21, h3 25, dj 20, rf 1.5, seat 25..37 (limits in geometry/table.py).
+ROWS = {
+    "thin ligament 2 mm": ({"d2": 41, "seat_inner": 42, "d14": 43, "seat_outer": 44}, "solve",
+                           "(b1 - d2)/2 = 2 mm beside the bore; seat squeezed between bore and edge"),
+    "thin ligament 1 mm": ({"d2": 43, "seat_inner": 43.5, "d14": 44, "seat_outer": 44.5}, "either",
+                           "(b1 - d2)/2 = 1 mm, seat band 1 mm wide"),
+    "tiny fillet": ({"rf": 0.2}, "either", "rf = 0.2 mm (0.008 h3): 0.05 mm elements on the fillet"),
+    "large fillet": ({"rf": 2.4}, "either", "dj/2 + rf = 12.4 mm, 0.1 mm short of h3/2"),
+    "long journals": ({"b2": 40, "b6": 125}, "solve", "b2 = 40 mm (b2/dj = 2), b6 = b1 + 2 b2"),
+    "short journals": ({"b2": 4, "b6": 53}, "solve", "b2 = 4 mm: 2.5 mm bearing length"),
+    "tall body": ({"h3": 80}, "solve", "h3/b1 = 1.8 (default 0.56)"),
+    "flat body": ({"h3": 8, "dj": 6, "rf": 0.5}, "solve", "h3/b1 = 0.18, dj 6 mm to fit the height"),
+    # Just past a limit: refused before any meshing, naming the field.
+    "fillet at the height limit": ({"rf": 2.5}, "refuse:dj", "dj/2 + rf = h3/2: fillet runs out on the faces"),
+    "bore as wide as the body": ({"d2": 45, "seat_inner": 45.5, "d14": 46, "seat_outer": 46.5},
+                                 "refuse:d2", "no ligament"),
+    "fillet longer than journal": ({"b2": 1.4, "b6": 47.8}, "refuse:rf", "rf = 1.5 > b2"),
+}
+
+TABLE: dict[str, dict] = {}
+
+
+@pytest.fixture(scope="module", autouse=True)
+def print_table():
+    yield
+    if not TABLE:
+        return
+    head = (f"{'row':28s} {'outcome':9s} {'DOFs':>6s} {'det J ratio':>11s} {'its':>4s} "
+            f"{'residual':>8s} {'peak MPa':>9s} {'crit MPa':>9s} {'time s':>6s}")
+    rtol = resolve("05").rtol
+    lines = ["", f"geometry range, mesh factor {FACTOR}, CG + GAMG, rtol {rtol:g} "
+             f"(warn: det J ratio < {QUALITY_WARN}; 1st-order: no curved tet):", head, "-" * len(head)]
+    for name, r in TABLE.items():
+        if "dofs" in r:
+            lines.append(f"{name:28s} {r['outcome']:9s} {r['dofs']:6d} {r['jac']:11.3f} {r['its']:4d} "
+                         f"{r['res']:8.1e} {r['peak']:9.1f} {r['crit']:9.1f} {r['time']:6.1f}")
+        else:
+            lines.append(f"{name:28s} {r['outcome']:9s} {r['message'][:110]}")
+    print("\n".join(lines))
+
+
+def _clear_message(exc: Exception) -> str:
+    msg = str(exc)
+    assert msg and "\n" not in msg.strip(), f"{type(exc).__name__} message is not one line: {msg!r}"
+    return msg
+
+
+FIRST_ORDER_BUG = (
+    "geometry/builder.py mesh(): when gmsh's high-order optimiser leaves a tangled tet, the "
+    "fallback setOrder(1); setOrder(2); optimize('HighOrderElastic') leaves the mesh FIRST order "
+    "in gmsh 4.8 (setOrder(2) after setOrder(1) does nothing), so the part is solved on straight "
+    "tets and the det J ratio reads 1.0 (see the report to the lead)")
+
+
+@pytest.mark.parametrize("name", list(ROWS))
+def test_near_limit_row(name):
+    dims, expect, _ = ROWS[name]
+    overrides = {"mesh_factor": FACTOR, **{f"dims.{k}": v for k, v in dims.items()}}
+    t0 = time.perf_counter()
+    if expect.startswith("refuse:"):
+        field = expect.split(":", 1)[1]
+        with pytest.raises(InputError) as info:
+            resolve("05", overrides=overrides)
+        msg = _clear_message(info.value)
+        assert msg.startswith(f"{field}:"), f"message should name {field!r}: {msg}"
+        TABLE[name] = {"outcome": "refused", "message": f"InputError: {msg}"}
+        return
+    case = resolve("05", overrides=overrides)
+    try:
+        lv = solve_level(case, FACTOR)
+    except (NumericalError, GeometryError) as exc:
+        msg = _clear_message(exc)
+        TABLE[name] = {"outcome": "failed", "message": f"{type(exc).__name__}: {msg}"}
+        assert expect == "either", f"{name}: expected to solve, got {type(exc).__name__}: {msg}"
+        return
+    dt = time.perf_counter() - t0
+    outcome = ("1st-order" if lv.jacobian_ratio >= 1 - 1e-9 else
+               "solved" if lv.jacobian_ratio >= QUALITY_WARN else "warn")
+    TABLE[name] = {"outcome": outcome, "dofs": lv.dofs, "jac": lv.jacobian_ratio, "its": lv.iterations,
+                   "res": lv.residual_rel, "peak": lv.peak.value_MPa, "crit": lv.critical.value_MPa,
+                   "time": dt}
+    if lv.jacobian_ratio < QUALITY_WARN:
+        warnings.warn(f"{name}: worst curved-element det J ratio {lv.jacobian_ratio:.3f} "
+                      f"< {QUALITY_WARN} (poor mesh quality)")
+    assert lv.jacobian_ratio > 0          # solve_level refuses inverted meshes; belt and braces
+    # Second-order geometry on a part with a bore and round journals has curved tets, whose
+    # det J varies inside the element: a ratio of exactly 1 means every tet is straight,
+    # i.e. the mesh silently fell back to first order. Known bug, intermittent (it follows
+    # gmsh's nondeterministic optimiser): xfail until builder.mesh refuses or repairs it.
+    if lv.jacobian_ratio >= 1 - 1e-9:
+        pytest.xfail(f"{name}: no curved element, the mesh is first order: {FIRST_ORDER_BUG}")
+    assert lv.iterations < MAX_ITERATIONS, f"{name}: {lv.iterations} CG iterations"
+    assert lv.residual_rel <= 1e-6
+    assert lv.equilibrium_error_N <= 1e-6 * case.load_N
+    for pk in (lv.peak, lv.critical):
+        assert math.isfinite(pk.value_MPa) and pk.value_MPa > 0
+    assert lv.peak.value_MPa >= lv.critical.value_MPa
+    assert abs(lv.critical.location_mm[0]) <= case.dims.d2 / 2 * (1 + 1e-9)
