@@ -20,8 +20,10 @@ converge: $(SETUP)
 
 # Run time against error (P1/P2/P3 x mesh levels x gamg/hypre/mumps, CalculiX, 1 and 2 ranks);
 # makes the convergence study first if results/05-converge/results.json is missing.
+# About 20 min on 2 cores; BENCH_ARGS="" runs the full matrix (factors 2.0..0.7, ~1 h).
+BENCH_ARGS ?= --factors 2.0,1.3,1.0 --p3-factors 2.0 --repeats 3
 bench: $(SETUP)
-	$(PY) -m pipeline.bench --out results/bench --ranks 1,2
+	$(PY) -m pipeline.bench --out results/bench --ranks 1,2 $(BENCH_ARGS)
 
 setup: $(SETUP)
 
