@@ -55,7 +55,9 @@ def crosshead_loads(m: ImportedMesh, d: Dimensions, load_N: float, support: str)
 
     # Seat: p_s chosen so that the z-resultant over the mesh's own seat facets is -q_part.
     seat_area = _integral(mesh, fem.Constant(mesh, 1.0), ds(seat_id))
-    p_seat = q_part / seat_area
+    # Pressures as fem.Constant, not Python floats: a float is baked into the form, so every
+    # mesh (with its own scaled pressure) would get a new form and a fresh C compile.
+    p_seat = fem.Constant(mesh, q_part / seat_area)
     seat_t = ufl.as_vector((0.0, 0.0, -p_seat))
     tractions = [Traction(seat_id, seat_t)]
     seat_fz = _integral(mesh, seat_t[2], ds(seat_id))
@@ -67,12 +69,12 @@ def crosshead_loads(m: ImportedMesh, d: Dimensions, load_N: float, support: str)
     rigid_idx = point_idx = None
     if support == "bearing":
         # cos θ with θ measured from straight down about the journal axis (y=0, z=h/2).
-        zc = d.h3 / 2
+        zc = fem.Constant(mesh, d.h3 / 2)  # a Constant too: the form must not depend on the size
         r = ufl.sqrt(x[1] ** 2 + (x[2] - zc) ** 2)
         cos_t = ufl.max_value((zc - x[2]) / r, 0.0)
         shape = -cos_t * n  # traction per unit p0: -p n, pointing up on the lower half
         unit_fz = _integral(mesh, shape[2], ds(bearing_id))
-        p0 = q_part / unit_fz
+        p0 = fem.Constant(mesh, q_part / unit_fz)
         bearing_t = p0 * shape
         tractions.append(Traction(bearing_id, bearing_t))
         support_fz = _integral(mesh, bearing_t[2], ds(bearing_id))

@@ -1,0 +1,326 @@
+"""Batch summary across hook sizes: Markdown and CSV tables and a plot (mm, N, MPa, s).
+
+    python -m pipeline.summary results --out results/summary
+
+reads every ``results/<size>/results.json`` written by ``python -m pipeline run`` (one
+folder per hook number of geometry/sizes.csv; ``--all`` takes every folder that holds a
+results.json) and writes ``summary.md``, ``summary.csv`` and ``summary.png`` into the
+output folder. ``make sizes`` runs it after every size target.
+"""
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import math
+import re
+import sys
+from pathlib import Path
+
+SCALED_TAG = "scaled from No. 05 by geometric similarity"
+_S_RE = re.compile(r"s = sqrt\(Q/1000 kg\) = ([0-9.]+)")
+
+CSV_COLUMNS = (
+    "size", "dimensions", "scale_s", "load_N", "approximate_MPa", "exact_MPa",
+    "fe_peak_MPa", "fe_peak_band_MPa", "fe_peak_status", "fe_peak_extrapolated_MPa",
+    "fe_peak_last_change_MPa", "fe_peak_feature",
+    "fe_critical_MPa", "fe_critical_band_MPa", "fe_critical_status", "fe_critical_extrapolated_MPa",
+    "fe_critical_last_change_MPa", "fe_critical_feature", "allowable_MPa", "safety_factor", "critical_safety_factor",
+    "mesh_min_jacobian_ratio", "mesh_factor", "meshes", "dofs", "time_s", "warnings", "source")
+
+JACOBIAN_SUSPECT = 0.01   # worst det J ratio of a curved tet below this: nearly inverted
+BAND_TOO_WIDE = 0.25      # error bar above this fraction of the value: not usable
+
+
+def hook_value(size: str) -> float:
+    """Numeric hook number for sorting: "025" → 0.25, "04" → 0.4, "1.6" → 1.6, "10" → 10."""
+    try:
+        if size.startswith("0") and "." not in size and len(size) > 1:
+            return float("0." + size[1:])
+        return float(size)
+    except ValueError:
+        return math.inf
+
+
+def _estimate(block: dict) -> tuple[float | None, str, float | None, float | None]:
+    """(band MPa or None, status, extrapolated MPa or None, change finest − next mesh MPa
+    or None) of one peak block."""
+    est = block.get("error_estimate")
+    if est is None:
+        return None, "single mesh", None, None
+    band = est.get("band") if est["status"] in ("converged", "oscillatory", "exact", "scattered") else None
+    ext = est.get("extrapolated") if est["status"] in ("converged", "scattered") else None
+    vals = est.get("values") or []
+    change = vals[0] - vals[1] if len(vals) >= 2 else None
+    return band, est["status"], ext, change
+
+
+def row_of(folder: Path, res: dict) -> dict:
+    """One summary row (flat dict, CSV_COLUMNS) from one results.json."""
+    case, fe, an = res["case"], res["fe"], res["analytic"]
+    src = case.get("source", "")
+    m = _S_RE.search(src)
+    scaled = src.startswith(SCALED_TAG)
+    pb, ps, pe, pd = _estimate(fe["peak"])
+    cb, cs, ce, cd = _estimate(fe["critical"])
+    return {
+        "size": case.get("size", folder.name), "folder": folder.name,
+        "dimensions": "scaled (not DIN)" if scaled else "table row (see source)",
+        "scale_s": float(m.group(1)) if (scaled and m) else (1.0 if case.get("size") == "05" else None),
+        "load_N": case["load_N"],
+        "approximate_MPa": an["approximate_MPa"], "exact_MPa": an["exact_MPa"],
+        "fe_peak_MPa": fe["peak_MPa"], "fe_peak_band_MPa": pb, "fe_peak_status": ps,
+        "fe_peak_extrapolated_MPa": pe, "fe_peak_last_change_MPa": pd, "fe_peak_feature": fe["peak"].get("feature", ""),
+        "fe_critical_MPa": fe["critical_peak_MPa"], "fe_critical_band_MPa": cb,
+        "fe_critical_status": cs, "fe_critical_extrapolated_MPa": ce, "fe_critical_last_change_MPa": cd,
+        "fe_critical_feature": fe["critical"].get("feature", ""),
+        "allowable_MPa": case.get("allowable_MPa"),
+        "safety_factor": fe["safety_factor"], "critical_safety_factor": fe["critical_safety_factor"],
+        "mesh_min_jacobian_ratio": fe.get("mesh_min_jacobian_ratio"),
+        "mesh_factor": case.get("mesh_factor"), "meshes": len(fe.get("levels", [])) or None,
+        "dofs": fe.get("dofs"), "time_s": res.get("timings_s", {}).get("total"),
+        "source": src,
+    }
+
+
+def warnings_of(r: dict) -> list[str]:
+    """Short reasons a person should not trust a row's FE numbers as they stand."""
+    out = []
+    jac = r.get("mesh_min_jacobian_ratio")
+    if jac is not None and jac < JACOBIAN_SUSPECT:
+        out.append(f"nearly inverted curved element on the finest mesh (det J ratio {jac:.2g})")
+    for key, name in (("peak", "global"), ("critical", "critical")):
+        band, value = r[f"fe_{key}_band_MPa"], r[f"fe_{key}_MPa"]
+        if band is not None and value and band > BAND_TOO_WIDE * abs(value):
+            out.append(f"{name} error bar {100 * band / abs(value):.0f} % of the value")
+    return out
+
+
+def collect(results_dir: Path, take_all: bool = False) -> tuple[list[dict], list[str]]:
+    """Rows for every size folder with a results.json, sorted by hook number; and notes
+    on folders that were skipped."""
+    sizes = None
+    if not take_all:
+        from geometry.table import load_table
+        sizes = set(load_table())
+    rows, skipped = [], []
+    for sub in sorted(p for p in results_dir.iterdir() if p.is_dir()):
+        f = sub / "results.json"
+        if not f.is_file():
+            continue
+        if sizes is not None and sub.name not in sizes:
+            skipped.append(f"{sub.name} (not a hook number of the size table; use --all)")
+            continue
+        try:
+            row = row_of(sub, json.loads(f.read_text(encoding="utf-8")))
+            row["warnings"] = "; ".join(warnings_of(row))
+            rows.append(row)
+        except (KeyError, TypeError, ValueError) as exc:
+            skipped.append(f"{sub.name} (unreadable results.json: {exc})")
+    rows.sort(key=lambda r: (hook_value(r["size"]), r["folder"]))
+    return rows, skipped
+
+
+def _n(v: float | None, digits: int = 2) -> str:
+    return "–" if v is None else f"{v:.{digits}f}"
+
+
+def _fe_cell(r: dict, key: str) -> str:
+    """FE peak with its error bar, or why it has none (MPa)."""
+    value, band, status = r[f"fe_{key}_MPa"], r[f"fe_{key}_band_MPa"], r[f"fe_{key}_status"]
+    change = r[f"fe_{key}_last_change_MPa"]
+    last = "" if change is None else f"; last refinement {change:+.2f}"
+    if status == "singular":
+        return f"{value:.2f} (NOT CONVERGED: grows{last})"
+    if status == "diverging":
+        return f"{value:.2f} (no error bar{last})"
+    if band is None:
+        return f"{value:.2f} (no error bar)"
+    return f"{value:.2f} ± {band:.2f}"
+
+
+def write_csv(rows: list[dict], path: Path) -> None:
+    with open(path, "w", newline="", encoding="utf-8") as fh:
+        w = csv.DictWriter(fh, fieldnames=CSV_COLUMNS, extrasaction="ignore")
+        w.writeheader()
+        for r in rows:
+            w.writerow({k: ("" if r[k] is None else r[k]) for k in CSV_COLUMNS})
+
+
+def markdown(rows: list[dict], skipped: list[str], png_name: str | None) -> str:
+    lines = [
+        "# Crosshead stresses across hook sizes",
+        "",
+        "Units: N, MPa, s. Formulas: the paper's approximate (span b1 + b2) and exact "
+        "(curved bar, span b6) hand formulas. FE: peak von Mises at element nodes on the finest "
+        "mesh, over the whole part (global) and over the ligaments beside the bore (critical, "
+        "|x| ≤ d2/2), ± the GCI band of the mesh-refinement study with its status. "
+        "Safety factor = allowable / FE peak.",
+        "",
+        "| No. | dimensions | load (N) | approx. (MPa) | exact (MPa) | FE global peak (MPa) | status "
+        "| FE critical peak (MPa) | status | SF global | SF critical | DOFs | time (s) |",
+        "|---|---|--:|--:|--:|--:|---|--:|---|--:|--:|--:|--:|",
+    ]
+    for r in rows:
+        dims = r["dimensions"] if r["scale_s"] in (None, 1.0) or r["dimensions"].startswith("table row") \
+            else f"scaled ×{r['scale_s']:.3f} (not DIN)"
+        flag = " ⚠" if r.get("warnings") else ""
+        lines.append(
+            f"| {r['size']}{flag} | {dims} | {r['load_N']:.0f} | {_n(r['approximate_MPa'])} | "
+            f"{_n(r['exact_MPa'])} | {_fe_cell(r, 'peak')} | "
+            f"{r['fe_peak_status']} | "
+            f"{_fe_cell(r, 'critical')} | "
+            f"{r['fe_critical_status']} | {_n(r['safety_factor'])} | {_n(r['critical_safety_factor'])} | "
+            f"{r['dofs'] if r['dofs'] is not None else '–'} | {_n(r['time_s'], 1)} |")
+    lines.append("")
+    warned = [r for r in rows if r.get("warnings")]
+    if warned:
+        lines += [f"**⚠ Check these rows before using their FE numbers** (a curved tet with det J "
+                  f"ratio below {JACOBIAN_SUSPECT:g} can carry a spurious peak; an error bar above "
+                  f"{100 * BAND_TOO_WIDE:.0f} % of the value means one of the meshes disagrees wildly: "
+                  "look at its levels in results.json, rerun finer or with another --mesh-factor):", ""]
+        lines += [f"- No. {r['size']}: {r['warnings']}." for r in warned]
+        lines.append("")
+    if not rows:
+        lines.append("No results found.")
+    notes = []
+    own = [r for r in rows if r["dimensions"].startswith("table row")]
+    if own:
+        notes.append("Rows from the table as given (not scaled): " + "; ".join(
+            f"No. {r['size']}: {r['source']}" for r in own) + ".")
+    if any(not r["dimensions"].startswith("table row") for r in rows):
+        notes.append(
+            "Rows marked *scaled* are NOT DIN 15412 dimensions: every length of No. 05 times "
+            "s = sqrt(Q/1000 kg), rounded to 0.5 mm (geometry/sizes.csv, tools/scale_sizes.py). "
+            "Under exact similarity with load ∝ s² the stresses would equal No. 05's × 0.981 "
+            "(No. 05 carries the paper's rounded 10 000 N, the scaled rows kg × 9.81 N); the "
+            "remaining differences come from the 0.5 mm rounding (notably the fillet radius rf, "
+            "which drives the global peak at the journal shoulder) and the mesh.")
+    def where(key: str) -> str:
+        by: dict[str, list[str]] = {}
+        for r in rows:
+            by.setdefault(r[key] or "?", []).append(r["size"])
+        if len(by) == 1:
+            return f"{next(iter(by))} (every row)"
+        return "; ".join(f"{f} (No. {', '.join(s)})" for f, s in sorted(by.items(), key=lambda kv: -len(kv[1])))
+    if rows:
+        notes.append(f"Global peak at: {where('fe_peak_feature')}. Critical peak at: "
+                     f"{where('fe_critical_feature')}.")
+    statuses = {s for r in rows for s in (r["fe_peak_status"], r["fe_critical_status"])}
+    if "oscillatory" in statuses:
+        notes.append("*oscillatory*: the peak moved up and down between the meshes; the "
+                     "bar is the largest change, not a Richardson estimate.")
+    if "scattered" in statuses:
+        notes.append("*scattered*: the peak scatters between meshes (unstructured meshes move nodal "
+                     "peaks by ~1 %); the bar is from a least-squares fit over the meshes with safety "
+                     "factor 3.")
+    if "singular" in statuses:
+        notes.append("*singular*: the peak grows under refinement (observed order < 0.5); it sits "
+                     "at a singular feature, has no finite value and is not a number to design with.")
+    if "diverging" in statuses:
+        notes.append("*diverging*: the three meshes show no convergence order >= 0.5 (the peak "
+                     "changes slowly or erratically), so no error bar can be computed; the change "
+                     "between the two finest meshes is shown instead. Finer meshes (`make converge` "
+                     "style study) are needed for a bar.")
+    factors = {r["mesh_factor"] for r in rows}
+    meshes = {r["meshes"] for r in rows}
+    if len(factors) > 1 or len(meshes) > 1:
+        notes.append(f"The rows were not all run alike: mesh factors {sorted(factors, key=str)}, "
+                     f"meshes per error bar {sorted(meshes, key=str)}.")
+    elif rows:
+        notes.append(f"Every row: mesh factor {factors.pop()}, {meshes.pop()} meshes for the error bar.")
+    allow = {r["allowable_MPa"] for r in rows}
+    if len(allow) == 1 and rows:
+        notes.append(f"Allowable stress {allow.pop():g} MPa (St 50, paper: 80–120 MPa).")
+    if rows:
+        total = sum(r["time_s"] or 0.0 for r in rows)
+        notes.append(f"Total run time of the rows: {total:.0f} s.")
+    if skipped:
+        notes.append("Skipped folders: " + "; ".join(skipped) + ".")
+    lines += [f"- {n}" for n in notes]
+    if png_name:
+        lines += ["", f"![stresses against hook number]({png_name})"]
+    return "\n".join(lines) + "\n"
+
+
+def plot(rows: list[dict], path: Path) -> bool:
+    """FE peaks with error bars and the formula stresses against hook number (categorical)."""
+    try:
+        import matplotlib
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+    except ImportError:
+        return False
+    x = list(range(len(rows)))
+    # A mesh artefact can be 20× the rest (see warnings_of): clip the axis and label it.
+    glob = sorted(r["fe_peak_MPa"] for r in rows)
+    cap = max(2.5 * glob[len(glob) // 2], *(1.3 * (r["allowable_MPa"] or 0) for r in rows),
+              *(1.2 * r["fe_critical_MPa"] for r in rows))
+    fig, ax = plt.subplots(figsize=(min(16.0, max(7.0, 0.42 * len(rows) + 3) + 3.0), 6.0))
+
+    def series(key: str, band_key: str, status_key: str, fmt: str, color: str, label: str):
+        vals = [min(r[key], cap) for r in rows]
+        for i, r in enumerate(rows):
+            if r[key] > cap:
+                ax.plot([x[i]], [cap], "^", color=color, ms=10)
+                ax.annotate(f"{r[key]:.0f} MPa\n(off scale)", (x[i], cap), textcoords="offset points",
+                            xytext=(6, -22), fontsize=7, color=color)
+        bars = [r[band_key] if r[band_key] is not None else 0.0 for r in rows]
+        ax.errorbar(x, vals, yerr=bars, fmt=fmt, color=color, capsize=3, lw=1.2, ms=5, label=label)
+        bad = [i for i, r in enumerate(rows) if r[status_key] in ("singular", "diverging")]
+        if bad:
+            ax.plot([x[i] for i in bad], [vals[i] for i in bad], "x", color="k", ms=9,
+                    label=f"{label.split(' (')[0].split(' ±')[0]}: no error bar (not converged)")
+
+    series("fe_critical_MPa", "fe_critical_band_MPa", "fe_critical_status", "o-", "C3",
+           "FE critical peak (bore ligament) ± GCI")
+    series("fe_peak_MPa", "fe_peak_band_MPa", "fe_peak_status", "s--", "C0",
+           "FE global peak ± GCI")
+    ax.plot(x, [r["exact_MPa"] for r in rows], "^-", color="C2", label="exact formula (curved bar)")
+    ax.plot(x, [r["approximate_MPa"] for r in rows], "v-", color="C1", label="approximate formula")
+    allow = {r["allowable_MPa"] for r in rows}
+    if len(allow) == 1 and rows:
+        ax.axhline(allow.pop(), color="0.4", ls=":", label="allowable")
+    ax.set_xticks(x)
+    ax.set_xticklabels([("! " if r.get("warnings") else "") + f"{r['size']}\n{r['load_N'] / 1000:.3g}"
+                        + ("" if r["dimensions"].startswith("table row") else "*") for r in rows], fontsize=8)
+    ax.set_xlabel("hook No. (categorical axis) and load in kN; * = dimensions scaled from No. 05, not DIN; "
+                  "! = see the warnings in summary.md")
+    ax.set_ylabel("von Mises / nominal stress (MPa)")
+    ax.set_ylim(0, 1.05 * cap)
+    ax.set_title("DIN 15412 crosshead: stress against hook number")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return True
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(prog="python -m pipeline.summary", description=__doc__.split("\n\n")[0])
+    p.add_argument("results", type=Path, nargs="?", default=Path("results"),
+                   help="folder holding one sub-folder per size (default results)")
+    p.add_argument("--out", type=Path, help="output folder (default <results>/summary)")
+    p.add_argument("--all", action="store_true", help="every sub-folder with a results.json, not only table sizes")
+    args = p.parse_args(argv)
+    if not args.results.is_dir():
+        sys.stderr.write(f"error: results: no such folder {args.results}\n")
+        return 2
+    out = args.out or args.results / "summary"
+    rows, skipped = collect(args.results, args.all)
+    if not rows:
+        sys.stderr.write(f"error: results: no results/<size>/results.json under {args.results}\n")
+        return 2
+    out.mkdir(parents=True, exist_ok=True)
+    write_csv(rows, out / "summary.csv")
+    have_png = plot(rows, out / "summary.png")
+    md = markdown(rows, skipped, "summary.png" if have_png else None)
+    (out / "summary.md").write_text(md, encoding="utf-8")
+    print(md, end="")
+    print(f"written to {out}/ (summary.md, summary.csv{', summary.png' if have_png else ''})")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
