@@ -126,8 +126,8 @@ def make_parser() -> argparse.ArgumentParser:
                          description=DESCRIPTION, epilog=EPILOG,
                          formatter_class=argparse.RawDescriptionHelpFormatter)
     add_case_options(run)
-    run.add_argument("--levels", type=int, default=4,
-                     help="meshes solved for the error bar: the requested one and coarser ones (default 4; 1 = no error bar)")
+    run.add_argument("--levels", type=int, default=3,
+                     help="meshes solved for the error bar: the requested one and coarser ones (default 3; 1 = no error bar)")
     run.add_argument("--ratio", type=_positive_float, default=1.3, help="mesh-size ratio between those meshes (default 1.3)")
     run.add_argument("--no-fields", action="store_true", help="skip ParaView files, picture and report (benchmarks)")
     conv = sub.add_parser("converge", help="mesh convergence study: >= 4 meshes, extrapolation, GCI, plot",

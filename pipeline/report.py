@@ -28,8 +28,10 @@ def error_bar_text(block: dict) -> str:
         return "no error estimate (fewer than three meshes)"
     st = est["status"]
     if st == "converged":
+        capped = (f", band uses order {est['order_used']:g} (the element's formal order)"
+                  if est["order_used"] < est["order_observed"] - 1e-9 else "")
         return (f"± {_f(est['band'])} MPa (GCI {100 * est['gci_fine']:.2f} %), extrapolated "
-                f"{_f(est['extrapolated'])} MPa, observed order {est['order_observed']:.2f}")
+                f"{_f(est['extrapolated'])} MPa, observed order {est['order_observed']:.2f}{capped}")
     if st == "exact":
         return "unchanged across meshes"
     if st == "scattered":

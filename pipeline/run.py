@@ -150,7 +150,7 @@ def estimate_levels(levels: list[Level], case: Case, attr: str) -> Estimate:
     return estimate(values, h, p_formal=float(case.order))
 
 
-def analyse(case: Case, levels: int = 4, ratio: float = 1.3, msh_path: Path | None = None,
+def analyse(case: Case, levels: int = 3, ratio: float = 1.3, msh_path: Path | None = None,
             progress: Progress | None = None, comm=MPI.COMM_WORLD) -> list[Level]:
     """Solve on ``levels`` meshes, the requested one and coarser by ``ratio`` each; finest first.
 

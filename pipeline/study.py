@@ -18,7 +18,7 @@ from .report import write_report
 from .run import Progress, analyse, build_results, describe_location, sum_timings
 
 
-def execute_run(case: Case, out_dir: Path, levels: int = 4, ratio: float = 1.3,
+def execute_run(case: Case, out_dir: Path, levels: int = 3, ratio: float = 1.3,
                 progress: Progress | None = None, write_fields: bool = True,
                 loads: list[float] | None = None, comm=MPI.COMM_WORLD) -> dict:
     """Analyse ``case`` and write results.json, report.md, mesh.msh, VTK fields and a PNG.
