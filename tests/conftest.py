@@ -5,3 +5,16 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
+
+
+import gmsh  # noqa: E402
+import pytest  # noqa: E402
+
+
+@pytest.fixture
+def gmsh_session():
+    """A gmsh session for tests that build geometry directly (silent, no config files)."""
+    gmsh.initialize(readConfigFiles=False)
+    gmsh.option.setNumber("General.Terminal", 0)
+    yield
+    gmsh.finalize()

@@ -22,14 +22,6 @@ def volume_by_quadrature(d, model):
     return full / 4 if model == "quarter" else full
 
 
-@pytest.fixture
-def gmsh_session():
-    gmsh.initialize(readConfigFiles=False)
-    gmsh.option.setNumber("General.Terminal", 0)
-    yield
-    gmsh.finalize()
-
-
 def test_no05_row_is_the_paper_table():
     row = lookup("05")
     d = row.dims

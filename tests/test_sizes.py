@@ -82,14 +82,6 @@ def test_scaled_row_is_labelled_and_rounded_from_no05(size):
     assert row.dims.b6 == row.dims.b1 + 2 * row.dims.b2
 
 
-@pytest.fixture
-def gmsh_session():
-    gmsh.initialize(readConfigFiles=False)
-    gmsh.option.setNumber("General.Terminal", 0)
-    yield
-    gmsh.finalize()
-
-
 @pytest.mark.parametrize("size", list(TABLE))
 def test_every_row_validates_and_builds(gmsh_session, size):
     d = validate(TABLE[size].dims)
