@@ -19,7 +19,6 @@ import sys
 from dataclasses import asdict
 from pathlib import Path
 
-import gmsh
 import pytest
 
 from geometry.builder import analytic_volume, build
