@@ -37,8 +37,9 @@ class Estimate:
     status: "converged" (monotone, p >= 0.5), "oscillatory" (three meshes, differences
     change sign; band = largest difference), "scattered" (four or more meshes whose values
     scatter about the fit by more than the data range per step; band with Fs = 3),
-    "singular" (growing with refinement, p < 0.5: no finite limit), "diverging"
-    (decreasing with p < 0.5), "exact" (no change between meshes).
+    "singular" (growing with refinement, p < 0.5: no finite limit), "unsettled"
+    (falling with p < 0.5: not in the asymptotic range; band = largest change), "exact"
+    (no change between meshes).
     p_used is min(p, p_formal): the order used for extrapolation and GCI, never above
     the element's formal order for stress so the band is not optimistic.
     """
@@ -58,7 +59,7 @@ class Estimate:
 
     @property
     def trustworthy(self) -> bool:
-        return self.status in ("converged", "exact", "oscillatory", "scattered")
+        return self.status in ("converged", "exact", "oscillatory", "scattered", "unsettled")
 
 
 def observed_order(f: Sequence[float], h: Sequence[float]) -> float | None:
@@ -169,8 +170,12 @@ def three_mesh_estimate(values: Sequence[float], h: Sequence[float], p_formal: f
         band = max(abs(e21), abs(e32))
         return Estimate(vals, hs, "oscillatory", None, None, f1, band / scale, band, band / scale)
     if p < P_SINGULAR:
-        status = "singular" if f1 > f2 > f3 else "diverging"
-        return Estimate(vals, hs, status, p, None, None, None, None, None)
+        if f1 > f2 > f3:   # growing without slowing down: no finite limit
+            return Estimate(vals, hs, "singular", p, None, None, None, None, None)
+        # Falling, but not yet at a steady rate: not in the asymptotic range. No
+        # extrapolation; the band is the largest change between meshes.
+        band = max(abs(e21), abs(e32))
+        return Estimate(vals, hs, "unsettled", p, None, f1, band / scale, band, band / scale)
     p_used = min(p, p_formal)
     r21 = h[1] / h[0]
     ext = f1 + (f1 - f2) / (r21 ** p_used - 1)

@@ -38,6 +38,9 @@ def error_bar_text(block: dict) -> str:
         return (f"± {_f(est['band'])} MPa ({100 * est['gci_fine']:.1f} %), values scatter between meshes "
                 f"(unstructured meshes move nodal peaks by ~1 %); least-squares limit {_f(est['extrapolated'])} MPa, "
                 "band with safety factor 3")
+    if st == "unsettled":
+        return (f"± {_f(est['band'])} MPa ({100 * est['gci_fine']:.1f} %), values still changing between "
+                "meshes (not in the asymptotic range); band = largest change, no extrapolation")
     if st == "oscillatory":
         return (f"± {_f(est['band'])} MPa ({100 * est['gci_fine']:.2f} %), values oscillate "
                 "between meshes; band = largest change")

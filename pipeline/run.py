@@ -184,7 +184,7 @@ def build_results(case: Case, levels: list[Level], timings: dict[str, float],
         singular = singular_feature(case, p.location_mm)
         if est is not None:
             block["error_estimate"] = est.as_dict()
-            if est.status in ("singular", "diverging") and singular is None:
+            if est.status == "singular" and singular is None:
                 singular = f"{block['feature']} (values do not converge under refinement)"
         if singular is not None:
             block["singular_feature"] = singular

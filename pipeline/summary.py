@@ -132,8 +132,6 @@ def _fe_cell(r: dict, key: str) -> str:
     last = "" if change is None else f"; last refinement {change:+.2f}"
     if status == "singular":
         return f"{value:.2f} (NOT CONVERGED: grows{last})"
-    if status == "diverging":
-        return f"{value:.2f} (no error bar{last})"
     if band is None:
         return f"{value:.2f} (no error bar)"
     return f"{value:.2f} ± {band:.2f}"
@@ -217,11 +215,9 @@ def markdown(rows: list[dict], skipped: list[str], png_name: str | None) -> str:
     if "singular" in statuses:
         notes.append("*singular*: the peak grows under refinement (observed order < 0.5); it sits "
                      "at a singular feature, has no finite value and is not a number to design with.")
-    if "diverging" in statuses:
-        notes.append("*diverging*: the three meshes show no convergence order >= 0.5 (the peak "
-                     "changes slowly or erratically), so no error bar can be computed; the change "
-                     "between the two finest meshes is shown instead. Finer meshes (`make converge` "
-                     "style study) are needed for a bar.")
+    if "unsettled" in statuses:
+        notes.append("*unsettled*: the peak still falls between the meshes without a steady rate "
+                     "(not in the asymptotic range); the bar is the largest change, no extrapolation.")
     factors = {r["mesh_factor"] for r in rows}
     meshes = {r["meshes"] for r in rows}
     if len(factors) > 1 or len(meshes) > 1:
@@ -267,7 +263,7 @@ def plot(rows: list[dict], path: Path) -> bool:
                             xytext=(6, -22), fontsize=7, color=color)
         bars = [r[band_key] if r[band_key] is not None else 0.0 for r in rows]
         ax.errorbar(x, vals, yerr=bars, fmt=fmt, color=color, capsize=3, lw=1.2, ms=5, label=label)
-        bad = [i for i, r in enumerate(rows) if r[status_key] in ("singular", "diverging")]
+        bad = [i for i, r in enumerate(rows) if r[status_key] == "singular"]
         if bad:
             ax.plot([x[i] for i in bad], [vals[i] for i in bad], "x", color="k", ms=9,
                     label=f"{label.split(' (')[0].split(' ±')[0]}: no error bar (not converged)")
