@@ -48,7 +48,7 @@ def _estimate(block: dict) -> tuple[float | None, str, float | None, float | Non
     est = block.get("error_estimate")
     if est is None:
         return None, "single mesh", None, None
-    band = est.get("band") if est["status"] in ("converged", "oscillatory", "exact", "scattered") else None
+    band = est.get("band") if est["status"] != "singular" else None  # singular: no finite value
     ext = est.get("extrapolated") if est["status"] in ("converged", "scattered") else None
     vals = est.get("values") or []
     change = vals[0] - vals[1] if len(vals) >= 2 else None
