@@ -229,6 +229,24 @@ def _bearing_surfaces(d: Dimensions) -> list[int]:
     return tags
 
 
+def size_field(curves: list[int], size: float, size_far: float, dist_min: float,
+               dist_max: float) -> int:
+    """A gmsh Threshold field (mm): ``size`` within dist_min of the curves, growing linearly
+    to size_far at dist_max; returns its tag. gmsh 4.8 option names (EdgesList,
+    NNodesByEdge; newer gmsh: CurvesList, Sampling)."""
+    field = gmsh.model.mesh.field
+    dist = field.add("Distance")
+    field.setNumbers(dist, "EdgesList", curves)
+    field.setNumber(dist, "NNodesByEdge", 200)
+    thr = field.add("Threshold")
+    field.setNumber(thr, "IField", dist)
+    field.setNumber(thr, "LcMin", size)
+    field.setNumber(thr, "LcMax", size_far)
+    field.setNumber(thr, "DistMin", dist_min)
+    field.setNumber(thr, "DistMax", dist_max)
+    return thr
+
+
 def mesh(d: Dimensions, spec: MeshSpec) -> None:
     """Mesh the current gmsh model: graded sizes, refined at the stress raisers.
 
@@ -242,16 +260,7 @@ def mesh(d: Dimensions, spec: MeshSpec) -> None:
     field = gmsh.model.mesh.field
 
     def threshold(curves: list[int], size: float, dist_min: float, dist_max: float) -> int:
-        dist = field.add("Distance")
-        field.setNumbers(dist, "EdgesList", curves)
-        field.setNumber(dist, "NNodesByEdge", 200)
-        thr = field.add("Threshold")
-        field.setNumber(thr, "IField", dist)
-        field.setNumber(thr, "LcMin", size)
-        field.setNumber(thr, "LcMax", hmax)
-        field.setNumber(thr, "DistMin", dist_min)
-        field.setNumber(thr, "DistMax", dist_max)
-        return thr
+        return size_field(curves, size, hmax, dist_min, dist_max)
 
     fields_ = [threshold(edges, spec.size_feature * f, 0.25 * spec.grading * f, spec.grading)]
     if fillets:

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import csv
 import math
-from dataclasses import asdict, dataclass, fields, replace
+from dataclasses import dataclass, fields, replace
 from pathlib import Path
 
 TABLE_PATH = Path(__file__).with_name("sizes.csv")
@@ -46,15 +46,6 @@ class Dimensions:
     rf: float
     seat_inner: float
     seat_outer: float
-
-    @property
-    def bearing_length(self) -> float:
-        """Length of the journal bearing surface, from the fillet run-out to the tip, mm."""
-        return self.b2 - self.rf
-
-    def scaled(self, factor: float) -> "Dimensions":
-        """All lengths multiplied by ``factor`` (for similarity and invariance checks)."""
-        return Dimensions(**{k: v * factor for k, v in asdict(self).items()})
 
 
 def default_extras(b1: float, d14: float, h3: float) -> dict[str, float]:

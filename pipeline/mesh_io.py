@@ -60,7 +60,7 @@ QUALITY_FLOOR = 0.02   # worst det J ratio below this after gmsh's repairs: mesh
 RETRY_FACTORS = (0.97, 1.03)
 
 
-def _mesh_with_retries(d: Dimensions, spec: MeshSpec, model: str) -> tuple[float, float]:
+def _mesh_with_retries(d: Dimensions, spec: MeshSpec) -> tuple[float, float]:
     """Mesh the current gmsh model; if a curved element stays nearly degenerate, mesh again
     with every size ×0.97, then ×1.03, and keep the best. Returns (quality, factor used).
 
@@ -135,7 +135,7 @@ def make_mesh(d: Dimensions, model: str, spec: MeshSpec, comm=MPI.COMM_WORLD,
             built = build(dn, model)
             timings["geometry"] = time.perf_counter() - t0
             t0 = time.perf_counter()
-            quality, factor_used = _mesh_with_retries(dn, spec_n, model)
+            quality, factor_used = _mesh_with_retries(dn, spec_n)
             if msh_path is not None:
                 gmsh.option.setNumber("Mesh.ScalingFactor", scale)  # write in mm
                 gmsh.write(str(msh_path))

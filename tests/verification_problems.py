@@ -19,6 +19,8 @@ import numpy as np
 from dolfinx.io import gmshio
 from mpi4py import MPI
 
+from geometry.builder import size_field
+
 TOL = 1e-6  # mm: geometric tolerance for picking planar faces by bounding box
 CURVED_TOL = 1e-4  # relative: OCC pads the bounding boxes of curved entities slightly
 
@@ -82,17 +84,7 @@ def _sizes(lc_max: float, lc_min: float | None = None) -> None:
 def _refine_near(curves: list[int], size: float, size_far: float, dist_min: float,
                  dist_max: float) -> None:
     """Background size field: ``size`` within dist_min of the curves, growing to size_far."""
-    field = gmsh.model.mesh.field
-    dist = field.add("Distance")
-    field.setNumbers(dist, "EdgesList", curves)  # gmsh 4.8 names (STACK.md)
-    field.setNumber(dist, "NNodesByEdge", 200)
-    thr = field.add("Threshold")
-    field.setNumber(thr, "IField", dist)
-    field.setNumber(thr, "LcMin", size)
-    field.setNumber(thr, "LcMax", size_far)
-    field.setNumber(thr, "DistMin", dist_min)
-    field.setNumber(thr, "DistMax", dist_max)
-    field.setAsBackgroundMesh(thr)
+    gmsh.model.mesh.field.setAsBackgroundMesh(size_field(curves, size, size_far, dist_min, dist_max))
 
 
 def _extrude(surface: int, thickness: float, layers: int) -> list[int]:
