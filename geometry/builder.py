@@ -26,6 +26,9 @@ import numpy as np
 from .table import Dimensions
 
 MODELS = ("quarter", "full")
+FILLET_BAND = 0.25  # fillet size holds within this × rf of the fillet surface
+HOTSPOT_SIZE = 0.4  # × the smaller of the feature and fillet sizes, at a pilot's stress peak
+HOTSPOT_RADIUS = 0.024  # × h3: how far that size holds around the peak (not scaled by factor)
 GRADE = 0.5  # largest growth of the element size per unit distance near the fillets
 
 
@@ -49,6 +52,11 @@ class MeshSpec:
     grading: float
     factor: float = 1.0
     order: int = 2
+    # Stress peaks found on a pilot mesh (mm, any quadrant: mirrored into all four):
+    # size_hotspot within hotspot_radius of each, then growing like near the fillets.
+    hotspots: tuple[tuple[float, float, float], ...] = ()
+    size_hotspot: float = 0.0
+    hotspot_radius: float = 0.0
 
     @staticmethod
     def default_for(d: Dimensions, factor: float = 1.0, order: int = 2) -> "MeshSpec":
@@ -57,8 +65,11 @@ class MeshSpec:
         The ratios were chosen for No. 05 by the convergence study (`make converge`).
         """
         fillet = 0.25 * d.rf if d.rf > 0 else 0.02 * d.h3
-        return MeshSpec(size_body=0.16 * d.h3, size_feature=0.05 * d.h3,
-                        size_fillet=fillet, grading=0.4 * d.h3, factor=factor, order=order)
+        feature = 0.05 * d.h3
+        return MeshSpec(size_body=0.16 * d.h3, size_feature=feature, size_fillet=fillet,
+                        grading=0.4 * d.h3, factor=factor, order=order,
+                        size_hotspot=HOTSPOT_SIZE * min(feature, fillet),
+                        hotspot_radius=HOTSPOT_RADIUS * d.h3)
 
 
 @dataclass(frozen=True)
@@ -229,6 +240,45 @@ def _bearing_surfaces(d: Dimensions) -> list[int]:
     return tags
 
 
+def _fillet_distance(d: Dimensions) -> int:
+    """A gmsh MathEval field: distance (mm) from the torus that carries the shoulder fillets.
+
+    The fillet is a quarter of the torus swept by a circle of radius rf centred rf beside the
+    body face and rf outside the journal; elsewhere that torus lies in air, so near the
+    part this is the distance from the fillet surface (and its two tangent lines). Why not
+    gmsh's Distance from the fillet's edge curves: the middle of the fillet, where the peak
+    sits, is ~0.7 rf from both edges and got elements half again as large as intended,
+    and the peak there scattered by ±1.5 % between meshes even at rf/12."""
+    xc, rc, zc = d.b1 / 2 + d.rf, d.dj / 2 + d.rf, d.h3 / 2
+    field = gmsh.model.mesh.field
+    tag = field.add("MathEval")
+    field.setString(tag, "F", f"Fabs(Sqrt((Fabs(x)-{xc!r})^2 + (Sqrt(y^2+(z-{zc!r})^2)-{rc!r})^2)-{d.rf!r})")
+    return tag
+
+
+def _point_distance(point: tuple[float, float, float]) -> int:
+    """A gmsh MathEval field: distance (mm) from the nearest of the point's mirror images
+    in the planes x = 0 and y = 0 (the part and its loads have that symmetry)."""
+    x, y, z = (abs(point[0]), abs(point[1]), point[2])
+    field = gmsh.model.mesh.field
+    tag = field.add("MathEval")
+    field.setString(tag, "F", f"Sqrt((Fabs(x)-{x!r})^2 + (Fabs(y)-{y!r})^2 + (z-{z!r})^2)")
+    return tag
+
+
+def _threshold_on(source: int, size: float, size_far: float, dist_min: float, dist_max: float) -> int:
+    """A gmsh Threshold field on the distance field ``source``: ``size`` within dist_min,
+    growing linearly to size_far at dist_max (mm)."""
+    field = gmsh.model.mesh.field
+    thr = field.add("Threshold")
+    field.setNumber(thr, "IField", source)
+    field.setNumber(thr, "LcMin", size)
+    field.setNumber(thr, "LcMax", size_far)
+    field.setNumber(thr, "DistMin", dist_min)
+    field.setNumber(thr, "DistMax", dist_max)
+    return thr
+
+
 def size_field(curves: list[int], size: float, size_far: float, dist_min: float,
                dist_max: float) -> int:
     """A gmsh Threshold field (mm): ``size`` within dist_min of the curves, growing linearly
@@ -238,13 +288,7 @@ def size_field(curves: list[int], size: float, size_far: float, dist_min: float,
     dist = field.add("Distance")
     field.setNumbers(dist, "EdgesList", curves)
     field.setNumber(dist, "NNodesByEdge", 200)
-    thr = field.add("Threshold")
-    field.setNumber(thr, "IField", dist)
-    field.setNumber(thr, "LcMin", size)
-    field.setNumber(thr, "LcMax", size_far)
-    field.setNumber(thr, "DistMin", dist_min)
-    field.setNumber(thr, "DistMax", dist_max)
-    return thr
+    return _threshold_on(dist, size, size_far, dist_min, dist_max)
 
 
 def mesh(d: Dimensions, spec: MeshSpec) -> None:
@@ -264,14 +308,22 @@ def mesh(d: Dimensions, spec: MeshSpec) -> None:
 
     fields_ = [threshold(edges, spec.size_feature * f, 0.25 * spec.grading * f, spec.grading)]
     if fillets:
-        # Fine only on the fillet, then sizes grow with slope <= 0.5: steeper growth gave
-        # slivers that curve into inverted P2 elements (seen at rf/6 on No. 05).
+        # Fine on the whole fillet surface, then sizes grow with slope <= 0.5: steeper
+        # growth gave slivers that curve into inverted P2 elements (seen at rf/6 on No. 05).
         h_f = spec.size_fillet * f
-        fields_.append(threshold(fillets, h_f, 0.5 * d.rf, 0.5 * d.rf + (hmax - h_f) / GRADE))
+        dist_min = FILLET_BAND * d.rf
+        fields_.append(_threshold_on(_fillet_distance(d), h_f, hmax, dist_min,
+                                     dist_min + (hmax - h_f) / GRADE))
+    for point in spec.hotspots:
+        # The radius is a region, not a size: it stays put while the sizes are scaled, so
+        # the DOFs grow with refinement like everywhere else (a scaled radius kept the
+        # number of elements in the ball constant and stalled the error-bar ratios).
+        h_s, r_s = spec.size_hotspot * f, spec.hotspot_radius
+        fields_.append(_threshold_on(_point_distance(point), h_s, hmax, r_s, r_s + (hmax - h_s) / GRADE))
     fmin = field.add("Min")
     field.setNumbers(fmin, "FieldsList", fields_)
     field.setAsBackgroundMesh(fmin)
-    hmin = min(spec.size_feature, spec.size_fillet) * f
+    hmin = min([spec.size_feature, spec.size_fillet] + ([spec.size_hotspot] if spec.hotspots else [])) * f
     opt = gmsh.option.setNumber
     opt("Mesh.MeshSizeExtendFromBoundary", 0)
     opt("Mesh.MeshSizeFromPoints", 0)

@@ -44,6 +44,7 @@ import shutil  # noqa: E402
 import statistics  # noqa: E402
 import subprocess  # noqa: E402
 import sys  # noqa: E402
+from dataclasses import replace  # noqa: E402
 from pathlib import Path  # noqa: E402
 
 from pipeline.jsonio import json_safe  # noqa: E402
@@ -54,7 +55,7 @@ FULL_FACTORS = (2.0, 1.5, 1.15, 0.9, 0.7)
 P3_FACTORS = (2.0, 1.5)
 QUICK_FACTORS = (2.0, 1.5)
 SOLVERS = ("gamg", "hypre", "mumps")
-STAGES = ("geometry", "mesh", "import", "loads", "assemble", "solve", "write", "ccx", "read",
+STAGES = ("pilot", "geometry", "mesh", "import", "loads", "assemble", "solve", "write", "ccx", "read",
           "post", "other")
 MARK = "BENCH_POINT "
 
@@ -69,6 +70,7 @@ def run_point(spec: dict) -> dict | None:
 
     from .case import resolve
     comm = MPI.COMM_WORLD
+    from .run import pilot
     if spec["kind"] == "dolfinx":
         from .run import solve_level
     else:
@@ -86,8 +88,14 @@ def run_point(spec: dict) -> dict | None:
     out: dict = {"spec": spec, "ranks": comm.size, "imports_s": imports}
     comm.barrier()
     t0 = time.perf_counter()
+    # The pipeline's default mesh is refined where a pilot solve finds the peaks; both
+    # kinds get that mesh and pay the pilot's time.
+    hotspots, t_pilot = (), None
+    if spec.get("pilot"):
+        pl = pilot(case, comm=comm)
+        hotspots, t_pilot = pl.hotspots, pl.time_s
     if spec["kind"] == "dolfinx":
-        lv = solve_level(case, spec["factor"], comm=comm)
+        lv = solve_level(case, spec["factor"], comm=comm, hotspots=hotspots)
         total = time.perf_counter() - t0
         stages = dict(lv.timings)
         out.update(dofs=lv.dofs, cells=lv.cells, iterations=lv.iterations,
@@ -97,7 +105,8 @@ def run_point(spec: dict) -> dict | None:
     else:
         if comm.size != 1:
             raise SystemExit("CalculiX points run on one rank (use threads)")
-        m = make_mesh(case.dims, case.model, case.mesh_spec(spec["factor"]), comm=comm)
+        m = make_mesh(case.dims, case.model, replace(case.mesh_spec(spec["factor"]), hotspots=hotspots),
+                      comm=comm)
         mat = Material(E=case.E_MPa, nu=case.nu)
         t1 = time.perf_counter()
         lc = crosshead_loads(m, case.dims, case.load_N, case.support)
@@ -117,6 +126,8 @@ def run_point(spec: dict) -> dict | None:
                    peak_location_mm=list(pk.location_mm),
                    critical_location_mm=list(cr.location_mm),
                    ccx_maxrss_MiB=cx.ccx_maxrss_kib / 1024)
+    if t_pilot is not None:
+        stages["pilot"] = t_pilot
     # Stage times: the slowest rank's; "other" is what no stage accounts for.
     stages = {k: comm.allreduce(float(v), op=MPI.MAX) for k, v in stages.items()}
     total = comm.allreduce(total, op=MPI.MAX)
@@ -176,7 +187,7 @@ def aggregate(spec: dict, ranks: int, threads: int, runs: list[dict], ref: dict)
     """One row: medians of the stage times over the runs, errors against the reference."""
     row = {"kind": spec["kind"], "order": spec.get("order", 2),
            "solver": spec.get("solver") or f"ccx-{spec.get('ccx_solver', 'spooles')}",
-           "factor": spec["factor"], "ranks": ranks, "threads": threads,
+           "factor": spec["factor"], "pilot": bool(spec.get("pilot")), "ranks": ranks, "threads": threads,
            "cores": ranks * threads}
     ok = [r for r in runs if "error" not in r]
     if not ok:
@@ -265,9 +276,9 @@ def time_to_error(rows: list[dict], kinds: set[str], keys: tuple[str, ...], tol:
 
 def label(r: dict) -> str:
     if r["kind"] == "calculix":
-        s = f"CalculiX C3D10 {r['solver'][4:]}"
+        s = f"CalculiX C3D10 {r['solver'][4:]}" + (" +pilot" if r.get("pilot") else "")
         return s + (f" {r['threads']}thr" if r.get("threads", 1) != 1 else "")
-    s = f"P{r['order']} {r['solver']}"
+    s = f"P{r['order']} {r['solver']}" + (" +pilot" if r.get("pilot") else "")
     return s + (f" x{r['ranks']}ranks" if r.get("ranks", 1) != 1 else "")
 
 
@@ -293,7 +304,7 @@ def summary(rows: list[dict], cores: int = 1) -> dict:
             continue
         base = next((b for b in good if b["cores"] == cores and b["kind"] == r["kind"]
                      and b["order"] == r["order"] and b["solver"] == r["solver"]
-                     and b["factor"] == r["factor"]), None)
+                     and b["factor"] == r["factor"] and b.get("pilot") == r.get("pilot")), None)
         if base is None:
             continue
         scaling.append({"config": label(r), "factor": r["factor"], "dofs": r["dofs"],
@@ -409,27 +420,30 @@ def build_matrix(args) -> list[tuple[dict, int, int]]:
     pts: list[tuple[dict, int, int]] = []
     thr = args.threads
     factors = sorted(args.factors, reverse=True)
-    for order in args.orders:
-        fs = factors if order != 3 else sorted(args.p3_factors, reverse=True)
-        for f in fs:
-            for s in args.solvers:
-                pts.append(({"kind": "dolfinx", "order": order, "factor": f, "solver": s}, 1, thr))
-    if args.ccx:
-        for f in factors:
-            for cs in args.ccx_solvers:
-                pts.append(({"kind": "calculix", "order": 2, "factor": f, "ccx_solver": cs,
-                             "threads": thr}, 1, thr))
+    pilots = {"on": (True,), "off": (False,), "both": (False, True)}[args.pilot]
+    for pl in pilots:
+        for order in args.orders:
+            fs = factors if order != 3 else sorted(args.p3_factors, reverse=True)
+            for f in fs:
+                for s in args.solvers:
+                    pts.append(({"kind": "dolfinx", "order": order, "factor": f, "solver": s, "pilot": pl}, 1, thr))
+        if args.ccx:
+            for f in factors:
+                for cs in args.ccx_solvers:
+                    pts.append(({"kind": "calculix", "order": 2, "factor": f, "ccx_solver": cs,
+                                 "threads": thr, "pilot": pl}, 1, thr))
     finest = min(factors)
     for n in args.ranks:
         if n == 1:
             continue
         if 2 in args.orders:
             for s in args.solvers:
-                pts.append(({"kind": "dolfinx", "order": 2, "factor": finest, "solver": s}, n, thr))
+                pts.append(({"kind": "dolfinx", "order": 2, "factor": finest, "solver": s,
+                             "pilot": pilots[-1]}, n, thr))
         if args.ccx:
             for cs in args.ccx_solvers:
                 pts.append(({"kind": "calculix", "order": 2, "factor": finest, "ccx_solver": cs,
-                             "threads": n * thr}, 1, n * thr))
+                             "threads": n * thr, "pilot": pilots[-1]}, 1, n * thr))
     return pts
 
 
@@ -452,6 +466,9 @@ def make_parser() -> argparse.ArgumentParser:
                    help="CalculiX solvers: spooles (direct), iterative (ITERATIVE CHOLESKY); "
                         "default both (--quick: spooles)")
     p.add_argument("--no-ccx", dest="ccx", action="store_false", help="skip CalculiX")
+    p.add_argument("--pilot", choices=("on", "off", "both"), default="both",
+                   help="meshes refined where a pilot solve finds the peaks (the pipeline's default), "
+                        "plain graded meshes, or both (default; --quick: off)")
     p.add_argument("--ranks", type=_csv_list(int), default=[1],
                    help="MPI rank counts for the finest P2 mesh, e.g. 1,2 (default 1)")
     p.add_argument("--threads", type=int, default=1, help="threads per rank and for ccx (default 1)")
@@ -478,6 +495,7 @@ def main(argv: list[str] | None = None) -> int:
         args.solvers = args.solvers or ["gamg", "mumps"]
         args.repeats = args.repeats or 1
         args.ccx_solvers = args.ccx_solvers or ["spooles"]
+        args.pilot = "off" if args.pilot == "both" else args.pilot
     args.ccx_solvers = args.ccx_solvers or ["spooles", "iterative"]
     args.factors = args.factors or list(FULL_FACTORS)
     args.p3_factors = args.p3_factors or list(P3_FACTORS)

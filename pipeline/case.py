@@ -65,7 +65,8 @@ class Case:
         out["assumed"] = list(self.assumed)
         spec = self.mesh_spec()
         out["mesh_sizes_mm"] = {"size_body": spec.size_body, "size_feature": spec.size_feature,
-                                "size_fillet": spec.size_fillet, "grading": spec.grading}
+                                "size_fillet": spec.size_fillet, "grading": spec.grading,
+                                "size_hotspot": spec.size_hotspot, "hotspot_radius": spec.hotspot_radius}
         return out
 
 

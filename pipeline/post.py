@@ -57,3 +57,31 @@ def peak(vm: fem.Function, region: Callable[[np.ndarray], np.ndarray] | None = N
     # Ties broken by coordinates so the answer does not depend on the partition.
     best = max(all_peaks, key=lambda p: (p[0], p[1]))
     return Peak(value_MPa=best[0], location_mm=best[1])
+
+
+def hot_spots(vm: fem.Function, fraction: float, separation_mm: float, limit: int,
+              region: Callable[[np.ndarray], np.ndarray] | None = None) -> list[tuple[float, float, float]]:
+    """Points (mm) where vm is at least ``fraction`` of its peak over ``region``: the highest
+    first, each at least separation_mm from those before, at most ``limit`` of them.
+
+    On a coarse mesh the peak of one feature can swap with a nearly equal one elsewhere
+    (the bore's top and bottom edges differ by ~1 %), so every near-peak place is kept.
+    Collective over MPI; every rank gets the same list.
+    """
+    W = vm.function_space
+    n_owned = W.dofmap.index_map.size_local * W.dofmap.index_map_bs
+    xyz = W.tabulate_dof_coordinates()[:n_owned]
+    vals = vm.x.array[:n_owned]
+    mask = np.ones(n_owned, bool) if region is None else region(xyz)
+    top = peak(vm, region).value_MPa
+    keep = mask & (vals >= fraction * top)
+    cand = W.mesh.comm.allgather((vals[keep], xyz[keep]))
+    v = np.concatenate([c[0] for c in cand])
+    p = np.concatenate([c[1] for c in cand]).reshape(-1, 3)
+    chosen: list[np.ndarray] = []
+    for i in np.lexsort((p[:, 2], p[:, 1], p[:, 0], -v)):
+        if len(chosen) == limit:
+            break
+        if all(np.linalg.norm(p[i] - q) >= separation_mm for q in chosen):
+            chosen.append(p[i])
+    return [tuple(float(c) for c in q) for q in chosen]

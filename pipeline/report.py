@@ -123,6 +123,12 @@ def render_markdown(res: dict) -> str:
     ms = c["mesh_sizes_mm"]
     add(f"Mesh sizes (× factor {c['mesh_factor']:g}): body {_f(ms['size_body'], 3)}, bore and seat edges "
         f"{_f(ms['size_feature'], 3)}, fillets {_f(ms['size_fillet'], 3)}, grading distance {_f(ms['grading'], 3)}.\n")
+    spots = fe.get("refined_at_mm") or []
+    if spots and "size_hotspot" in ms:
+        add(f"Refined to {_f(ms['size_hotspot'], 3)} mm (× factor) within {_f(ms['hotspot_radius'], 3)} mm of "
+            f"{len(spots)} places where a pilot solve (mesh × {fe['pilot_mesh_factor']:.3g}) found von Mises "
+            f"within {100 * (1 - fe['pilot_fraction']):.0f} % of the global or critical peak: "
+            f"{', '.join(_loc(p) for p in spots)} (and their mirror images).\n")
 
     add("## Hand formulas (paper, DESIGN §4)\n")
     at = an["approximate_terms"]

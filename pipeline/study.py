@@ -15,7 +15,7 @@ from .case import Case
 from .output import staged_dir, write_json
 from .output import write_fields as write_field_files
 from .report import write_report
-from .run import Progress, analyse, build_results, describe_location, sum_timings
+from .run import Progress, analyse, pilot, build_results, describe_location, sum_timings
 
 
 def execute_run(case: Case, out_dir: Path, levels: int = 3, ratio: float = 1.3,
@@ -29,10 +29,10 @@ def execute_run(case: Case, out_dir: Path, levels: int = 3, ratio: float = 1.3,
     say = progress or (lambda s: None)
     t_all = time.perf_counter()
     with staged_dir(out_dir, comm) as stage:
-        lv = analyse(case, levels=levels, ratio=ratio, msh_path=stage / "mesh.msh",
-                     progress=say, comm=comm)
-        timings = sum_timings(lv)
-        res = build_results(case, lv, timings, comm)
+        lv, pl = analyse(case, levels=levels, ratio=ratio, msh_path=stage / "mesh.msh",
+                         progress=say, comm=comm)
+        timings = sum_timings(lv, pl)
+        res = build_results(case, lv, timings, comm, pl)
         if loads:
             res["load_sweep"] = load_sweep(res, case, loads)
         t0 = time.perf_counter()
@@ -83,7 +83,7 @@ def render_picture(folder: Path) -> None:
         raise RuntimeError(f"picture rendering failed: {tail}")
 
 
-def execute_converge(case: Case, out_dir: Path, levels: int = 5, ratio: float = 1.3,
+def execute_converge(case: Case, out_dir: Path, levels: int = 4, ratio: float = 1.3,
                      progress: Progress | None = None, comm=MPI.COMM_WORLD) -> dict:
     """Solve on ``levels`` meshes refined by ``ratio`` from the case's mesh, finest first.
 
@@ -97,10 +97,11 @@ def execute_converge(case: Case, out_dir: Path, levels: int = 5, ratio: float = 
     from dataclasses import replace
     fine_case = replace(case, mesh_factor=finest)
     with staged_dir(out_dir, comm) as stage:
-        lv = analyse(fine_case, levels=levels, ratio=ratio, msh_path=stage / "mesh.msh",
-                     progress=say, comm=comm)
-        timings = sum_timings(lv)
-        res = build_results(fine_case, lv, timings, comm)
+        # The pilot of the case itself, so the case's own mesh is one of the study's levels.
+        lv, pl = analyse(fine_case, levels=levels, ratio=ratio, msh_path=stage / "mesh.msh",
+                         progress=say, comm=comm, pl=pilot(case, comm=comm, progress=say))
+        timings = sum_timings(lv, pl)
+        res = build_results(fine_case, lv, timings, comm, pl)
         conv = {"ratio": ratio, "levels": res["fe"]["levels"],
                 "peak": res["fe"]["peak"]["error_estimate"],
                 "critical": res["fe"]["critical"]["error_estimate"],

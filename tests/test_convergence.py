@@ -49,8 +49,8 @@ def test_oscillating_values_get_a_band_not_an_order():
 
 def _study(overrides, factor):
     case = resolve("05", overrides=dict(overrides, mesh_factor=factor))
-    levels = analyse(case, levels=3, ratio=1.4)
-    return case, levels, build_results(case, levels, {})
+    levels, pl = analyse(case, levels=3, ratio=1.4)
+    return case, levels, build_results(case, levels, {}, pl=pl)
 
 
 def test_rigid_support_peak_is_reported_singular():
