@@ -474,6 +474,9 @@ def make_parser() -> argparse.ArgumentParser:
     p.add_argument("--threads", type=int, default=1, help="threads per rank and for ccx (default 1)")
     p.add_argument("--reference", type=Path, default=DEFAULT_REFERENCE,
                    help="convergence-study results.json with the extrapolated peaks")
+    p.add_argument("--reference-values", type=_csv_list(float),
+                   help="GLOBAL,CRITICAL peaks (MPa) of an independent solution to measure errors "
+                        "against instead of the study's extrapolation")
     p.add_argument("--remake-reference", action="store_true",
                    help="re-run the convergence study into the --reference folder first")
     p.add_argument("--timeout", type=float, default=1800.0, help="seconds per run before it is abandoned")
@@ -504,6 +507,10 @@ def main(argv: list[str] | None = None) -> int:
     args.repeats = args.repeats or 3
     bad = [s for s in args.solvers if s not in SOLVERS] + \
           [s for s in args.ccx_solvers if s not in ("spooles", "iterative")]
+    if args.reference_values is not None and (len(args.reference_values) != 2 or
+                                              not all(math.isfinite(v) and v > 0 for v in args.reference_values)):
+        sys.stderr.write("error: --reference-values needs two positive numbers GLOBAL,CRITICAL (MPa)\n")
+        return 2
     if bad or any(o not in (1, 2, 3) for o in args.orders) or args.repeats < 1 or \
             any(n < 1 for n in args.ranks) or args.threads < 1:
         sys.stderr.write("error: bad --solvers/--ccx-solvers/--orders/--repeats/--ranks/--threads\n")
@@ -518,6 +525,13 @@ def main(argv: list[str] | None = None) -> int:
     make_ref = Path(args.reference) == DEFAULT_REFERENCE
     ref = load_reference(args.reference, make_ref or args.remake_reference, say,
                          remake=args.remake_reference)
+    if args.reference_values:
+        # An independent solution given by hand (e.g. P3 + MUMPS): errors are measured
+        # against it; the study's extrapolation stays in bench.json for comparison.
+        ref["study_peak"], ref["study_critical"] = ref["peak"], ref["critical"]
+        ref["peak"], ref["critical"] = args.reference_values
+        ref["path"] = f"--reference-values (study: {ref['path']})"
+        ref["peak_gci"] = ref["critical_gci"] = None
     say(f"reference: peak {ref['peak']:.3f} MPa (GCI {100 * (ref['peak_gci'] or 0):.2f} %), "
         f"critical {ref['critical']:.3f} MPa (GCI {100 * (ref['critical_gci'] or 0):.2f} %) from {ref['path']}")
     out = Path(args.out)

@@ -62,31 +62,41 @@ QUALITY_FLOOR = 0.02   # worst det J ratio below this after gmsh's repairs: mesh
 RETRY_FACTORS = (0.97, 1.03)
 
 
-def _mesh_with_retries(d: Dimensions, spec: MeshSpec) -> tuple[float, float]:
+def _mesh_with_retries(d: Dimensions, spec: MeshSpec, model: str) -> tuple[float, float]:
     """Mesh the current gmsh model; if a curved element stays nearly degenerate, mesh again
     with every size ×0.97, then ×1.03, and keep the best. Returns (quality, factor used).
 
     Why: on a scaled row (No. 1.6, default mesh) one tet kept a det J ratio of 1e-4 after
     gmsh's optimiser and the journal peak read 2009 MPa instead of ~117. A slightly
     different mesh does not have it; error bars use the actual DOFs, so a nudged size
-    factor does not bias them.
+    factor does not bias them. Each retry starts a new gmsh session: when the high-order
+    optimiser raises "failed to reach critical value" inside generate(), gmsh 4.8 stays
+    locked ("I'm busy! Ask me that later") and every later generate() in that session
+    returns without elements (seen at No. 05 ×2.6).
     """
-    mesh(d, spec)
+    def attempt(factor: float, fresh: bool = True) -> None:
+        if fresh:
+            gmsh.finalize()
+            gmsh.initialize(readConfigFiles=False)
+            gmsh.option.setNumber("General.Terminal", 0)
+            gmsh.model.add("crosshead")
+            build(d, model)
+        mesh(d, replace(spec, factor=factor))
+
+    attempt(spec.factor, fresh=False)   # the model make_mesh built
     best = current = (jacobian_ratio(), spec.factor)
     for k in RETRY_FACTORS:
         if best[0] >= QUALITY_FLOOR:
             break
-        gmsh.model.mesh.clear()
         try:
-            mesh(d, replace(spec, factor=spec.factor * k))
+            attempt(spec.factor * k)
         except GeometryError:
             current = (float("-inf"), None)
             continue
         current = (jacobian_ratio(), spec.factor * k)
         best = max(best, current)
     if current[1] != best[1]:      # the best mesh is not the one gmsh holds now
-        gmsh.model.mesh.clear()
-        mesh(d, replace(spec, factor=best[1]))
+        attempt(best[1])
     return jacobian_ratio(), best[1]
 
 
@@ -137,7 +147,7 @@ def make_mesh(d: Dimensions, model: str, spec: MeshSpec, comm=MPI.COMM_WORLD,
             built = build(dn, model)
             timings["geometry"] = time.perf_counter() - t0
             t0 = time.perf_counter()
-            quality, factor_used = _mesh_with_retries(dn, spec_n)
+            quality, factor_used = _mesh_with_retries(dn, spec_n, model)
             if msh_path is not None:
                 gmsh.option.setNumber("Mesh.ScalingFactor", scale)  # write in mm
                 gmsh.write(str(msh_path))

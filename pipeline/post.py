@@ -78,8 +78,11 @@ def hot_spots(vm: fem.Function, fraction: float, separation_mm: float, limit: in
     cand = W.mesh.comm.allgather((vals[keep], xyz[keep]))
     v = np.concatenate([c[0] for c in cand])
     p = np.concatenate([c[1] for c in cand]).reshape(-1, 3)
+    # Values rounded to 1e-6 of the peak before ordering: 1 and 2 MPI ranks differ by ~1e-9
+    # (solver tolerance), and the greedy choice must not depend on that.
+    vq = np.round(v / top, 6) if top > 0 else v
     chosen: list[np.ndarray] = []
-    for i in np.lexsort((p[:, 2], p[:, 1], p[:, 0], -v)):
+    for i in np.lexsort((p[:, 2], p[:, 1], p[:, 0], -vq)):
         if len(chosen) == limit:
             break
         if all(np.linalg.norm(p[i] - q) >= separation_mm for q in chosen):

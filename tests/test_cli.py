@@ -41,7 +41,7 @@ def test_contract_keys(coarse_run):
     assert fe["equilibrium_error_N"] < 1e-6 * 10_000
     assert fe["peak_MPa"] >= fe["critical_peak_MPa"] > 0
     assert abs(fe["critical_location_mm"][0]) <= 10.5 + 1e-9
-    assert fe["critical"]["error_estimate"]["status"] in ("converged", "oscillatory")
+    assert fe["critical"]["error_estimate"]["status"] in ("converged", "oscillatory", "settled")
     for k in ("geometry", "mesh", "import", "assemble", "solve", "post", "output", "total"):
         assert res["timings_s"][k] >= 0
     for name in ("results.json", "report.md", "mesh.msh", "displacement.pvd", "von_mises.vtu", "von_mises.png"):
