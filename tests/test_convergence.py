@@ -95,3 +95,14 @@ def test_changes_below_noise_are_settled_not_singular():
     assert est.band == pytest.approx(0.04) and est.extrapolated == 66.26
     # A real singularity grows by percents: still singular.
     assert estimate([130.0, 120.0, 111.0], H, p_formal=2.0).status == "singular"
+
+
+def test_order_far_above_formal_gets_safety_factor_3():
+    """No. 05's global peak on the make-run meshes: p = 16 is a coarse-mesh outlier, not
+    fast convergence; the band uses Fs = 3 instead of 1.25."""
+    f, h = [114.89, 115.06, 117.38], [1.0, 1.184, 1.41]
+    est = estimate(f, h, p_formal=2.0)
+    assert est.status == "converged" and est.order_observed > 4.0
+    r = h[1] / h[0]
+    assert est.gci_fine == pytest.approx(3.0 * (0.17 / 114.89) / (r ** 2 - 1), rel=1e-9)
+    assert est.band > 1.1          # covers the P3 solution 113.79 MPa
