@@ -44,7 +44,6 @@ import shutil  # noqa: E402
 import statistics  # noqa: E402
 import subprocess  # noqa: E402
 import sys  # noqa: E402
-from dataclasses import replace  # noqa: E402
 from pathlib import Path  # noqa: E402
 
 from pipeline.jsonio import json_safe  # noqa: E402
@@ -105,8 +104,7 @@ def run_point(spec: dict) -> dict | None:
     else:
         if comm.size != 1:
             raise SystemExit("CalculiX points run on one rank (use threads)")
-        m = make_mesh(case.dims, case.model, replace(case.mesh_spec(spec["factor"]), hotspots=hotspots),
-                      comm=comm)
+        m = make_mesh(case.dims, case.model, case.mesh_spec(spec["factor"], hotspots), comm=comm)
         mat = Material(E=case.E_MPa, nu=case.nu)
         t1 = time.perf_counter()
         lc = crosshead_loads(m, case.dims, case.load_N, case.support)

@@ -10,7 +10,7 @@ import math
 import tomllib
 from dataclasses import asdict, dataclass, field, fields, replace
 from pathlib import Path
-from typing import Any
+from typing import Any, Sequence
 
 from geometry.builder import MODELS, MeshSpec
 from geometry.table import Dimensions, InputError, lookup, validate
@@ -47,8 +47,10 @@ class Case:
     exact_span_mm: float | None = None
     assumed: tuple[str, ...] = field(default_factory=tuple)
 
-    def mesh_spec(self, factor: float | None = None) -> MeshSpec:
-        """The mesh sizes of this case (defaults scaled to the part), times ``factor``."""
+    def mesh_spec(self, factor: float | None = None,
+                  hotspots: Sequence[tuple[float, float, float]] = ()) -> MeshSpec:
+        """The mesh sizes of this case (defaults scaled to the part), times ``factor``,
+        refined around ``hotspots`` (mm; see pipeline.run.pilot)."""
         base = MeshSpec.default_for(self.dims, order=min(self.order, 2))
         return replace(
             base,
@@ -57,6 +59,7 @@ class Case:
             size_fillet=self.size_fillet_mm or base.size_fillet,
             grading=self.grading_mm or base.grading,
             factor=self.mesh_factor if factor is None else factor,
+            hotspots=tuple(tuple(p) for p in hotspots),
         )
 
     def as_dict(self) -> dict[str, Any]:

@@ -59,10 +59,10 @@ def peak(vm: fem.Function, region: Callable[[np.ndarray], np.ndarray] | None = N
     return Peak(value_MPa=best[0], location_mm=best[1])
 
 
-def hot_spots(vm: fem.Function, fraction: float, separation_mm: float, limit: int,
+def hot_spots(vm: fem.Function, threshold_MPa: float, separation_mm: float, limit: int,
               region: Callable[[np.ndarray], np.ndarray] | None = None) -> list[tuple[float, float, float]]:
-    """Points (mm) where vm is at least ``fraction`` of its peak over ``region``: the highest
-    first, each at least separation_mm from those before, at most ``limit`` of them.
+    """Points (mm) over ``region`` where vm is at least threshold_MPa: the highest first, each
+    at least separation_mm from those before, at most ``limit`` of them.
 
     On a coarse mesh the peak of one feature can swap with a nearly equal one elsewhere
     (the bore's top and bottom edges differ by ~1 %), so every near-peak place is kept.
@@ -73,14 +73,13 @@ def hot_spots(vm: fem.Function, fraction: float, separation_mm: float, limit: in
     xyz = W.tabulate_dof_coordinates()[:n_owned]
     vals = vm.x.array[:n_owned]
     mask = np.ones(n_owned, bool) if region is None else region(xyz)
-    top = peak(vm, region).value_MPa
-    keep = mask & (vals >= fraction * top)
+    keep = mask & (vals >= threshold_MPa)
     cand = W.mesh.comm.allgather((vals[keep], xyz[keep]))
     v = np.concatenate([c[0] for c in cand])
     p = np.concatenate([c[1] for c in cand]).reshape(-1, 3)
-    # Values rounded to 1e-6 of the peak before ordering: 1 and 2 MPI ranks differ by ~1e-9
-    # (solver tolerance), and the greedy choice must not depend on that.
-    vq = np.round(v / top, 6) if top > 0 else v
+    # Values rounded to 1e-6 of the threshold before ordering: 1 and 2 MPI ranks differ by
+    # ~1e-9 (solver tolerance), and the greedy choice must not depend on that.
+    vq = np.round(v / threshold_MPa, 6) if threshold_MPa > 0 else v
     chosen: list[np.ndarray] = []
     for i in np.lexsort((p[:, 2], p[:, 1], p[:, 0], -vq)):
         if len(chosen) == limit:

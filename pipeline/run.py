@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable, Sequence
 
@@ -69,7 +69,7 @@ def solve_level(case: Case, factor: float, msh_path: Path | None = None,
     result is not finite, or the loads do not balance to 1e-6·Q.
     """
     say = progress or (lambda s: None)
-    spec = replace(case.mesh_spec(factor), hotspots=tuple(hotspots))
+    spec = case.mesh_spec(factor, hotspots)
     m = make_mesh(case.dims, case.model, spec, comm=comm, msh_path=msh_path)
     if m.mesh_factor != factor:
         say(f"mesh ×{factor:.3g}: a nearly degenerate curved element; meshed at ×{m.mesh_factor:.3g} instead")
@@ -180,8 +180,9 @@ def pilot(case: Case, comm=MPI.COMM_WORLD, progress: Progress | None = None) -> 
     lv = solve_level(case, case.mesh_factor * PILOT_RATIO, comm=comm, keep_fields=True)
     vm = lv.fields[1]
     sep = PILOT_SEPARATION * case.dims.h3
-    spots = hot_spots(vm, PILOT_FRACTION, sep, PILOT_LIMIT)
-    spots += [q for q in hot_spots(vm, PILOT_FRACTION, sep, PILOT_LIMIT, critical_region(case))
+    spots = hot_spots(vm, PILOT_FRACTION * lv.peak.value_MPa, sep, PILOT_LIMIT)
+    spots += [q for q in hot_spots(vm, PILOT_FRACTION * lv.critical.value_MPa, sep, PILOT_LIMIT,
+                                   critical_region(case))
               if all(math.dist(q, s) >= sep for s in spots)]
     # gmsh's high-order optimiser does not give the same nodes from run to run, so neither
     # does the pilot exactly; the balls then moved and the refined meshes differed.

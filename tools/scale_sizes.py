@@ -87,6 +87,22 @@ def scale_factor(kg: float) -> float:
     return math.sqrt(kg / BASE_KG)
 
 
+_LABEL = {"d2": "bore d2", "dj": "journal dj"}
+
+
+def _fix_for(d: Dimensions, msg: str) -> tuple[str, int]:
+    """The dimension to move and the direction (+1/-1) that answers validate()'s complaint."""
+    field = msg.split(":", 1)[0]
+    if field == "seat_inner":
+        return ("d2", -1) if "larger than the bore" in msg else ("seat_outer", +1)
+    if field == "d14":
+        return ("seat_inner", -1) if d.d14 <= d.seat_inner else ("seat_outer", +1)
+    moves = {"seat_outer": -1, "d2": -1, "dj": -1}
+    if field not in moves:
+        raise InputError(msg)
+    return field, moves[field]
+
+
 def _adjust(d: Dimensions) -> tuple[Dimensions, list[str]]:
     """Move bore, seat, then journal by 0.5 mm steps until validate() passes."""
     notes: list[str] = []
@@ -95,32 +111,9 @@ def _adjust(d: Dimensions) -> tuple[Dimensions, list[str]]:
             validate(d)
             return d, notes
         except InputError as exc:
-            msg = str(exc)
-            field = msg.split(":", 1)[0]
-            if field == "seat_inner" and "larger than the bore" in msg:
-                d = replace(d, d2=d.d2 - STEP_MM)
-                notes.append("bore d2 -0.5")
-            elif field == "seat_inner":
-                d = replace(d, seat_outer=d.seat_outer + STEP_MM)
-                notes.append("seat_outer +0.5")
-            elif field == "seat_outer":
-                d = replace(d, seat_outer=d.seat_outer - STEP_MM)
-                notes.append("seat_outer -0.5")
-            elif field == "d14":
-                if d.d14 <= d.seat_inner:
-                    d = replace(d, seat_inner=d.seat_inner - STEP_MM)
-                    notes.append("seat_inner -0.5")
-                else:
-                    d = replace(d, seat_outer=d.seat_outer + STEP_MM)
-                    notes.append("seat_outer +0.5")
-            elif field == "d2":
-                d = replace(d, d2=d.d2 - STEP_MM)
-                notes.append("bore d2 -0.5")
-            elif field == "dj":
-                d = replace(d, dj=d.dj - STEP_MM)
-                notes.append("journal dj -0.5")
-            else:
-                raise
+            name, sign = _fix_for(d, str(exc))
+            d = replace(d, **{name: getattr(d, name) + sign * STEP_MM})
+            notes.append(f"{_LABEL.get(name, name)} {'+' if sign > 0 else '-'}0.5")
     raise InputError(f"size: could not make a scaled row valid: {notes}")
 
 
