@@ -12,12 +12,17 @@ on 2026-11-21 (2-core development machine, Debian 12, gmsh 4.8.0, DOLFINx 0.5.2)
 global peak 113.79 MPa (journal shoulder fillet), critical peak 66.27 MPa (bore edge).
 The same command at --mesh-factor 1.69 gave 114.10 and 66.27 MPa.
 
+Re-made on 2026-11-21 after the mesher changed (Ball-field hotspots, optimiser layers,
+MUMPS Cholesky; commit 4d02768): the same command gave 113.79 and 66.27 MPa again
+(357 645 DOFs).
+
 Tolerances come from measured errors, no tighter:
-- global: 1.4 MPa (1.2 %). The default P2 mesh read 114.89 MPa, 1.10 MPa above the
-  reference; the reference itself moved by 0.31 MPa between its two meshes. For
-  comparison, `make run` (×1.69 / ×1.3 / ×1: 117.38 / 115.06 / 114.89 MPa) extrapolates to
-  114.46 ± 1.28 MPa, and `make converge` (×0.77 … ×1.69) to 113.74 ± 5.95 MPa ("scattered").
-- critical: 0.2 MPa (0.3 %). The four levels of `make converge` lie within 66.23 … 66.25 MPa
+- global: 1.4 MPa (1.2 %). The default P2 mesh read 114.89 MPa with the earlier mesher,
+  1.10 MPa above the reference, and 114.23 MPa with the current one; the reference itself
+  moved by 0.31 MPa between its two meshes. For comparison, `make run` (×1.69 / ×1.3 / ×1:
+  115.90 / 114.83 / 114.23 MPa) extrapolates to 112.73 ± 1.88 MPa, and `make converge`
+  (×0.77 … ×1.69) to 112.86 ± 3.81 MPa ("scattered").
+- critical: 0.2 MPa (0.3 %). The four levels of `make converge` lie within 66.22 … 66.25 MPa
   and both P3 solutions at 66.27; the tolerance is ten times that spread so that gmsh's
   run-to-run mesh changes pass while a change to loads, supports, solver or stress
   evaluation of more than 0.3 % fails.
