@@ -431,6 +431,12 @@ def build_matrix(args) -> list[tuple[dict, int, int]]:
                     pts.append(({"kind": "calculix", "order": 2, "factor": f, "ccx_solver": cs,
                                  "threads": thr, "pilot": pl}, 1, thr))
     finest = min(factors)
+    if args.ranks_at == "all":
+        # The whole matrix again on n cores: n MPI ranks for the pipeline, n threads for
+        # CalculiX, so that the time to 1 % can be compared with every core in use.
+        return pts + [(dict(spec, threads=n * thr) if spec["kind"] == "calculix" else spec,
+                       n if spec["kind"] == "dolfinx" else 1, n * thr if spec["kind"] == "calculix" else thr)
+                      for n in args.ranks if n != 1 for spec, _, _ in list(pts)]
     for n in args.ranks:
         if n == 1:
             continue
@@ -469,6 +475,9 @@ def make_parser() -> argparse.ArgumentParser:
                         "plain graded meshes, or both (default; --quick: off)")
     p.add_argument("--ranks", type=_csv_list(int), default=[1],
                    help="MPI rank counts for the finest P2 mesh, e.g. 1,2 (default 1)")
+    p.add_argument("--ranks-at", choices=("finest", "all"), default="finest",
+                   help="where the --ranks counts above 1 run: the finest P2 mesh only (default), or "
+                        "every point, CalculiX with as many threads (time to 1 %% on every core)")
     p.add_argument("--threads", type=int, default=1, help="threads per rank and for ccx (default 1)")
     p.add_argument("--reference", type=Path, default=DEFAULT_REFERENCE,
                    help="convergence-study results.json with the extrapolated peaks")
@@ -568,11 +577,16 @@ def main(argv: list[str] | None = None) -> int:
         say("WARNING: geometry/ or pipeline/ sources changed while the bench ran; "
             "its points may come from different meshes: run it again on a frozen tree")
     summ = summary(rows, cores=args.threads)
+    by_cores = {n * args.threads: summary(rows, cores=n * args.threads)
+                for n in args.ranks if n != 1 and args.ranks_at == "all"}
     text = table(rows)
     print()
     print(text)
     print()
     print(summary_text(summ))
+    for n, s_n in by_cores.items():
+        print(f"\non {n} cores (pipeline on {n} MPI ranks, CalculiX with {n} threads):")
+        print(summary_text(s_n, scaling=False))
     meta = {"date": time.strftime("%Y-%m-%d %H:%M:%S"), "host": platform.node(),
             "cpus": os.cpu_count(), "python": sys.version.split()[0],
             "loadavg_before": load_before, "loadavg_after": os.getloadavg(),
@@ -586,7 +600,8 @@ def main(argv: list[str] | None = None) -> int:
                       "gmsh mesh and the DOLFINx import used to build its loads and compute its peaks",
                       "errors are relative to the Richardson extrapolation of the convergence study"]}
     data = {"units": {"time": "s", "stress": "MPa", "memory": "MiB"}, "meta": meta,
-            "reference": ref, "rows": rows, "summary": summ, "table": text}
+            "reference": ref, "rows": rows, "summary": summ,
+            "summary_by_cores": {str(n): v for n, v in by_cores.items()}, "table": text}
     (out / "bench.json").write_text(json.dumps(json_safe(data), indent=2) + "\n")
     write_csv(out / "bench.csv", rows)
     plotted = pareto_plot(out / "bench.png", rows, ref)
@@ -594,7 +609,7 @@ def main(argv: list[str] | None = None) -> int:
     return 0 if all("error" not in r for r in rows) else 3
 
 
-def summary_text(s: dict) -> str:
+def summary_text(s: dict, scaling: bool = True) -> str:
     lines = []
     for name, title in (("both", "both peaks"), ("critical", "critical peak")):
         b = s[name]
@@ -610,7 +625,7 @@ def summary_text(s: dict) -> str:
             r2 = b.get("ratio_core")
             lines.append(f"    CalculiX / pipeline: {r1:.2f}× (geometry→peaks), {r2:.2f}× (ccx core only)"
                          if r1 and r2 else f"    CalculiX / pipeline: {r1 or r2}")
-    for sc in s.get("scaling", []):
+    for sc in s.get("scaling", []) if scaling else []:
         lines.append(f"{sc['config']} on {sc['cores']} cores, factor {sc['factor']} ({sc['dofs']} DOFs): "
                      f"{sc['time_s']:.2f} s vs {sc['base_time_s']:.2f} s (speed-up {sc['speedup']:.2f}, "
                      f"solve {sc['solve_speedup']:.2f}); peaks differ by {sc['peak_rel_diff']:.1e} / "
