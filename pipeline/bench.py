@@ -3,6 +3,7 @@
     python -m pipeline.bench --out results/bench            the full matrix (make bench)
     python -m pipeline.bench --quick --out /tmp/b           2 coarse levels, 1 repeat, P2 gamg/mumps + ccx
     python -m pipeline.bench --ranks 1,2                    also 2 MPI ranks on the finest P2 mesh
+    python -m pipeline.bench --ranks 1,2 --ranks-at all     every point also on 2 cores (2 ranks; ccx 2 threads)
 
 The matrix: element order (P1, P2 on every mesh level, P3 on the coarse ones), mesh
 factor, solver (gamg, hypre, mumps); plus CalculiX (ccx 2.20, C3D10, pipeline.calculix)
