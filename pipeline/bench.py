@@ -435,9 +435,16 @@ def build_matrix(args) -> list[tuple[dict, int, int]]:
     if args.ranks_at == "all":
         # The whole matrix again on n cores: n MPI ranks for the pipeline, n threads for
         # CalculiX, so that the time to 1 % can be compared with every core in use.
-        return pts + [(dict(spec, threads=n * thr) if spec["kind"] == "calculix" else spec,
-                       n if spec["kind"] == "dolfinx" else 1, n * thr if spec["kind"] == "calculix" else thr)
-                      for n in args.ranks if n != 1 for spec, _, _ in list(pts)]
+        one_core = list(pts)
+        for n in args.ranks:
+            if n == 1:
+                continue
+            for spec, _, _ in one_core:
+                if spec["kind"] == "calculix":
+                    pts.append((dict(spec, threads=n * thr), 1, n * thr))
+                else:
+                    pts.append((spec, n, thr))
+        return pts
     for n in args.ranks:
         if n == 1:
             continue

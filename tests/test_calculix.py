@@ -178,3 +178,24 @@ def test_bench_quick(tmp_path):
     assert (out / "bench.png").stat().st_size > 10_000
     assert (out / "bench.csv").read_text().count("\n") == 7
     assert "time to 1 %" in p.stdout
+
+
+def test_bench_ranks_at_all_repeats_every_point_on_more_cores():
+    """--ranks-at all: every 1-core point once more on 2 cores, the pipeline as 2 MPI ranks
+    and CalculiX as one process with 2 threads; the default keeps 2 ranks on the finest P2
+    mesh only. (Matrix only; nothing is solved.)"""
+    from pipeline import bench
+    argv = ["--orders", "2,3", "--solvers", "mumps", "--factors", "4.0,1.3", "--p3-factors", "2.5",
+            "--ccx-solvers", "iterative", "--ranks", "1,2", "--pilot", "on"]
+    every = bench.build_matrix(bench.make_parser().parse_args(argv + ["--ranks-at", "all"]))
+    one = [(s, r, t) for s, r, t in every if s.get("threads", 1) * r * t == 1]
+    two = [(s, r, t) for s, r, t in every if (s, r, t) not in one]
+    assert len(one) == len(two) == 5   # P2 x2 factors, P3 x1, CalculiX x2 factors
+    for (s1, _, _), (s2, r2, t2) in zip(one, two):
+        if s1["kind"] == "calculix":
+            assert (r2, t2, s2["threads"]) == (1, 2, 2) and dict(s2, threads=1) == s1
+        else:
+            assert (r2, t2) == (2, 1) and s2 == s1
+    finest = bench.build_matrix(bench.make_parser().parse_args(argv))
+    multi = [(s, r) for s, r, _ in finest if r > 1 or s.get("threads", 1) > 1]
+    assert {(s["kind"], s["factor"]) for s, _ in multi} == {("dolfinx", 1.3), ("calculix", 1.3)}
