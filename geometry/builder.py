@@ -260,19 +260,6 @@ def _balls(point: tuple[float, float, float], size: float, size_far: float, radi
     return tags
 
 
-def _threshold_on(source: int, size: float, size_far: float, dist_min: float, dist_max: float) -> int:
-    """A gmsh Threshold field on the distance field ``source``: ``size`` within dist_min,
-    growing linearly to size_far at dist_max (mm)."""
-    field = gmsh.model.mesh.field
-    thr = field.add("Threshold")
-    field.setNumber(thr, "IField", source)
-    field.setNumber(thr, "LcMin", size)
-    field.setNumber(thr, "LcMax", size_far)
-    field.setNumber(thr, "DistMin", dist_min)
-    field.setNumber(thr, "DistMax", dist_max)
-    return thr
-
-
 def size_field(curves: list[int], size: float, size_far: float, dist_min: float,
                dist_max: float) -> int:
     """A gmsh Threshold field (mm): ``size`` within dist_min of the curves, growing linearly
@@ -282,7 +269,13 @@ def size_field(curves: list[int], size: float, size_far: float, dist_min: float,
     dist = field.add("Distance")
     field.setNumbers(dist, "EdgesList", curves)
     field.setNumber(dist, "NNodesByEdge", 200)
-    return _threshold_on(dist, size, size_far, dist_min, dist_max)
+    thr = field.add("Threshold")
+    field.setNumber(thr, "IField", dist)
+    field.setNumber(thr, "LcMin", size)
+    field.setNumber(thr, "LcMax", size_far)
+    field.setNumber(thr, "DistMin", dist_min)
+    field.setNumber(thr, "DistMax", dist_max)
+    return thr
 
 
 def mesh(d: Dimensions, spec: MeshSpec) -> None:

@@ -431,31 +431,20 @@ def build_matrix(args) -> list[tuple[dict, int, int]]:
                 for cs in args.ccx_solvers:
                     pts.append(({"kind": "calculix", "order": 2, "factor": f, "ccx_solver": cs,
                                  "threads": thr, "pilot": pl}, 1, thr))
+    # On more cores: every point (--ranks-at all, to compare the time to 1 % with every core
+    # in use) or the finest P2 mesh only (the scaling check). The pipeline gets n MPI ranks,
+    # CalculiX (one process) n threads.
     finest = min(factors)
-    if args.ranks_at == "all":
-        # The whole matrix again on n cores: n MPI ranks for the pipeline, n threads for
-        # CalculiX, so that the time to 1 % can be compared with every core in use.
-        one_core = list(pts)
-        for n in args.ranks:
-            if n == 1:
-                continue
-            for spec, _, _ in one_core:
-                if spec["kind"] == "calculix":
-                    pts.append((dict(spec, threads=n * thr), 1, n * thr))
-                else:
-                    pts.append((spec, n, thr))
-        return pts
+    twins = [spec for spec, _, _ in pts if args.ranks_at == "all" or
+             (spec["order"] == 2 and spec["factor"] == finest and spec["pilot"] == pilots[-1])]
     for n in args.ranks:
         if n == 1:
             continue
-        if 2 in args.orders:
-            for s in args.solvers:
-                pts.append(({"kind": "dolfinx", "order": 2, "factor": finest, "solver": s,
-                             "pilot": pilots[-1]}, n, thr))
-        if args.ccx:
-            for cs in args.ccx_solvers:
-                pts.append(({"kind": "calculix", "order": 2, "factor": finest, "ccx_solver": cs,
-                             "threads": n * thr, "pilot": pilots[-1]}, 1, n * thr))
+        for spec in twins:
+            if spec["kind"] == "calculix":
+                pts.append((dict(spec, threads=n * thr), 1, n * thr))
+            else:
+                pts.append((spec, n, thr))
     return pts
 
 

@@ -36,24 +36,32 @@ def von_mises(u: fem.Function, mat: Material) -> fem.Function:
     return vm
 
 
+def _owned(vm: fem.Function, region: Callable[[np.ndarray], np.ndarray] | None
+           ) -> tuple[np.ndarray, np.ndarray]:
+    """This rank's owned values of vm (MPa) and their coordinates (mm) inside ``region``."""
+    W = vm.function_space
+    n_owned = W.dofmap.index_map.size_local * W.dofmap.index_map_bs
+    xyz = W.tabulate_dof_coordinates()[:n_owned]
+    vals = vm.x.array[:n_owned]
+    if region is None:
+        return vals, xyz
+    mask = region(xyz)
+    return vals[mask], xyz[mask]
+
+
 def peak(vm: fem.Function, region: Callable[[np.ndarray], np.ndarray] | None = None) -> Peak:
     """Largest nodal value of vm over the DOFs whose coordinates satisfy ``region``.
 
     region takes an (n, 3) array of points (mm) and returns a boolean mask. Collective
     over MPI; every rank gets the same answer.
     """
-    W = vm.function_space
-    n_owned = W.dofmap.index_map.size_local * W.dofmap.index_map_bs
-    xyz = W.tabulate_dof_coordinates()[:n_owned]
-    vals = vm.x.array[:n_owned]
-    mask = np.ones(n_owned, bool) if region is None else region(xyz)
-    if np.any(mask):
-        i = np.flatnonzero(mask)[np.argmax(vals[mask])]
+    vals, xyz = _owned(vm, region)
+    if len(vals):
+        i = int(np.argmax(vals))
         local = (float(vals[i]), tuple(float(c) for c in xyz[i]))
     else:
         local = (-np.inf, (np.nan, np.nan, np.nan))
-    comm = W.mesh.comm
-    all_peaks = comm.allgather(local)
+    all_peaks = vm.function_space.mesh.comm.allgather(local)
     # Ties broken by coordinates so the answer does not depend on the partition.
     best = max(all_peaks, key=lambda p: (p[0], p[1]))
     return Peak(value_MPa=best[0], location_mm=best[1])
@@ -68,13 +76,9 @@ def hot_spots(vm: fem.Function, threshold_MPa: float, separation_mm: float, limi
     (the bore's top and bottom edges differ by ~1 %), so every near-peak place is kept.
     Collective over MPI; every rank gets the same list.
     """
-    W = vm.function_space
-    n_owned = W.dofmap.index_map.size_local * W.dofmap.index_map_bs
-    xyz = W.tabulate_dof_coordinates()[:n_owned]
-    vals = vm.x.array[:n_owned]
-    mask = np.ones(n_owned, bool) if region is None else region(xyz)
-    keep = mask & (vals >= threshold_MPa)
-    cand = W.mesh.comm.allgather((vals[keep], xyz[keep]))
+    vals, xyz = _owned(vm, region)
+    keep = vals >= threshold_MPa
+    cand = vm.function_space.mesh.comm.allgather((vals[keep], xyz[keep]))
     v = np.concatenate([c[0] for c in cand])
     p = np.concatenate([c[1] for c in cand]).reshape(-1, 3)
     # Values rounded to 1e-6 of the threshold before ordering: 1 and 2 MPI ranks differ by

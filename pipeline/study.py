@@ -15,7 +15,7 @@ from .case import Case
 from .output import staged_dir, write_json
 from .output import write_fields as write_field_files
 from .report import write_report
-from .run import Progress, analyse, pilot, build_results, describe_location, sum_timings
+from .run import Progress, analyse, build_results, describe_location, pilot, sum_timings
 
 
 def execute_run(case: Case, out_dir: Path, levels: int = 3, ratio: float = 1.3,
