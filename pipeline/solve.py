@@ -220,6 +220,8 @@ def solve(mesh, facet_tags, order: int, mat: Material, tractions: Sequence[Tract
         opts[prefix + k] = val
     ksp.setOperators(A)
     ksp.setFromOptions()
+    # PCSetUp reads the multigrid levels' options (mg_levels_*): set up before deleting them.
+    ksp.setUp()
     for k in solver_options(solver, rtol):
         del opts[prefix + k]
     uh = fem.Function(V, name="displacement_mm")
