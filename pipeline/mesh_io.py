@@ -14,7 +14,7 @@ import numpy as np
 from dolfinx.io import gmshio
 from mpi4py import MPI
 
-from geometry.builder import BuiltGeometry, GeometryError, MeshSpec, build, jacobian_ratio, mesh
+from geometry.builder import BuiltGeometry, MeshSpec, build, jacobian_ratio, mesh
 from geometry.table import Dimensions
 
 
@@ -58,48 +58,6 @@ def _normalised(d: Dimensions, spec: MeshSpec, scale: float) -> tuple[Dimensions
     return dn, sn
 
 
-QUALITY_FLOOR = 0.02   # worst det J ratio below this after gmsh's repairs: mesh again
-RETRY_FACTORS = (0.97, 1.03)
-
-
-def _mesh_with_retries(d: Dimensions, spec: MeshSpec, model: str) -> tuple[float, float]:
-    """Mesh the current gmsh model; if a curved element stays nearly degenerate, mesh again
-    with every size ×0.97, then ×1.03, and keep the best. Returns (quality, factor used).
-
-    Why: on a scaled row (No. 1.6, default mesh) one tet kept a det J ratio of 1e-4 after
-    gmsh's optimiser and the journal peak read 2009 MPa instead of ~117. A slightly
-    different mesh does not have it; error bars use the actual DOFs, so a nudged size
-    factor does not bias them. Each retry starts a new gmsh session: when the high-order
-    optimiser raises "failed to reach critical value" inside generate(), gmsh 4.8 stays
-    locked ("I'm busy! Ask me that later") and every later generate() in that session
-    returns without elements (seen at No. 05 ×2.6).
-    """
-    def attempt(factor: float, fresh: bool = True) -> None:
-        if fresh:
-            gmsh.finalize()
-            gmsh.initialize(readConfigFiles=False)
-            gmsh.option.setNumber("General.Terminal", 0)
-            gmsh.model.add("crosshead")
-            build(d, model)
-        mesh(d, replace(spec, factor=factor))
-
-    attempt(spec.factor, fresh=False)   # the model make_mesh built
-    best = current = (jacobian_ratio(), spec.factor)
-    for k in RETRY_FACTORS:
-        if best[0] >= QUALITY_FLOOR:
-            break
-        try:
-            attempt(spec.factor * k)
-        except GeometryError:
-            current = (float("-inf"), None)
-            continue
-        current = (jacobian_ratio(), spec.factor * k)
-        best = max(best, current)
-    if current[1] != best[1]:      # the best mesh is not the one gmsh holds now
-        attempt(best[1])
-    return jacobian_ratio(), best[1]
-
-
 @dataclass
 class ImportedMesh:
     """A DOLFINx mesh with its boundary tags and the names of the physical groups.
@@ -116,7 +74,6 @@ class ImportedMesh:
     model: str
     volume_cad: float
     jacobian_ratio: float  # worst min/max det J over the tets; <= 0 is an inverted element
-    mesh_factor: float     # the size factor actually meshed (see _mesh_with_retries)
     timings: dict[str, float] = field(default_factory=dict)
 
 
@@ -139,7 +96,6 @@ def make_mesh(d: Dimensions, model: str, spec: MeshSpec, comm=MPI.COMM_WORLD,
     gmsh.option.setNumber("General.Terminal", 0)
     error = None
     quality = float("nan")
-    factor_used = spec.factor
     if rank == 0:
         try:
             t0 = time.perf_counter()
@@ -147,7 +103,9 @@ def make_mesh(d: Dimensions, model: str, spec: MeshSpec, comm=MPI.COMM_WORLD,
             built = build(dn, model)
             timings["geometry"] = time.perf_counter() - t0
             t0 = time.perf_counter()
-            quality, factor_used = _mesh_with_retries(dn, spec_n, model)
+            # Every curved tet leaves the builder with a det J ratio >= HO_TARGET (0.3).
+            mesh(dn, spec_n)
+            quality = jacobian_ratio()
             if msh_path is not None:
                 gmsh.option.setNumber("Mesh.ScalingFactor", scale)  # write in mm
                 gmsh.write(str(msh_path))
@@ -161,8 +119,7 @@ def make_mesh(d: Dimensions, model: str, spec: MeshSpec, comm=MPI.COMM_WORLD,
     if error is not None:
         gmsh.finalize()
         raise error
-    names, built, timings, quality, factor_used = comm.bcast(
-        (names, built, timings, quality, factor_used), root=0)
+    names, built, timings, quality = comm.bcast((names, built, timings, quality), root=0)
     t0 = time.perf_counter()
     try:
         dmesh, cell_tags, facet_tags = gmshio.model_to_mesh(gmsh.model, comm, 0, gdim=3)
@@ -174,4 +131,4 @@ def make_mesh(d: Dimensions, model: str, spec: MeshSpec, comm=MPI.COMM_WORLD,
     return ImportedMesh(mesh=dmesh, cell_tags=cell_tags, facet_tags=facet_tags,
                         facet_ids=names, constraint_points=np.array(built.constraint_points) * scale,
                         model=model, volume_cad=built.volume * scale ** 3,
-                        jacobian_ratio=quality, mesh_factor=factor_used, timings=timings)
+                        jacobian_ratio=quality, timings=timings)

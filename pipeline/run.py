@@ -71,9 +71,7 @@ def solve_level(case: Case, factor: float, msh_path: Path | None = None,
     say = progress or (lambda s: None)
     spec = case.mesh_spec(factor, hotspots)
     m = make_mesh(case.dims, case.model, spec, comm=comm, msh_path=msh_path)
-    if m.mesh_factor != factor:
-        say(f"mesh ×{factor:.3g}: a nearly degenerate curved element; meshed at ×{m.mesh_factor:.3g} instead")
-    say(f"mesh ×{m.mesh_factor:.3g}: {m.mesh.topology.index_map(3).size_global} tets, "
+    say(f"mesh ×{factor:.3g}: {m.mesh.topology.index_map(3).size_global} tets, "
         f"geometry {m.timings['geometry']:.2f} s, mesh {m.timings['mesh']:.2f} s, "
         f"import {m.timings['import']:.2f} s")
     if not m.jacobian_ratio > 0:
@@ -97,7 +95,7 @@ def solve_level(case: Case, factor: float, msh_path: Path | None = None,
     say(f"solve ×{factor:.3g}: {sol.dofs} DOFs, {sol.iterations} iterations ({case.solver}), "
         f"assemble {sol.timings['assemble']:.2f} s, solve {sol.timings['solve']:.2f} s; "
         f"peak {pk.value_MPa:.2f} MPa, critical {crit.value_MPa:.2f} MPa")
-    return Level(factor=m.mesh_factor, dofs=sol.dofs, cells=m.mesh.topology.index_map(3).size_global,
+    return Level(factor=factor, dofs=sol.dofs, cells=m.mesh.topology.index_map(3).size_global,
                  peak=pk, critical=crit, iterations=sol.iterations,
                  residual_rel=sol.residual_rel, seat_force_N=lc.seat_force_z_N,
                  support_force_N=support, equilibrium_error_N=eq_err,

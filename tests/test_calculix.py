@@ -79,10 +79,9 @@ def test_c3d10_node_order_and_orientation(coarse):
     dist = np.linalg.norm(x[:, 4:, None, :] - mids[:, None, :, :], axis=3)
     length = np.stack([np.linalg.norm(x[:, a] - x[:, b], axis=1) for a, b in edges], axis=1)
     own = dist[:, np.arange(6), np.arange(6)]
-    # Mid-side nodes sit at or near their own edge's midpoint: curved boundary edges and
-    # edges moved by gmsh's high-order optimiser bow out by a fraction of their length
-    # (measured with the optimiser's target det J ratio 0.3: 92 % within 2 % of it, all
-    # within 32 %); a wrong order would put them about half an edge away from it and onto
+    # Mid-side nodes sit at or near their own edge's midpoint: curved boundary edges bow
+    # out by a fraction of their length (measured with gmsh's high-order optimiser: 92 %
+    # within 2 % of it, all within 32 %); a wrong order would put them about half an edge away from it and onto
     # another edge's midpoint (the argmin check below).
     assert np.all(own < 0.4 * length)
     assert np.mean(own < 0.02 * length) > 0.8
