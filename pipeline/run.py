@@ -182,9 +182,9 @@ def pilot(case: Case, comm=MPI.COMM_WORLD, progress: Progress | None = None) -> 
     spots += [q for q in hot_spots(vm, PILOT_FRACTION * lv.critical.value_MPa, sep, PILOT_LIMIT,
                                    critical_region(case))
               if all(math.dist(q, s) >= sep for s in spots)]
-    # gmsh's high-order optimiser does not give the same nodes from run to run, so neither
-    # does the pilot exactly; the balls then moved and the refined meshes differed.
-    # Rounded to 0.01·h3 (0.25 mm on No. 05, well inside the 0.6 mm ball) and sorted, so
+    # The pilot's peaks differ in the last digits between runs on 1 and 2 ranks (and
+    # between runs when gmsh's high-order optimiser was used); the balls then moved and
+    # the refined meshes differed. Rounded to 0.01·h3 (0.25 mm on No. 05, well inside the 0.6 mm ball) and sorted, so
     # that pilots differing in the last digits give the same refined meshes.
     grid = 1e-2 * case.dims.h3
     spots = sorted({tuple(round(c / grid) * grid + 0.0 for c in q) for q in spots})
