@@ -394,28 +394,40 @@ def _tet10_det_ratios(x: np.ndarray, conn: np.ndarray) -> np.ndarray:
     grad[:, :4] = (4 * lam - 1)[:, :, None] * dlam[None]
     i, j = _TET10_EDGES.T
     grad[:, 4:] = 4 * (lam[:, i, None] * dlam[j] + lam[:, j, None] * dlam[i])
-    det = np.linalg.det(np.einsum("sna,enb->esab", grad, x[conn]))
+    jac = np.matmul(grad.transpose(0, 2, 1)[None], x[conn][:, None])  # (tets, samples, 3, 3)
+    det = np.linalg.det(jac)
     return det.min(1) / det.max(1)
 
 
 def _relax_curved(target: float) -> int:
-    """Pull the mid-edge nodes of curved tets with det J ratio < target towards their edge's
-    midpoint, RELAX_STEP of their bow per pass, until no tet is below target. Returns the
-    number of nodes moved.
+    """Repair curved tets with det J ratio < target; returns the number of nodes moved.
 
-    Why: curving second-order tets onto the shoulder fillet inverts some (det J < 0 on No. 05),
-    and elements left near a ratio of 0.1 gave spurious peaks (138 MPa instead of ~116 at
-    No. 05 ×1.3). The bad tets are slivers with all four nodes on the fillet near its tangent
-    line with the body face (measured: x within 0.3 mm of b1/2). A straight tet has ratio 1,
-    so this always ends; the boundary there becomes locally faceted. Against gmsh's
-    optimiser (HighOrderOptimize 1, same target) on the same mesh, No. 05 P2: peaks equal
-    to 0.02 % at x2.2, x2, x1.3 and x1 (P3 at x2.5 and x2 too), meshing 3.3 s instead of
-    15.3 s at x1. Not at x4 (128.0 vs 131.5 MPa, both far off) nor on the coarse fillet
-    outside the hotspot balls at x2.5 (a peak of 119.8 on the upper fillet against 115.5):
-    there the flattened tets reach into the fillet. gmsh's optimiser keeps the boundary
-    curved and moves interior nodes instead; ours is 5x faster and good where it matters.
-    Step 0.5, not 0.25: make run at mesh factors 0.95/1/1.05 (9 meshes each, own pilots)
-    had no global peak above 117 MPa with 0.5, but 3 spurious ones (119.9-123.5) with 0.25.
+    Why: curving second-order tets onto the shoulder fillet inverts some (det J < 0 on
+    No. 05), and elements left near a ratio of 0.1 gave spurious peaks (138 MPa instead of
+    ~116 at No. 05 ×1.3). The bad tets are slivers with all four vertices on the fillet
+    near its tangent line with the body face: their boundary edges bow (follow the CAD
+    surface) while their interior edge stays straight, which folds a tet thinner than the bow.
+
+    1. The straight mid-edge nodes of each bad tet bow like its curved edges (their mean
+       bow), so the sliver bends with the surface; a move is kept only if no tet it touches
+       ends worse and below target. Nodes on curves and on named surfaces (symmetry planes,
+       seat, bearing) stay; those on a free plane may leave it: on No. 05 the body face
+       beside the fillet by at most 0.021 mm at ×2.5 and 0.0075 mm at ×1 (measured), a
+       smooth continuation of the fillet's bow.
+    2. What is still bad: mid-edge nodes are pulled towards their edge's midpoint,
+       RELAX_STEP of their bow per pass (a straight tet has ratio 1, so this ends); the
+       boundary there becomes locally faceted.
+
+    Against gmsh's high-order optimiser (HighOrderOptimize 1, same target) on the same
+    linear mesh, No. 05 P2, global / critical peak (MPa): 115.43 / 66.275 against 115.46 /
+    66.276 at ×2.5, 118.13 / 66.279 against 118.13 / 66.280 at ×2, 114.84 / 66.220 against
+    114.83 / 66.221 at ×1.3, 114.26 / 66.235 against 114.23 / 66.236 at ×1 (P3 at ×2.5:
+    114.47 against 114.51); at ×4 134.3 against 131.5 (both far from the converged ~114).
+    Meshing at ×1: 1.9 s instead of 15.3 s (this function 0.3 s). Without step 1 the
+    flattened tets reached into the fillet at ×2.5 (a spurious 119.6 MPa peak on the upper
+    fillet); with step 1 moving only nodes inside the volume, 118.9 MPa. Step 0.5, not
+    0.25: make run at mesh factors 0.95/1/1.05 (9 meshes, own pilots) had no global peak
+    above 117 MPa with 0.5, but 3 spurious ones (119.9-123.5) with 0.25 (without step 1).
     """
     _, conn = gmsh.model.mesh.getElementsByType(11)
     if len(conn) == 0:
@@ -430,10 +442,50 @@ def _relax_curved(target: float) -> int:
     b = conn[:, _TET10_EDGES[:, 1]].ravel()
     straight = x.copy()
     straight[mids] = 0.5 * (x[a] + x[b])
+    bow = x - straight                           # zero off curved surfaces and curves
+    # Nodes on a named surface (symmetry planes, seat, bearing) or on a curve stay put in
+    # step 1: a mid-edge node on a plane has no bow either, but must stay on its plane.
+    inside = np.ones(len(x), dtype=bool)
+    pinned = [(1, t) for _, t in gmsh.model.getEntities(1)]
+    pinned += [(2, t) for _, g in gmsh.model.getPhysicalGroups(2)
+               for t in gmsh.model.getEntitiesForPhysicalGroup(2, g)]
+    for dim, t in pinned:
+        inside[index[gmsh.model.mesh.getNodes(dim, t, includeBoundary=True)[0].astype(np.int64)]] = False
+
+    def ratios(y: np.ndarray) -> np.ndarray:
+        # Only tets with a bowed mid-edge node: a straight tet has ratio 1 (and most are).
+        bowed = np.flatnonzero(np.abs(y[conn[:, 4:]] - straight[conn[:, 4:]]).max(axis=(1, 2)) > 0)
+        r = np.ones(len(conn))
+        r[bowed] = _tet10_det_ratios(y, conn[bowed])
+        return r
+
+    ratio = ratios(x)
+    bad = np.flatnonzero(ratio < target)
+    if len(bad) == 0:
+        return 0
+    # 1. Interior mid-edge nodes of bad tets take the mean bow of the tet's boundary edges.
+    m = conn[bad, 4:]
+    bowed = np.abs(bow[m]).max(axis=2) > 0
+    mean_bow = (bow[m] * bowed[..., None]).sum(1) / np.maximum(bowed.sum(1), 1)[:, None]
+    inner = inside[m] & bowed.any(1)[:, None]
+    total = np.zeros_like(x)
+    count = np.zeros(len(x))
+    np.add.at(total, m[inner], np.broadcast_to(mean_bow[:, None, :], m.shape + (3,))[inner])
+    np.add.at(count, m[inner], 1)
+    moved_inner = np.flatnonzero(count > 0)
+    trial = x.copy()
+    trial[moved_inner] += total[moved_inner] / count[moved_inner, None]
+    r_trial = ratios(trial)
+    worse = np.flatnonzero((r_trial < ratio) & (r_trial < target))
+    reject = np.zeros(len(x), dtype=bool)
+    reject[conn[worse, 4:].ravel()] = True
+    moved_inner = moved_inner[~reject[moved_inner]]
+    x[moved_inner] = trial[moved_inner]
+    # 2. Pull what is still bad towards straight.
     curved = x.copy()
-    alpha = np.ones(len(x))                      # 1 = on the CAD surface, 0 = straight
+    alpha = np.ones(len(x))                      # 1 = as curved, 0 = straight
     while True:
-        bad = _tet10_det_ratios(x, conn) < target
+        bad = ratios(x) < target
         if not bad.any():
             break
         nodes = np.unique(conn[bad, 4:])
@@ -442,7 +494,7 @@ def _relax_curved(target: float) -> int:
             raise GeometryError("mesh: a tet stays inverted with straight edges")
         alpha[nodes] = np.maximum(alpha[nodes] - RELAX_STEP, 0.0)
         x[nodes] = straight[nodes] + alpha[nodes, None] * (curved[nodes] - straight[nodes])
-    moved = np.flatnonzero(alpha < 1)
+    moved = np.union1d(np.flatnonzero(alpha < 1), moved_inner)
     for n in moved:
         gmsh.model.mesh.setNode(int(tags[n]), x[n].tolist(), [])
     return len(moved)
