@@ -6,7 +6,7 @@ SHELL := /bin/bash
 PY := .venv/bin/python
 SETUP := .venv/.setup-done
 # make run / make converge use every core: gmsh meshes on rank 0, the assembly and the
-# solve are shared (No. 05, back to back: 55.7 s on 1 rank, 37.3 s on 2). RANKS=1 runs without MPI.
+# solve are shared (No. 05, back to back: 57.6 s on 1 rank, 33.3 s on 2). RANKS=1 runs without MPI.
 RANKS ?= $(shell nproc 2>/dev/null || echo 1)
 RUN := $(if $(filter 1,$(RANKS)),$(PY),mpirun --allow-run-as-root -n $(RANKS) $(PY))
 SIZES := $(shell awk -F, '!/^\#/ && $$1 != "size" && NF > 1 {print $$1}' geometry/sizes.csv)
@@ -26,8 +26,8 @@ converge: $(SETUP)
 # on the pipeline's pilot-refined meshes; makes the convergence study first if
 # results/05-converge/results.json is missing. Errors are measured against the independent
 # P3 + MUMPS solution of tests/test_regression.py (global 113.79, critical 66.27 MPa);
-# the study's own least-squares limit of the global peak carries ± 5.95 MPa ("scattered").
-# About 40 min on 2 cores; add --pilot both for the plain graded meshes too (~1.5 h).
+# the study's own extrapolation of the global peak carries ± 5.64 MPa (order 0.76; make converge, c763ad0).
+# About 36 min on 2 cores; add --pilot both for the plain graded meshes too (~1.5 h).
 BENCH_ARGS ?= --pilot on --factors 4.0,2.0,1.3,1.0 --p3-factors 3.0,2.5,2.0 --repeats 3 --ccx-solvers iterative \
 	--reference-values 113.79,66.27
 bench: $(SETUP)
