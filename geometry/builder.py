@@ -475,15 +475,15 @@ def _relax_curved(target: float) -> int:
     count = np.zeros(len(x))
     np.add.at(total, m[take], np.broadcast_to(mean_bow[:, None, :], m.shape + (3,))[take])
     np.add.at(count, m[take], 1)
-    moved_inner = np.flatnonzero(count > 0)
+    bent = np.flatnonzero(count > 0)
     trial = x.copy()
-    trial[moved_inner] += total[moved_inner] / count[moved_inner, None]
+    trial[bent] += total[bent] / count[bent, None]
     r_trial = ratios(trial)
     worse = np.flatnonzero((r_trial < ratio) & (r_trial < target))
     reject = np.zeros(len(x), dtype=bool)
     reject[conn[worse, 4:].ravel()] = True
-    moved_inner = moved_inner[~reject[moved_inner]]
-    x[moved_inner] = trial[moved_inner]
+    bent = bent[~reject[bent]]
+    x[bent] = trial[bent]
     # 2. Pull what is still bad towards straight.
     curved = x.copy()
     alpha = np.ones(len(x))                      # 1 = as curved, 0 = straight
@@ -497,7 +497,7 @@ def _relax_curved(target: float) -> int:
             raise GeometryError("mesh: a tet stays inverted with straight edges")
         alpha[nodes] = np.maximum(alpha[nodes] - RELAX_STEP, 0.0)
         x[nodes] = straight[nodes] + alpha[nodes, None] * (curved[nodes] - straight[nodes])
-    moved = np.union1d(np.flatnonzero(alpha < 1), moved_inner)
+    moved = np.union1d(np.flatnonzero(alpha < 1), bent)
     for n in moved:
         gmsh.model.mesh.setNode(int(tags[n]), x[n].tolist(), [])
     return len(moved)

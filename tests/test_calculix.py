@@ -81,8 +81,8 @@ def test_c3d10_node_order_and_orientation(coarse):
     own = dist[:, np.arange(6), np.arange(6)]
     # Mid-side nodes sit at or near their own edge's midpoint: curved boundary edges bow
     # out by a fraction of their length (measured with gmsh's high-order optimiser: 92 %
-    # within 2 % of it, all within 32 %); a wrong order would put them about half an edge away from it and onto
-    # another edge's midpoint (the argmin check below).
+    # within 2 % of it, all within 32 %); a wrong order would put them about half an edge
+    # away from it and onto another edge's midpoint (the argmin check below).
     assert np.all(own < 0.4 * length)
     assert np.mean(own < 0.02 * length) > 0.8
     assert np.mean(dist.argmin(axis=2) == np.arange(6)) > 0.99  # measured 0.9988

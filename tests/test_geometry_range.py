@@ -5,20 +5,20 @@ geometry.table.validate. A row either
 
 - meshes and solves: then it reports the worst curved-element quality
   (Level.jacobian_ratio = min over tets of min det J / max det J; <= 0 is an inverted
-  element and the pipeline refuses it), warns below QUALITY_WARN, and the solver must
-  converge in fewer than MAX_ITERATIONS with a true residual <= 1e-6; or
+  element and the pipeline refuses it; the builder keeps every curved tet at >= 0.3), and
+  the solver must converge in fewer than MAX_ITERATIONS with a true residual <= 1e-6; or
 - is refused with InputError (a rule of the table broken: exit 2 in the CLI) or with
   NumericalError / GeometryError (exit 3), whose message is one line that says what.
 
 Rows marked "solve" must solve (they do today; a regression would show here); rows marked
-"either" are so thin that a coarse mesh may not resolve them, and may fail cleanly. Run with ``pytest -s`` for the table of iteration counts.
+"either" are so thin that a coarse mesh may not resolve them, and may fail cleanly. Run
+with ``pytest -s`` for the table of iteration counts.
 Coarse meshes (factor 2.5): about one to two minutes in all.
 """
 from __future__ import annotations
 
 import math
 import time
-import warnings
 
 import pytest
 
@@ -29,7 +29,6 @@ from pipeline.run import solve_level
 
 FACTOR = 2.5
 MAX_ITERATIONS = 200      # CG + GAMG needs ~40-130 here; 1000 is the solver's own cap
-QUALITY_WARN = 0.1        # min det J ratio below this: poor curved elements (report.md says so too)
 
 # name: (dimension overrides in mm, expected outcome, what it tests). No. 05: b1 45, b2 12.5,
 # b6 70, d14 31, d2 21, h3 25, dj 20, rf 1.5, seat 25..37 (limits in geometry/table.py).
@@ -63,7 +62,7 @@ def print_table():
             f"{'residual':>8s} {'peak MPa':>9s} {'crit MPa':>9s} {'time s':>6s}")
     rtol = resolve("05").rtol
     lines = ["", f"geometry range, mesh factor {FACTOR}, CG + GAMG, rtol {rtol:g} "
-             f"(warn: det J ratio < {QUALITY_WARN}; 1st-order: no curved tet):", head, "-" * len(head)]
+             f"(worst curved-tet det J ratio):", head, "-" * len(head)]
     for name, r in TABLE.items():
         if "dofs" in r:
             lines.append(f"{name:28s} {r['outcome']:9s} {r['dofs']:6d} {r['jac']:11.3f} {r['its']:4d} "
@@ -101,14 +100,9 @@ def test_near_limit_row(name):
         assert expect == "either", f"{name}: expected to solve, got {type(exc).__name__}: {msg}"
         return
     dt = time.perf_counter() - t0
-    outcome = ("1st-order" if lv.jacobian_ratio >= 1 - 1e-9 else
-               "solved" if lv.jacobian_ratio >= QUALITY_WARN else "warn")
-    TABLE[name] = {"outcome": outcome, "dofs": lv.dofs, "jac": lv.jacobian_ratio, "its": lv.iterations,
+    TABLE[name] = {"outcome": "solved", "dofs": lv.dofs, "jac": lv.jacobian_ratio, "its": lv.iterations,
                    "res": lv.residual_rel, "peak": lv.peak.value_MPa, "crit": lv.critical.value_MPa,
                    "time": dt}
-    if lv.jacobian_ratio < QUALITY_WARN:
-        warnings.warn(f"{name}: worst curved-element det J ratio {lv.jacobian_ratio:.3f} "
-                      f"< {QUALITY_WARN} (poor mesh quality)")
     assert lv.jacobian_ratio > 0          # solve_level refuses inverted meshes; belt and braces
     # Second-order geometry on a part with a bore and round journals has curved tets, whose
     # det J varies inside the element: a ratio of exactly 1 means every tet is straight,
