@@ -112,7 +112,8 @@ def add_case_options(p: argparse.ArgumentParser) -> None:
     m.add_argument("--size-feature", type=_positive_float, dest="size_feature_mm", metavar="MM", help="element size at bore and seat edges, mm")
     m.add_argument("--size-fillet", type=_positive_float, dest="size_fillet_mm", metavar="MM", help="element size on the shoulder fillets, mm")
     m.add_argument("--grading", type=_positive_float, dest="grading_mm", metavar="MM", help="distance over which sizes grow, mm")
-    m.add_argument("--solver", choices=("gamg", "hypre", "mumps"), help="CG+GAMG (default), CG+BoomerAMG, or direct MUMPS")
+    m.add_argument("--solver", choices=("pmg", "gamg", "hypre", "mumps"),
+                   help="CG + p-multigrid over P1 with GAMG (default), CG + GAMG, CG + BoomerAMG, or direct MUMPS")
     m.add_argument("--rtol", type=_positive_float, help="relative tolerance of the iterative solver on the true residual (default 1e-8)")
     p.add_argument("--out", type=Path, help="output folder (default results/<case name>)")
     p.add_argument("--quiet", action="store_true", help="no progress lines")

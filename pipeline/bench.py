@@ -1,12 +1,12 @@
 """Run time against error for No. 05, side by side with CalculiX (issue 4; mm, N, MPa, s).
 
     python -m pipeline.bench --out results/bench            the full matrix (make bench)
-    python -m pipeline.bench --quick --out /tmp/b           2 coarse levels, 1 repeat, P2 gamg/mumps + ccx
+    python -m pipeline.bench --quick --out /tmp/b           2 coarse levels, 1 repeat, P2 pmg/mumps + ccx
     python -m pipeline.bench --ranks 1,2                    also 2 MPI ranks on the finest P2 mesh
     python -m pipeline.bench --ranks 1,2 --ranks-at all     every point also on 2 cores (2 ranks; ccx 2 threads)
 
 The matrix: element order (P1, P2 on every mesh level, P3 on the coarse ones), mesh
-factor, solver (gamg, hypre, mumps); plus CalculiX (ccx 2.20, C3D10, pipeline.calculix)
+factor, solver (pmg, gamg, hypre, mumps; pmg is gamg for P1, so P1 skips it); plus CalculiX (ccx 2.20, C3D10, pipeline.calculix)
 on the same P2 meshes. Every repeat of every point runs in a fresh process
 (``python -m pipeline.bench --point JSON``, under ``mpirun -n 2`` for 2 ranks), so the
 peak memory (ru_maxrss) belongs to that point alone and each repeat is what a user's
@@ -54,7 +54,7 @@ DEFAULT_REFERENCE = Path("results/05-converge/results.json")
 FULL_FACTORS = (2.0, 1.5, 1.15, 0.9, 0.7)
 P3_FACTORS = (2.0, 1.5)
 QUICK_FACTORS = (2.0, 1.5)
-SOLVERS = ("gamg", "hypre", "mumps")
+SOLVERS = ("pmg", "gamg", "hypre", "mumps")
 STAGES = ("pilot", "geometry", "mesh", "import", "loads", "assemble", "solve", "write", "ccx", "read",
           "post", "other")
 MARK = "BENCH_POINT "
@@ -84,7 +84,7 @@ def run_point(spec: dict) -> dict | None:
     order = int(spec.get("order", 2))
     case = resolve(spec.get("size", "05"),
                    overrides={"mesh_factor": spec["factor"], "order": order,
-                              "solver": spec.get("solver") or "gamg"})
+                              "solver": spec.get("solver") or "pmg"})
     out: dict = {"spec": spec, "ranks": comm.size, "imports_s": imports}
     comm.barrier()
     t0 = time.perf_counter()
@@ -425,6 +425,8 @@ def build_matrix(args) -> list[tuple[dict, int, int]]:
             fs = factors if order != 3 else sorted(args.p3_factors, reverse=True)
             for f in fs:
                 for s in args.solvers:
+                    if order == 1 and s == "pmg" and "gamg" in args.solvers:
+                        continue  # the same solver for P1 (pipeline.solve)
                     pts.append(({"kind": "dolfinx", "order": order, "factor": f, "solver": s, "pilot": pl}, 1, thr))
         if args.ccx:
             for f in factors:
@@ -457,12 +459,12 @@ def make_parser() -> argparse.ArgumentParser:
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--out", type=Path, default=Path("results/bench"), help="output folder (default results/bench)")
     p.add_argument("--quick", action="store_true",
-                   help="2 coarse levels, 1 repeat, P2 gamg + mumps + CalculiX (for tests)")
+                   help="2 coarse levels, 1 repeat, P2 pmg + mumps + CalculiX (for tests)")
     p.add_argument("--repeats", type=int, help="runs per point, median taken (default 3; --quick 1)")
     p.add_argument("--factors", type=_csv_list(float), help="mesh factors (default 2.0,1.5,1.15,0.9,0.7)")
     p.add_argument("--p3-factors", type=_csv_list(float), help="mesh factors for P3 (default 2.0,1.5)")
     p.add_argument("--orders", type=_csv_list(int), help="element orders (default 1,2,3)")
-    p.add_argument("--solvers", type=_csv_list(str), help="gamg,hypre,mumps (default all)")
+    p.add_argument("--solvers", type=_csv_list(str), help="pmg,gamg,hypre,mumps (default all)")
     p.add_argument("--ccx-solvers", type=_csv_list(str),
                    help="CalculiX solvers: spooles (direct), iterative (ITERATIVE CHOLESKY); "
                         "default both (--quick: spooles)")
@@ -499,7 +501,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.quick:
         args.factors = args.factors or list(QUICK_FACTORS)
         args.orders = args.orders or [2]
-        args.solvers = args.solvers or ["gamg", "mumps"]
+        args.solvers = args.solvers or ["pmg", "mumps"]
         args.repeats = args.repeats or 1
         args.ccx_solvers = args.ccx_solvers or ["spooles"]
         args.pilot = "off" if args.pilot == "both" else args.pilot

@@ -36,7 +36,7 @@ class Case:
     model: str = "quarter"
     support: str = "bearing"
     order: int = 2
-    solver: str = "gamg"
+    solver: str = "pmg"
     rtol: float = 1e-8
     mesh_factor: float = 1.0
     size_body_mm: float | None = None

@@ -320,7 +320,7 @@ def test_solver_not_converging_exit_3(monkeypatch, no_stage_left):
     assert code == 3, err
     lines = err.splitlines()
     assert len(lines) == 1 and "Traceback" not in err
-    assert lines[0].startswith("numerical failure: solver gamg did not converge") and "nothing written" in lines[0]
+    assert lines[0].startswith("numerical failure: solver pmg did not converge") and "nothing written" in lines[0]
     check_clean()
 
 

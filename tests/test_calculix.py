@@ -149,7 +149,7 @@ def test_dat_reader_rejects_missing_nodes(tmp_path):
 
 
 def test_bench_quick(tmp_path):
-    """--quick: 2 levels, P2 gamg + mumps + CalculiX, one repeat; every output written."""
+    """--quick: 2 levels, P2 pmg + mumps + CalculiX, one repeat; every output written."""
     ref = tmp_path / "ref.json"
     ref.write_text(json.dumps({"case": {"size": "05", "model": "quarter", "support": "bearing"},
                                "convergence": {"peak": {"extrapolated": 110.0, "status": "converged"},
@@ -161,15 +161,15 @@ def test_bench_quick(tmp_path):
     assert p.returncode == 0, p.stdout[-2000:] + p.stderr[-2000:]
     data = json.loads((out / "bench.json").read_text())
     rows = data["rows"]
-    assert {(r["kind"], r["solver"]) for r in rows} == {("dolfinx", "gamg"), ("dolfinx", "mumps"),
+    assert {(r["kind"], r["solver"]) for r in rows} == {("dolfinx", "pmg"), ("dolfinx", "mumps"),
                                                         ("calculix", "ccx-spooles")}
     assert len(rows) == 6 and all("error" not in r for r in rows)
     for r in rows:
         assert r["t_total"] > 0 and r["mem_MiB"] > 0 and r["dofs"] > 0
         assert math.isfinite(r["peak_err"]) and math.isfinite(r["critical_err"])
     by = {(r["kind"], r["solver"], r["factor"]): r for r in rows}
-    for f in (2.0, 1.5):  # same mesh, same problem: MUMPS and GAMG agree, CalculiX is close
-        g, mu, c = by["dolfinx", "gamg", f], by["dolfinx", "mumps", f], by["calculix", "ccx-spooles", f]
+    for f in (2.0, 1.5):  # same mesh, same problem: MUMPS and p-multigrid agree, CalculiX is close
+        g, mu, c = by["dolfinx", "pmg", f], by["dolfinx", "mumps", f], by["calculix", "ccx-spooles", f]
         assert g["dofs"] == mu["dofs"] == c["dofs"]
         assert g["critical_MPa"] == pytest.approx(mu["critical_MPa"], rel=1e-6)
         assert c["critical_MPa"] == pytest.approx(mu["critical_MPa"], rel=1e-3)

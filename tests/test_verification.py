@@ -62,7 +62,7 @@ A_L = P_BORE * LA ** 2 / (LB ** 2 - LA ** 2)
 B_L = P_BORE * LA ** 2 * LB ** 2 / (LB ** 2 - LA ** 2)
 
 
-def lame_solve(lc, order, lc_bore=None, solver="gamg"):
+def lame_solve(lc, order, lc_bore=None, solver="pmg"):
     prob = vp.lame_quarter_ring(LA, LB, LT, lc, order, lc_bore=lc_bore)
     ids = prob.ids
     n = ufl.FacetNormal(prob.mesh)
