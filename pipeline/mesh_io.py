@@ -1,17 +1,21 @@
 """Build and mesh the part with gmsh, hand the mesh to DOLFINx (units: mm).
 
-gmsh runs on rank 0 only; DOLFINx distributes the mesh. Physical group names are looked
-up on rank 0 and broadcast, so later stages ask for "seat", never for a number.
+gmsh runs on one rank per mesh (several meshes on several ranks at once); DOLFINx then
+distributes each mesh. Physical group names are looked up where the mesh was made and
+broadcast, so later stages ask for "seat", never for a number.
 """
 from __future__ import annotations
 
 import time
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
+from typing import Callable, Sequence
 
 import gmsh
 import numpy as np
+from dolfinx import cpp as _cpp
 from dolfinx.io import gmshio
+from dolfinx.mesh import create_mesh, meshtags_from_entities
 from mpi4py import MPI
 
 from geometry.builder import BuiltGeometry, MeshSpec, build, jacobian_ratio, mesh
@@ -77,58 +81,153 @@ class ImportedMesh:
     timings: dict[str, float] = field(default_factory=dict)
 
 
-def make_mesh(d: Dimensions, model: str, spec: MeshSpec, comm=MPI.COMM_WORLD,
-              msh_path: Path | None = None) -> ImportedMesh:
-    """Geometry → gmsh mesh → DOLFINx mesh. Times each of the three stages (s).
+@dataclass
+class MeshedPart:
+    """A gmsh mesh as plain arrays, on the rank that made it (lengths in mm).
 
-    If ``msh_path`` is given the gmsh mesh (with physical names) is written there too, in mm.
-    gmsh works in units of :func:`meshing_scale` (the part at No. 05's size); the returned
-    mesh, constraint points and volume are in mm.
+    What :func:`distribute` needs to build the DOLFINx mesh on every rank, so that meshing
+    (serial, in gmsh) and distributing (collective) can happen at different times: several
+    meshes are made at once on different ranks (:func:`make_meshes`).
+    """
+
+    x: np.ndarray                # node coordinates, mm (n × 3)
+    cells: np.ndarray            # tets, gmsh node order
+    cell_values: np.ndarray      # volume physical tags
+    facets: np.ndarray           # boundary triangles in a physical group, gmsh node order
+    facet_values: np.ndarray     # their surface physical tags
+    cell_type: int               # gmsh element type of the tets (4 linear, 11 quadratic)
+    names: dict[str, int]        # surface physical group name -> tag
+    built: BuiltGeometry
+    scale: float                 # mm per gmsh unit
+    quality: float               # worst det J ratio of the curved tets
+    timings: dict[str, float]
+
+
+def generate(d: Dimensions, model: str, spec: MeshSpec, msh_path: Path | None = None) -> MeshedPart:
+    """Geometry → gmsh mesh → arrays, in this process only, in a gmsh session of its own.
+
+    A session per mesh (not one for several) so that every mesh is made from the same
+    starting state: the mesh then depends only on its inputs, whichever rank makes it
+    and whatever it made before. If ``msh_path`` is given the gmsh mesh (with physical
+    names) is written there too, in mm. gmsh works in units of :func:`meshing_scale`.
     """
     scale = meshing_scale(d)
     dn, spec_n = _normalised(d, spec, scale)
     timings: dict[str, float] = {}
-    rank = comm.rank
-    names: dict[str, int] = {}
-    built: BuiltGeometry | None = None
     # gmsh 4.8 cannot tell whether it is initialised; own it for the length of this call.
     gmsh.initialize(readConfigFiles=False)
-    gmsh.option.setNumber("General.Terminal", 0)
-    error = None
-    quality = float("nan")
-    if rank == 0:
-        try:
-            t0 = time.perf_counter()
-            gmsh.model.add("crosshead")
-            built = build(dn, model)
-            timings["geometry"] = time.perf_counter() - t0
-            t0 = time.perf_counter()
-            # Every curved tet leaves the builder with a det J ratio >= HO_TARGET (0.3).
-            mesh(dn, spec_n)
-            quality = jacobian_ratio()
-            if msh_path is not None:
-                gmsh.option.setNumber("Mesh.ScalingFactor", scale)  # write in mm
-                gmsh.write(str(msh_path))
-                gmsh.option.setNumber("Mesh.ScalingFactor", 1.0)
-            timings["mesh"] = time.perf_counter() - t0
-            for dim, tag in gmsh.model.getPhysicalGroups(2):
-                names[gmsh.model.getPhysicalName(dim, tag)] = tag
-        except Exception as exc:  # re-raised on every rank below
-            error = exc
-    error = comm.bcast(error, root=0)
-    if error is not None:
-        gmsh.finalize()
-        raise error
-    names, built, timings, quality = comm.bcast((names, built, timings, quality), root=0)
-    t0 = time.perf_counter()
     try:
-        dmesh, cell_tags, facet_tags = gmshio.model_to_mesh(gmsh.model, comm, 0, gdim=3)
+        gmsh.option.setNumber("General.Terminal", 0)
+        t0 = time.perf_counter()
+        gmsh.model.add("crosshead")
+        built = build(dn, model)
+        timings["geometry"] = time.perf_counter() - t0
+        t0 = time.perf_counter()
+        # Every curved tet leaves the builder with a det J ratio >= HO_TARGET (0.3).
+        mesh(dn, spec_n)
+        quality = jacobian_ratio()
+        if msh_path is not None:
+            gmsh.option.setNumber("Mesh.ScalingFactor", scale)  # write in mm
+            gmsh.write(str(msh_path))
+            gmsh.option.setNumber("Mesh.ScalingFactor", 1.0)
+        names = {gmsh.model.getPhysicalName(dim, tag): tag for dim, tag in gmsh.model.getPhysicalGroups(2)}
+        x = gmshio.extract_geometry(gmsh.model) * scale
+        topo = gmshio.extract_topology_and_markers(gmsh.model)
+        cell_type = max(topo, key=lambda t: gmsh.model.mesh.getElementProperties(t)[1])
+        facet_types = [t for t in topo if gmsh.model.mesh.getElementProperties(t)[1] == 2]
+        timings["mesh"] = time.perf_counter() - t0
     finally:
         gmsh.finalize()
-    if scale != 1.0:
-        dmesh.geometry.x[:] *= scale  # gmsh units → mm
-    timings["import"] = time.perf_counter() - t0
+    if len(facet_types) != 1:
+        raise RuntimeError(f"mesh: expected one kind of boundary triangle, got gmsh types {facet_types}")
+    return MeshedPart(x=x, cells=np.asarray(topo[cell_type]["topology"], dtype=np.int64),
+                      cell_values=np.asarray(topo[cell_type]["cell_data"], dtype=np.int32),
+                      facets=np.asarray(topo[facet_types[0]]["topology"], dtype=np.int64),
+                      facet_values=np.asarray(topo[facet_types[0]]["cell_data"], dtype=np.int32),
+                      cell_type=int(cell_type), names=names, built=built, scale=scale,
+                      quality=quality, timings=timings)
+
+
+def distribute(part: MeshedPart | None, owner: int, model: str, comm=MPI.COMM_WORLD) -> ImportedMesh:
+    """The DOLFINx mesh of ``part`` (held by rank ``owner``), shared over comm. Collective.
+
+    What dolfinx.io.gmshio.model_to_mesh does from a live gmsh model, here from arrays.
+    """
+    t0 = time.perf_counter()
+    meta = None
+    if comm.rank == owner:
+        meta = (part.cell_type, part.cells.shape[1], part.facets.shape[1], part.names, part.built,
+                part.scale, part.quality, part.timings)
+    cell_type, n_nodes, n_facet_nodes, names, built, scale, quality, timings = comm.bcast(meta, root=owner)
+    if comm.rank == owner:
+        x, cells, cell_values = part.x, part.cells, part.cell_values
+        facets, facet_values = part.facets, part.facet_values
+    else:
+        x = np.empty((0, 3))
+        cells = np.empty((0, n_nodes), dtype=np.int64)
+        cell_values = np.empty((0,), dtype=np.int32)
+        facets = np.empty((0, n_facet_nodes), dtype=np.int64)
+        facet_values = np.empty((0,), dtype=np.int32)
+    domain = gmshio.ufl_mesh(cell_type, 3)
+    dcell = _cpp.mesh.to_type(str(domain.ufl_cell()))
+    cells = cells[:, gmshio.cell_perm_array(dcell, n_nodes)]
+    dmesh = create_mesh(comm, cells, x, domain)
+    tdim = dmesh.topology.dim
+    entities, values = _cpp.io.distribute_entity_data(dmesh._mesh, tdim, cells, cell_values)
+    dmesh.topology.create_connectivity(tdim, 0)
+    cell_tags = meshtags_from_entities(dmesh, tdim, _cpp.graph.AdjacencyList_int32(entities),
+                                       values.astype(np.int32))
+    facet_type = _cpp.mesh.cell_entity_type(dcell, tdim - 1, 0)
+    facets = facets[:, gmshio.cell_perm_array(facet_type, n_facet_nodes)]
+    entities, values = _cpp.io.distribute_entity_data(dmesh._mesh, tdim - 1, facets, facet_values)
+    dmesh.topology.create_connectivity(tdim - 1, tdim)
+    facet_tags = meshtags_from_entities(dmesh, tdim - 1, _cpp.graph.AdjacencyList_int32(entities),
+                                        values.astype(np.int32))
+    timings = dict(timings, **{"import": time.perf_counter() - t0})
     return ImportedMesh(mesh=dmesh, cell_tags=cell_tags, facet_tags=facet_tags,
                         facet_ids=names, constraint_points=np.array(built.constraint_points) * scale,
                         model=model, volume_cad=built.volume * scale ** 3,
                         jacobian_ratio=quality, timings=timings)
+
+
+def make_mesh(d: Dimensions, model: str, spec: MeshSpec, comm=MPI.COMM_WORLD,
+              msh_path: Path | None = None) -> ImportedMesh:
+    """Geometry → gmsh mesh (on rank 0) → DOLFINx mesh. Times each of the three stages (s)."""
+    return make_meshes(d, model, [spec], comm, [msh_path])[0]()
+
+
+def owners(costs: Sequence[float], ranks: int) -> list[int]:
+    """The rank that meshes each job: the largest job first, each to the least loaded rank."""
+    load = [0.0] * ranks
+    out = [0] * len(costs)
+    for i in sorted(range(len(costs)), key=lambda i: (-costs[i], i)):
+        r = min(range(ranks), key=lambda r: (load[r], r))
+        out[i] = r
+        load[r] += costs[i]
+    return out
+
+
+def make_meshes(d: Dimensions, model: str, specs: Sequence[MeshSpec], comm=MPI.COMM_WORLD,
+                msh_paths: Sequence[Path | None] | None = None) -> list[Callable[[], ImportedMesh]]:
+    """Mesh several specs at once, each on one rank; return a collective loader per mesh.
+
+    Why: gmsh is serial, and meshing the three meshes of a run's error bar one after the
+    other on rank 0 left the other ranks idle for seconds. The cost of a mesh is taken as
+    factor⁻³ (its number of elements, roughly). Calling loader k (on every rank, in the
+    same order) distributes mesh k; a mesh that failed raises its error on every rank,
+    and does so before anything is distributed, in spec order.
+    """
+    paths = list(msh_paths) if msh_paths is not None else [None] * len(specs)
+    who = owners([s.factor ** -3 for s in specs], comm.size)
+    parts: dict[int, MeshedPart] = {}
+    error: tuple[int, Exception] | None = None
+    for k, spec in enumerate(specs):
+        if who[k] == comm.rank and error is None:
+            try:
+                parts[k] = generate(d, model, spec, paths[k])
+            except Exception as exc:  # re-raised on every rank below
+                error = (k, exc)
+    errors = [e for e in comm.allgather(error) if e is not None]
+    if errors:
+        raise min(errors, key=lambda e: e[0])[1]
+    return [lambda k=k: distribute(parts.get(k), who[k], model, comm) for k in range(len(specs))]

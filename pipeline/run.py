@@ -21,7 +21,7 @@ from .case import Case
 from .convergence import Estimate, estimate, representative_size
 from .crosshead import crosshead_loads, equilibrium
 from .errors import NumericalError
-from .mesh_io import make_mesh
+from .mesh_io import ImportedMesh, make_mesh, make_meshes
 from .post import Peak, hot_spots, peak, von_mises
 from .solve import Material, solve
 
@@ -62,15 +62,20 @@ def critical_region(case: Case) -> Callable[[np.ndarray], np.ndarray]:
 
 def solve_level(case: Case, factor: float, msh_path: Path | None = None,
                 keep_fields: bool = False, comm=MPI.COMM_WORLD,
-                progress: Progress | None = None, hotspots: Hotspots = ()) -> Level:
+                progress: Progress | None = None, hotspots: Hotspots = (),
+                load_mesh: Callable[[], ImportedMesh] | None = None) -> Level:
     """Build, mesh and solve the case with every mesh size times ``factor``; find the peaks.
 
-    Raises NumericalError if the mesh has an inverted element, the solver fails, the
-    result is not finite, or the loads do not balance to 1e-6·Q.
+    ``load_mesh``: that mesh made already (see :func:`analyse`); factor, msh_path and
+    hotspots are then only the mesh's description. Raises NumericalError if the mesh has
+    an inverted element, the solver fails, the result is not finite, or the loads do not
+    balance to 1e-6·Q.
     """
     say = progress or (lambda s: None)
-    spec = case.mesh_spec(factor, hotspots)
-    m = make_mesh(case.dims, case.model, spec, comm=comm, msh_path=msh_path)
+    if load_mesh is None:
+        m = make_mesh(case.dims, case.model, case.mesh_spec(factor, hotspots), comm=comm, msh_path=msh_path)
+    else:
+        m = load_mesh()
     say(f"mesh ×{factor:.3g}: {m.mesh.topology.index_map(3).size_global} tets, "
         f"geometry {m.timings['geometry']:.2f} s, mesh {m.timings['mesh']:.2f} s, "
         f"import {m.timings['import']:.2f} s")
@@ -200,20 +205,31 @@ def _fmt(p: Sequence[float]) -> str:
 
 def analyse(case: Case, levels: int = 3, ratio: float = 1.3, msh_path: Path | None = None,
             progress: Progress | None = None, comm=MPI.COMM_WORLD,
-            pl: Pilot | None = None) -> tuple[list[Level], Pilot]:
+            pl: Pilot | None = None,
+            on_requested: Callable[[Level], None] | None = None) -> tuple[list[Level], Pilot]:
     """Solve on ``levels`` meshes, the requested one and coarser by ``ratio`` each; finest first.
 
-    A pilot solve first puts refinement where the peaks are (see :func:`pilot`); then
-    coarse meshes first, so a failure shows up early and cheaply.
+    A pilot solve first puts refinement where the peaks are (see :func:`pilot`). Then all
+    meshes are made at once, one per rank (gmsh is serial; see mesh_io.make_meshes). The
+    requested mesh is solved first and handed to ``on_requested`` (which may start work
+    that runs beside the error-bar meshes' solves: the picture), then the coarser ones.
     """
     pl = pl or pilot(case, comm=comm, progress=progress)
+    say = progress or (lambda s: None)
     factors = [case.mesh_factor * ratio ** k for k in range(levels)]
+    t0 = time.perf_counter()
+    loaders = make_meshes(case.dims, case.model, [case.mesh_spec(f, pl.hotspots) for f in factors],
+                          comm=comm, msh_paths=[msh_path] + [None] * (levels - 1))
+    if comm.size > 1 and levels > 1:
+        say(f"meshes ×{', ×'.join(f'{f:.3g}' for f in factors)} made on {min(comm.size, levels)} ranks at once "
+            f"({time.perf_counter() - t0:.2f} s)")
     out = []
-    for k in reversed(range(levels)):
-        out.append(solve_level(case, factors[k], msh_path=msh_path if k == 0 else None,
-                               keep_fields=(k == 0), comm=comm, progress=progress,
-                               hotspots=pl.hotspots))
-    return out[::-1], pl
+    for k in range(levels):
+        out.append(solve_level(case, factors[k], keep_fields=(k == 0), comm=comm, progress=progress,
+                               load_mesh=loaders[k]))
+        if k == 0 and on_requested is not None:
+            on_requested(out[0])
+    return out, pl
 
 
 def pct(a: float, b: float) -> float:

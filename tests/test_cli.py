@@ -81,3 +81,39 @@ def test_bad_input_exit_2_one_line(tmp_path, args, field):
     lines = p.stderr.strip().splitlines()
     assert len(lines) == 1 and field in lines[0] and "Traceback" not in p.stderr
     assert not out.exists()
+
+
+def test_picture_draws_the_outer_surface_only():
+    """pipeline.render.boundary_surface on a cube of 5·n³ disconnected tets (each tet its own
+    nodes, like von_mises.vtu): the outer surface of a cube split into tets has 2 triangles
+    per face square, 12 n² in all, whatever the split; every node keeps its own value. Own
+    process: VTK and DOLFINx cannot share one."""
+    code = r'''
+import itertools, numpy as np, pyvista
+from pipeline.render import boundary_surface
+n = 3
+# The 5-tet split of a unit cube, mirrored cube to cube so that faces match.
+base = [(0, 1, 2, 4), (1, 3, 2, 7), (1, 4, 5, 7), (2, 4, 7, 6), (1, 2, 4, 7)]
+corners = np.array([(i & 1, (i >> 1) & 1, (i >> 2) & 1) for i in range(8)], float)
+pts = []
+for c in itertools.product(range(n), repeat=3):
+    flip = np.array([(k % 2) for k in c])
+    local = np.where(flip, 1 - corners, corners) + np.array(c)
+    for tet in base:
+        pts += [local[v] for v in tet]
+pts = np.array(pts)
+cells = np.column_stack([np.full(len(pts) // 4, 4), np.arange(len(pts)).reshape(-1, 4)]).ravel()
+grid = pyvista.UnstructuredGrid(cells, np.full(len(pts) // 4, pyvista.CellType.TETRA), pts)
+grid.point_data["von_mises_MPa"] = np.arange(len(pts), dtype=float)  # a node's value: its index
+surf = boundary_surface(grid)
+tri = surf.faces.reshape(-1, 4)[:, 1:]
+xyz = surf.points[tri]
+on_face = [np.all(np.isclose(xyz[:, :, k], v), axis=1) for k in range(3) for v in (0, n)]
+print(len(tri), int(np.sum(np.any(on_face, axis=0))), surf.n_points,
+      float(np.abs(pts[surf.point_data["von_mises_MPa"].astype(int)] - surf.points).max()))
+'''
+    p = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, timeout=120)
+    assert p.returncode == 0, p.stderr[-2000:]
+    n_tri, n_on_face, n_points, value_err = p.stdout.split()
+    assert int(n_tri) == 12 * 3 ** 2 and int(n_on_face) == int(n_tri)
+    assert float(value_err) == 0.0

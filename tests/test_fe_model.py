@@ -9,7 +9,7 @@ from mpi4py import MPI
 from geometry.table import lookup
 from pipeline.case import resolve
 from pipeline.crosshead import crosshead_loads
-from pipeline.mesh_io import make_mesh
+from pipeline.mesh_io import make_mesh, owners
 
 D05 = lookup("05").dims
 Q = 10_000.0
@@ -45,3 +45,14 @@ def test_loads_integrate_to_q_and_match_closed_form_pressures(model, share):
 
 
 # Quarter against full model: tests/test_invariance.py (tolerance from the quarter model's own error bar).
+
+
+def test_meshes_are_shared_out_largest_first():
+    """mesh_io.owners: the error bar's meshes (costs factor^-3 at x1, x1.3, x1.69) on 2 ranks:
+    the finest alone on rank 0, the two coarser (together 0.66 of it) on rank 1; one rank
+    takes everything; ties go to the lower rank."""
+    costs = [f ** -3 for f in (1.0, 1.3, 1.69)]
+    assert owners(costs, 2) == [0, 1, 1]
+    assert owners(costs, 1) == [0, 0, 0]
+    assert owners(costs, 4) == [0, 1, 2]
+    assert owners([1.0, 1.0, 1.0, 1.0], 2) == [0, 1, 0, 1]
