@@ -208,16 +208,20 @@ def owners(costs: Sequence[float], ranks: int) -> list[int]:
 
 
 def make_meshes(d: Dimensions, model: str, specs: Sequence[MeshSpec], comm=MPI.COMM_WORLD,
-                msh_paths: Sequence[Path | None] | None = None) -> list[Callable[[], ImportedMesh]]:
-    """Mesh several specs at once, each on one rank; return a collective loader per mesh.
+                msh_paths: Sequence[Path | None] | None = None,
+                solve_on: Sequence[int | None] | None = None) -> list[Callable[[], ImportedMesh] | None]:
+    """Mesh several specs at once, each on one rank; return a loader per mesh.
 
     Why: gmsh is serial, and meshing the three meshes of a run's error bar one after the
     other on rank 0 left the other ranks idle for seconds. The cost of a mesh is taken as
-    factor⁻³ (its number of elements, roughly). Calling loader k (on every rank, in the
-    same order) distributes mesh k; a mesh that failed raises its error on every rank,
-    and does so before anything is distributed, in spec order.
+    factor⁻³ (its number of elements, roughly). ``solve_on[k]``: None (default) shares
+    mesh k over comm, and every rank calls loader k, in the same order; a rank number
+    gives mesh k to that rank alone (sent there if another rank made it), whose loader
+    returns it on MPI.COMM_SELF; the other ranks get None. A mesh that failed raises its
+    error on every rank, before anything is loaded, the first in spec order.
     """
     paths = list(msh_paths) if msh_paths is not None else [None] * len(specs)
+    target = list(solve_on) if solve_on is not None else [None] * len(specs)
     who = owners([s.factor ** -3 for s in specs], comm.size)
     parts: dict[int, MeshedPart] = {}
     error: tuple[int, Exception] | None = None
@@ -230,4 +234,19 @@ def make_meshes(d: Dimensions, model: str, specs: Sequence[MeshSpec], comm=MPI.C
     errors = [e for e in comm.allgather(error) if e is not None]
     if errors:
         raise min(errors, key=lambda e: e[0])[1]
-    return [lambda k=k: distribute(parts.get(k), who[k], model, comm) for k in range(len(specs))]
+    for k, rank in enumerate(target):  # every rank in the same order: no deadlock
+        if rank is None or rank == who[k]:
+            continue
+        if comm.rank == who[k]:
+            comm.send(parts.pop(k), dest=rank, tag=k)
+        elif comm.rank == rank:
+            parts[k] = comm.recv(source=who[k], tag=k)
+    loaders: list[Callable[[], ImportedMesh] | None] = []
+    for k, rank in enumerate(target):
+        if rank is None:
+            loaders.append(lambda k=k: distribute(parts.get(k), who[k], model, comm))
+        elif rank == comm.rank:
+            loaders.append(lambda k=k: distribute(parts[k], 0, model, MPI.COMM_SELF))
+        else:
+            loaders.append(None)
+    return loaders
