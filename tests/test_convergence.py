@@ -106,3 +106,17 @@ def test_order_far_above_formal_gets_safety_factor_3():
     r = h[1] / h[0]
     assert est.gci_fine == pytest.approx(3.0 * (0.17 / 114.89) / (r ** 2 - 1), rel=1e-9)
     assert est.band > 1.1          # covers the P3 solution 113.79 MPa
+
+
+def test_pilot_is_never_coarser_than_the_fillet():
+    """run.pilot_factor: 2.2 × the case's mesh factor, capped where the pilot's fillet
+    elements (0.25·rf × factor by default) would exceed rf, i.e. at 4, and never finer than
+    the case's own mesh. No. 05: rf = 1.5 mm, fillet size 0.375 mm."""
+    from pipeline.case import resolve
+    from pipeline.run import pilot_factor
+    assert pilot_factor(resolve("05")) == pytest.approx(2.2)
+    assert pilot_factor(resolve("05", overrides={"mesh_factor": 1.69})) == pytest.approx(1.69 * 2.2)
+    assert pilot_factor(resolve("05", overrides={"mesh_factor": 2.5})) == pytest.approx(1.5 / 0.375)
+    assert pilot_factor(resolve("05", overrides={"mesh_factor": 5.0})) == pytest.approx(5.0)
+    # A finer fillet size moves the cap: rf / 0.25 mm = 6.
+    assert pilot_factor(resolve("05", overrides={"mesh_factor": 4.0, "size_fillet_mm": 0.25})) == pytest.approx(6.0)
