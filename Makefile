@@ -5,8 +5,9 @@
 SHELL := /bin/bash
 PY := .venv/bin/python
 SETUP := .venv/.setup-done
-# make run / make converge use every core: gmsh meshes on rank 0, the assembly and the
-# solve are shared (No. 05, back to back: 57.6 s on 1 rank, 33.3 s on 2). RANKS=1 runs without MPI.
+# make run / make converge use every core: the error bar's meshes are made one per rank at
+# once, the requested mesh is solved by all ranks, the coarser ones side by side
+# (No. 05: 29.9 s on 1 rank, 17.6 s on 2, median of 3). RANKS=1 runs without MPI.
 RANKS ?= $(shell nproc 2>/dev/null || echo 1)
 RUN := $(if $(filter 1,$(RANKS)),$(PY),mpirun --allow-run-as-root -n $(RANKS) $(PY))
 SIZES := $(shell awk -F, '!/^\#/ && $$1 != "size" && NF > 1 {print $$1}' geometry/sizes.csv)
@@ -27,7 +28,7 @@ converge: $(SETUP)
 # results/05-converge/results.json is missing. Errors are measured against the independent
 # P3 + MUMPS solution of tests/test_regression.py (global 113.79, critical 66.27 MPa);
 # the study's own extrapolation of the global peak carries ± 5.64 MPa (order 0.76; make converge, c763ad0).
-# About 36 min on 2 cores; add --pilot both for the plain graded meshes too (~1.5 h).
+# 35-48 min on 2 cores (the machine's speed varies); add --pilot both for the plain graded meshes too (~1.5 h).
 BENCH_ARGS ?= --pilot on --factors 4.0,2.5,2.0,1.3,1.0 --p3-factors 3.0,2.5,2.0 --repeats 3 --ccx-solvers iterative \
 	--reference-values 113.79,66.27
 bench: $(SETUP)
