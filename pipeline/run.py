@@ -21,7 +21,7 @@ from .case import Case
 from .convergence import Estimate, estimate, representative_size
 from .crosshead import crosshead_loads, equilibrium
 from .errors import NumericalError
-from .mesh_io import ImportedMesh, make_mesh, make_meshes
+from .mesh_io import ImportedMesh, make_mesh, make_meshes, owners
 from .post import Peak, hot_spots, peak, von_mises
 from .solve import Material, solve
 
@@ -233,7 +233,7 @@ def analyse(case: Case, levels: int = 3, ratio: float = 1.3, msh_path: Path | No
     pl = pl or pilot(case, comm=comm, progress=progress)
     say = progress or (lambda s: None)
     factors = [case.mesh_factor * ratio ** k for k in range(levels)]
-    on = error_bar_ranks(levels, comm.size)
+    on = error_bar_ranks(factors, comm.size)
     t0 = time.perf_counter()
     loaders = make_meshes(case.dims, case.model, [case.mesh_spec(f, pl.hotspots) for f in factors],
                           comm=comm, msh_paths=[msh_path] + [None] * (levels - 1), solve_on=on)
@@ -277,15 +277,17 @@ def _wait_idle(comm) -> None:
         time.sleep(0.002)
 
 
-def error_bar_ranks(levels: int, ranks: int) -> list[int | None]:
+def error_bar_ranks(factors: Sequence[float], ranks: int) -> list[int | None]:
     """Where each mesh of the error bar is solved: the requested one (first) on all ranks
-    (None); the coarser ones each on one rank, the next coarser on the last rank, and so on
-    backwards, so that rank 0, which also starts the picture, gets the smallest.
+    (None); the coarser ones each on one rank, the largest first to the least loaded rank
+    (cost factor⁻³), counting ranks from the last, so that rank 0, which also starts the
+    picture, gets the least.
 
     Why: after the requested mesh, 2 ranks solving the x1.3 and then the x1.69 mesh
     together, beside the picture process, took 7.6 s at No. 05; one each, 4-5 s.
     """
-    return [None] + [(ranks - k) % ranks for k in range(1, levels)]
+    who = owners([f ** -3 for f in factors[1:]], ranks)
+    return [None] + [ranks - 1 - r for r in who]
 
 
 def pct(a: float, b: float) -> float:
