@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable, Sequence
 
@@ -283,8 +283,9 @@ def error_bar_ranks(factors: Sequence[float], ranks: int) -> list[int | None]:
     (cost factor⁻³), counting ranks from the last, so that rank 0, which also starts the
     picture, gets the least.
 
-    Why: after the requested mesh, 2 ranks solving the x1.3 and then the x1.69 mesh
-    together, beside the picture process, took 7.6 s at No. 05; one each, 4-5 s.
+    Why: 2 ranks solving the x1.3 and then the x1.69 mesh together, beside the picture
+    process, made make run (No. 05, 2 ranks) take 20.44 s (median of 5); one mesh per rank,
+    18.51 s (5 runs interleaved with those).
     """
     who = owners([f ** -3 for f in factors[1:]], ranks)
     return [None] + [ranks - 1 - r for r in who]

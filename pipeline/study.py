@@ -34,10 +34,11 @@ def execute_run(case: Case, out_dir: Path, levels: int = 3, ratio: float = 1.3,
     with staged_dir(out_dir, comm) as stage:
         pl = pilot(case, comm=comm, progress=say)
         files = {"results": "results.json", "mesh": "mesh.msh"}
-        picture: list[Picture] = []
-        t_output = [0.0]
+        picture: Picture | None = None
+        t_output = 0.0
 
         def fields_and_picture(fine: Level) -> None:
+            nonlocal picture, t_output
             if not write_fields:
                 return
             t0 = time.perf_counter()
@@ -45,17 +46,17 @@ def execute_run(case: Case, out_dir: Path, levels: int = 3, ratio: float = 1.3,
             # The picture process reads results.json: the requested mesh's peaks for now,
             # the full results (same peaks) replace it below.
             write_json(stage / "results.json", build_results(case, [fine], {}, comm, pl), comm)
-            t_output[0] += time.perf_counter() - t0
+            t_output = time.perf_counter() - t0
             if comm.rank == 0:
-                picture.append(start_picture(stage))
+                picture = start_picture(stage)
 
         try:
             lv, pl = analyse(case, levels=levels, ratio=ratio, msh_path=stage / "mesh.msh",
                              progress=say, comm=comm, pl=pl, on_requested=fields_and_picture)
         except BaseException:
-            for pic in picture:  # the run failed: no picture either
-                pic.proc.kill()
-                pic.proc.wait()
+            if picture is not None:  # the run failed: no picture either
+                picture.proc.kill()
+                picture.proc.wait()
             raise
         timings = sum_timings(lv, pl)
         res = build_results(case, lv, timings, comm, pl)
@@ -65,9 +66,9 @@ def execute_run(case: Case, out_dir: Path, levels: int = 3, ratio: float = 1.3,
             files["picture"] = "von_mises.png"
             files["report"] = "report.md"
         res["files"] = files
-        res["timings_s"]["output"] = t_output[0]
-        if picture:
-            res["timings_s"]["picture"] = finish_picture(picture[0], stage)
+        res["timings_s"]["output"] = t_output
+        if picture is not None:
+            res["timings_s"]["picture"] = finish_picture(picture, stage)
         res["timings_s"]["total"] = time.perf_counter() - t_all
         write_json(stage / "results.json", res, comm)
         if write_fields and comm.rank == 0:
