@@ -339,3 +339,56 @@ def test_patch_displacement_driven(box_mesh):
     assert err_u < 1e-10
     assert err_s < 1e-9
     assert err_r < 1e-9
+
+
+def _two_p2_tets(bow: float):
+    """Two 10-node tets sharing the face (1,0,0)-(0,1,0)-(0,0,1) (mm); the mid-edge node
+    of the second one's edge from (1,1,1) to (1,0,0) is pushed out by ``bow`` along +x."""
+    from dolfinx.mesh import create_mesh
+    verts = np.array([(0, 0, 0), (1, 0, 0), (0, 1, 0), (0, 0, 1), (1, 1, 1)], dtype=float)
+    tets = [(0, 1, 2, 3), (4, 1, 2, 3)]
+    edges = [(2, 3), (1, 3), (1, 2), (0, 3), (0, 2), (0, 1)]  # basix order of the mid-edge nodes
+    x, cells, mids = list(verts), [], {}
+    for t in tets:
+        row = list(t)
+        for i, j in edges:
+            key = tuple(sorted((t[i], t[j])))
+            if key not in mids:
+                mids[key] = len(x)
+                p = 0.5 * (verts[key[0]] + verts[key[1]])
+                if key == (1, 4):
+                    p = p + np.array([bow, 0.0, 0.0])
+                x.append(p)
+            row.append(mids[key])
+        cells.append(row)
+    domain = ufl.Mesh(ufl.VectorElement("Lagrange", ufl.tetrahedron, 2))
+    return create_mesh(MPI.COMM_SELF, np.array(cells, dtype=np.int64), np.array(x), domain)
+
+
+def test_quadrature_split_is_exact_on_straight_cells():
+    """solve.volume_integral integrates straight cells with degree 2(k-1) and curved ones
+    with UFL's own degree: the P2 stiffness matrix equals the one of UFL's degree on every
+    cell (round-off), while treating the curved cell as straight would change it."""
+    from dolfinx.fem.petsc import assemble_matrix
+    mesh = _two_p2_tets(0.15)
+    curved = ps.curved_cells(mesh)
+    assert curved.sum() == 1
+    centroid = mesh.geometry.x[mesh.geometry.dofmap.array.reshape(2, 10)[:, :4]].mean(axis=1)
+    assert centroid[curved][0].sum() > 1.0                      # the tet at (1, 1, 1)
+    V = fem.VectorFunctionSpace(mesh, ("Lagrange", 2))
+    u, v = ufl.TrialFunction(V), ufl.TestFunction(V)
+    integrand = ufl.inner(ps.stress(u, ps.Material()), ps.strain(v))
+
+    def matrix(form):
+        A = assemble_matrix(fem.form(form))
+        A.assemble()
+        return A
+
+    reference = matrix(integrand * ufl.dx)
+    split = matrix(ps.volume_integral(integrand, mesh, 2))
+    low = matrix(integrand * ufl.dx(metadata={"quadrature_degree": 2}))
+    split.axpy(-1.0, reference)
+    low.axpy(-1.0, reference)
+    assert split.norm() <= 1e-12 * reference.norm()
+    assert low.norm() >= 1e-4 * reference.norm()                 # the bow matters
+    assert not ps.curved_cells(_two_p2_tets(0.0)).any()
