@@ -4,6 +4,8 @@ Both write into a staging folder that replaces the output folder only when compl
 """
 from __future__ import annotations
 
+import contextlib
+import os
 import subprocess
 import sys
 import time
@@ -108,6 +110,11 @@ def start_picture(folder: Path) -> Picture:
     proc = subprocess.Popen([sys.executable, "-m", "pipeline.render", str(folder)],
                             stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
                             cwd=Path(__file__).resolve().parents[1])
+    # mpirun binds each rank to one core, and a child inherits its parent's binding: the
+    # picture then shared rank 0's core while rank 1's core idled once its mesh was
+    # solved. Let it run on any core.
+    with contextlib.suppress(AttributeError, OSError):  # no affinity outside Linux
+        os.sched_setaffinity(proc.pid, range(os.cpu_count() or 1))
     return Picture(proc=proc, started=time.perf_counter())
 
 
