@@ -74,3 +74,15 @@ def test_unbuildable_rows_name_the_field(field, over):
     d = with_overrides(D05, **over)
     with pytest.raises(InputError, match=rf"^{field}:"):
         validate(d)
+
+
+@pytest.mark.parametrize("factor", [2.0, 1.3])
+def test_mesh_quality_agrees_with_gmsh(gmsh_session, factor):
+    """builder.mesh's worst det J ratio (numpy, from the node positions after the curved-tet
+    repair) is gmsh's own (getJacobians at the same sample points)."""
+    from geometry.builder import MeshSpec, jacobian_ratio, mesh
+    d = lookup("05").dims
+    build(d, "quarter")
+    quality = mesh(d, MeshSpec.default_for(d, factor))
+    assert 0.3 - 1e-9 <= quality < 1.0                 # curved tets, repaired to the target
+    assert quality == pytest.approx(jacobian_ratio(), abs=1e-9)
