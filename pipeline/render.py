@@ -4,6 +4,10 @@ Runs in its own process (``python -m pipeline.render FOLDER``) and reads only fi
 run wrote: von_mises.vtu (element-node von Mises and displacement, the exact field the
 peaks were taken from) and results.json (the peaks). A separate process because VTK's
 wheel crashes (std::regex, bad_alloc) when DOLFINx's libraries are loaded first.
+
+Drawn with VTK's own classes, not pyvista's plotter: pyvista.plotting imports
+matplotlib.pyplot, and the imports took 1.6 s of the 2.6 s of CPU the picture cost
+(No. 05 x1), while it runs beside the error-bar solves on the same two cores.
 """
 from __future__ import annotations
 
@@ -13,82 +17,218 @@ from pathlib import Path
 
 import numpy as np
 
-
-def render_folder(folder: Path, out_name: str = "von_mises.png") -> Path:
-    """Draw folder/von_mises.vtu with the peaks of folder/results.json into a PNG."""
-    import pyvista
-    pyvista.OFF_SCREEN = True
-    folder = Path(folder)
-    res = json.loads((folder / "results.json").read_text(encoding="utf-8"))
-    grid = boundary_surface(pyvista.read(folder / "von_mises.vtu"))
-    disp = np.asarray(grid.point_data["displacement_mm"])
-    length = float(res["case"]["dims"]["b6"])
-    umax = float(np.linalg.norm(disp, axis=1).max()) or 1.0
-    scale = 0.04 * length / umax
-    points0 = np.asarray(grid.points).copy()
-    grid.points = points0 + scale * disp
-    fe, case = res["fe"], res["case"]
-    marks = (("global peak", fe["peak_MPa"], fe["peak_location_mm"], "black"),
-             ("critical peak", fe["critical_peak_MPa"], fe["critical_location_mm"], "magenta"))
-    c = np.asarray(grid.center)
-    # Left: into the cut faces (symmetry planes), showing the ligament beside the bore and
-    # the critical peak. Right: from below and outside, the journal root, its shoulder
-    # fillet and the global peak. Each panel labels only the peak it shows.
-    views = ([-0.9, -1.5, 0.9], [0.5, 1.6, -1.0])
-    pl = pyvista.Plotter(off_screen=True, window_size=(2000, 950), shape=(1, 2), border=False)
-    for col, direction in enumerate(views):
-        pl.subplot(0, col)
-        pl.add_mesh(grid.copy(), scalars="von_mises_MPa", cmap="turbo", show_scalar_bar=(col == 1),
-                    scalar_bar_args={"title": "von Mises (MPa)", "vertical": True,
-                                     "position_x": 0.85, "position_y": 0.15})
-        for label, value, loc, colour in (marks[1],) if col == 0 else (marks[0],):
-            idx = int(np.argmin(np.linalg.norm(points0 - np.asarray(loc), axis=1)))
-            p = grid.points[idx]
-            pl.add_mesh(pyvista.Sphere(radius=0.012 * length, center=p), color=colour)
-            pl.add_point_labels([p], [f"{label}: {value:.1f} MPa"], font_size=18, point_size=1,
-                                text_color=colour, shape_opacity=0.7, always_visible=True)
-        pl.camera_position = [tuple(c + length * np.array(direction)), tuple(c), (0, 0, 1)]
-        pl.add_axes()
-    pl.subplot(0, 0)
-    pl.add_text(f"Crosshead No. {case['size']}, Q = {case['load_N']:g} N, {case['model']} model, "
-                f"{case['support']} support\nvon Mises (MPa) on the deformed part, displacement x{scale:.0f}",
-                font_size=11)
-    out = folder / out_name
-    pl.screenshot(str(out))
-    pl.close()
-    return out
-
+WINDOW = (2000, 950)  # pixels: two panels side by side
+# Left: into the cut faces (symmetry planes), showing the ligament beside the bore and the
+# critical peak. Right: from below and outside, the journal root, its shoulder fillet and
+# the global peak. Each panel labels only the peak it shows.
+VIEWS = ((-0.9, -1.5, 0.9), (0.5, 1.6, -1.0))
+COLOURS = {"black": (0.0, 0.0, 0.0), "magenta": (0.8, 0.0, 0.8)}
 
 _TET_FACES = np.array([(1, 2, 3), (0, 3, 2), (0, 1, 3), (0, 2, 1)])
 
 
-def boundary_surface(grid):
-    """The part's outer surface from a grid of disconnected tets (every cell its own nodes).
+def boundary_surface(xyz: np.ndarray, tets: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The outer surface of disconnected tets (every tet its own nodes): (nodes used, triangles).
 
-    Why: in such a grid every face of every tet is a free face, so VTK drew all of them
-    (156 k triangles at No. 05 x1, 2.6 s in software rendering) to show the ~8 k on the
-    part's boundary. A face is on the boundary when no other tet has the same three
-    corner positions. The nodes keep their own values (von Mises, displacement).
+    ``xyz`` (n×3, mm) and ``tets`` (m×4 node indices). Returns the indices of the nodes
+    the surface uses and its triangles numbered into that list, so every node keeps its
+    own values (von Mises, displacement). Why: in such a grid every face of every tet is
+    a free face, and VTK drew all of them (156 k triangles at No. 05 x1, 2.6 s in software
+    rendering) to show the ~8 k on the part's boundary. A face is on the boundary when no
+    other tet has the same three corner positions.
     """
-    import pyvista
-    cells = np.asarray(grid.cells_dict[pyvista.CellType.TETRA])
-    xyz = np.asarray(grid.points)
     # + 0.0 turns -0.0 into 0.0: equal positions must have equal bytes.
     rounded = np.ascontiguousarray(np.round(xyz, 9) + 0.0)
     _, corner = np.unique(rounded.view(np.dtype((np.void, rounded.itemsize * 3))).ravel(),
                           return_inverse=True)
     corner = corner.ravel().astype(np.int64)
-    faces = cells[:, _TET_FACES].reshape(-1, 3)
+    faces = tets[:, _TET_FACES].reshape(-1, 3)
     key = np.sort(corner[faces], axis=1)
     n = int(corner.max()) + 1
     _, which, count = np.unique((key[:, 0] * n + key[:, 1]) * n + key[:, 2],
                                 return_inverse=True, return_counts=True)
     outer = faces[count[which.ravel()] == 1]
     used, tri = np.unique(outer, return_inverse=True)
-    surf = pyvista.PolyData(xyz[used], np.column_stack([np.full(len(outer), 3), tri.reshape(-1, 3)]).ravel())
-    for name in grid.point_data.keys():
-        surf.point_data[name] = np.asarray(grid.point_data[name])[used]
-    return surf
+    return used, tri.reshape(-1, 3)
+
+
+def read_vtu(path: Path) -> tuple[np.ndarray, np.ndarray, dict[str, np.ndarray]]:
+    """(points mm, tets, point arrays by name) of a VTK XML unstructured grid of tets."""
+    from vtkmodules.util.numpy_support import vtk_to_numpy
+    from vtkmodules.vtkIOXML import vtkXMLUnstructuredGridReader
+    reader = vtkXMLUnstructuredGridReader()
+    reader.SetFileName(str(path))
+    reader.Update()
+    grid = reader.GetOutput()
+    xyz = vtk_to_numpy(grid.GetPoints().GetData()).astype(float)
+    tets = vtk_to_numpy(grid.GetCells().GetConnectivityArray()).astype(np.int64).reshape(-1, 4)
+    pd = grid.GetPointData()
+    arrays = {pd.GetArrayName(i): vtk_to_numpy(pd.GetArray(i)).astype(float)
+              for i in range(pd.GetNumberOfArrays())}
+    return xyz, tets, arrays
+
+
+def _surface_actor(points: np.ndarray, tri: np.ndarray, values: np.ndarray, lut):
+    """A VTK actor of triangles coloured by point values through ``lut``."""
+    from vtkmodules.util.numpy_support import numpy_to_vtk, numpy_to_vtkIdTypeArray
+    from vtkmodules.vtkCommonCore import vtkPoints
+    from vtkmodules.vtkCommonDataModel import vtkCellArray, vtkPolyData
+    from vtkmodules.vtkRenderingCore import vtkActor, vtkPolyDataMapper
+    pts = vtkPoints()
+    pts.SetData(numpy_to_vtk(np.ascontiguousarray(points), deep=True))
+    cells = vtkCellArray()
+    cells.SetData(numpy_to_vtkIdTypeArray(np.arange(0, 3 * len(tri) + 1, 3, dtype=np.int64), deep=True),
+                  numpy_to_vtkIdTypeArray(np.ascontiguousarray(tri.ravel(), dtype=np.int64), deep=True))
+    poly = vtkPolyData()
+    poly.SetPoints(pts)
+    poly.SetPolys(cells)
+    poly.GetPointData().SetScalars(numpy_to_vtk(np.ascontiguousarray(values), deep=True))
+    mapper = vtkPolyDataMapper()
+    mapper.SetInputData(poly)
+    mapper.SetLookupTable(lut)
+    mapper.SetScalarRange(lut.GetRange())
+    mapper.InterpolateScalarsBeforeMappingOn()  # colours from the values, not blended colours
+    actor = vtkActor()
+    actor.SetMapper(mapper)
+    return actor
+
+
+def _turbo(vmin: float, vmax: float):
+    """matplotlib's turbo colour map as a VTK lookup table over [vmin, vmax] (MPa)."""
+    from matplotlib import colormaps  # matplotlib.colors only, not pyplot
+    from vtkmodules.vtkCommonCore import vtkLookupTable
+    rgba = colormaps["turbo"](np.linspace(0.0, 1.0, 256))
+    lut = vtkLookupTable()
+    lut.SetNumberOfTableValues(256)
+    for i, c in enumerate(rgba):
+        lut.SetTableValue(i, *c)
+    lut.SetRange(vmin, vmax)
+    lut.Build()
+    return lut
+
+
+def _text(text: str, size: int, colour: tuple[float, float, float], box: bool = False):
+    """A 2-D text actor (font size in pixels); ``box``: on a light, mostly opaque box."""
+    from vtkmodules.vtkRenderingCore import vtkTextActor
+    actor = vtkTextActor()
+    actor.SetInput(text)
+    prop = actor.GetTextProperty()
+    prop.SetFontSize(size)
+    prop.SetColor(*colour)
+    if box:
+        prop.SetBold(True)
+        prop.SetBackgroundColor(1.0, 1.0, 1.0)
+        prop.SetBackgroundOpacity(0.8)
+    return actor
+
+
+def render_folder(folder: Path, out_name: str = "von_mises.png") -> Path:
+    """Draw folder/von_mises.vtu with the peaks of folder/results.json into a PNG."""
+    import vtkmodules.vtkRenderingFreeType  # noqa: F401  (text)
+    import vtkmodules.vtkRenderingOpenGL2  # noqa: F401  (the render window's backend)
+    from vtkmodules.vtkFiltersSources import vtkSphereSource
+    from vtkmodules.vtkIOImage import vtkPNGWriter
+    from vtkmodules.vtkRenderingAnnotation import vtkAxesActor, vtkScalarBarActor
+    from vtkmodules.vtkRenderingCore import (vtkActor, vtkLightKit, vtkPolyDataMapper, vtkRenderer,
+                                             vtkRenderWindow, vtkWindowToImageFilter)
+
+    folder = Path(folder)
+    res = json.loads((folder / "results.json").read_text(encoding="utf-8"))
+    xyz, tets, arrays = read_vtu(folder / "von_mises.vtu")
+    used, tri = boundary_surface(xyz, tets)
+    points0, vm, disp = xyz[used], arrays["von_mises_MPa"][used], arrays["displacement_mm"][used]
+    length = float(res["case"]["dims"]["b6"])
+    umax = float(np.linalg.norm(disp, axis=1).max()) or 1.0
+    scale = 0.04 * length / umax
+    points = points0 + scale * disp
+    fe, case = res["fe"], res["case"]
+    marks = (("global peak", fe["peak_MPa"], fe["peak_location_mm"], "black"),
+             ("critical peak", fe["critical_peak_MPa"], fe["critical_location_mm"], "magenta"))
+    # The colour range of every node, not only the surface's: the peak can sit on a tet
+    # that touches the surface at a vertex only, whose value there is drawn by no triangle.
+    lut = _turbo(float(arrays["von_mises_MPa"].min()), float(arrays["von_mises_MPa"].max()))
+    centre = 0.5 * (points.min(axis=0) + points.max(axis=0))
+
+    window = vtkRenderWindow()
+    window.SetOffScreenRendering(1)
+    window.SetSize(*WINDOW)
+    window.SetNumberOfLayers(2)
+    for col, direction in enumerate(VIEWS):
+        ren = vtkRenderer()
+        ren.SetViewport(0.5 * col, 0.0, 0.5 * (col + 1), 1.0)
+        ren.SetBackground(1.0, 1.0, 1.0)
+        vtkLightKit().AddLightsToRenderer(ren)
+        window.AddRenderer(ren)
+        ren.AddActor(_surface_actor(points, tri, vm, lut))
+        label, value, loc, colour = marks[1] if col == 0 else marks[0]
+        p = points[int(np.argmin(np.linalg.norm(points0 - np.asarray(loc), axis=1)))]
+        sphere = vtkSphereSource()
+        sphere.SetCenter(*p)
+        sphere.SetRadius(0.012 * length)
+        sphere.SetThetaResolution(24)
+        sphere.SetPhiResolution(24)
+        mapper = vtkPolyDataMapper()
+        mapper.SetInputConnection(sphere.GetOutputPort())
+        ball = vtkActor()
+        ball.SetMapper(mapper)
+        ball.GetProperty().SetColor(*COLOURS[colour])
+        ren.AddActor(ball)
+        tag = _text(f"{label}: {value:.1f} MPa", 26, COLOURS[colour], box=True)
+        tag.GetPositionCoordinate().SetCoordinateSystemToWorld()  # drawn on top, at the peak
+        tag.GetPositionCoordinate().SetValue(*p)
+        ren.AddViewProp(tag)
+        cam = ren.GetActiveCamera()
+        cam.SetFocalPoint(*centre)
+        cam.SetPosition(*(centre + length * np.asarray(direction)))
+        cam.SetViewUp(0.0, 0.0, 1.0)
+        ren.ResetCameraClippingRange()
+        # x, y, z arrows in the panel's lower left corner, seen from the same direction.
+        axes_ren = vtkRenderer()
+        axes_ren.SetLayer(1)
+        axes_ren.SetViewport(0.5 * col, 0.0, 0.5 * col + 0.1, 0.21)
+        axes_ren.AddActor(vtkAxesActor())
+        axes_cam = axes_ren.GetActiveCamera()
+        axes_cam.SetFocalPoint(0.0, 0.0, 0.0)
+        axes_cam.SetPosition(*(4.0 * np.asarray(direction) / np.linalg.norm(direction)))
+        axes_cam.SetViewUp(0.0, 0.0, 1.0)
+        axes_ren.ResetCameraClippingRange()
+        window.AddRenderer(axes_ren)
+        if col == 0:
+            title = _text(f"Crosshead No. {case['size']}, Q = {case['load_N']:g} N, {case['model']} model, "
+                          f"{case['support']} support\nvon Mises (MPa) on the deformed part, "
+                          f"displacement x{scale:.0f}", 22, (0.0, 0.0, 0.0))
+            title.GetPositionCoordinate().SetCoordinateSystemToNormalizedViewport()
+            title.GetPositionCoordinate().SetValue(0.01, 0.9)
+            ren.AddViewProp(title)
+        else:
+            bar = vtkScalarBarActor()
+            bar.SetLookupTable(lut)
+            bar.SetTitle("von Mises (MPa)")
+            bar.SetNumberOfLabels(5)
+            bar.SetLabelFormat("%.1f")
+            bar.GetPositionCoordinate().SetValue(0.83, 0.15)
+            bar.SetWidth(0.1)
+            bar.SetHeight(0.7)
+            bar.UnconstrainedFontSizeOn()  # the font sizes below, not fitted to the bar
+            for prop in (bar.GetTitleTextProperty(), bar.GetLabelTextProperty()):
+                prop.SetFontSize(22)
+                prop.SetColor(0.0, 0.0, 0.0)
+                prop.SetItalic(False)
+                prop.SetShadow(False)
+            ren.AddViewProp(bar)
+    window.Render()
+    image = vtkWindowToImageFilter()
+    image.SetInput(window)
+    image.ReadFrontBufferOff()
+    image.ShouldRerenderOff()  # rendered just above
+    image.Update()
+    out = folder / out_name
+    writer = vtkPNGWriter()
+    writer.SetFileName(str(out))
+    writer.SetInputConnection(image.GetOutputPort())
+    writer.Write()
+    window.Finalize()
+    return out
 
 
 if __name__ == "__main__":
