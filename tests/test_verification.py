@@ -392,3 +392,25 @@ def test_quadrature_split_is_exact_on_straight_cells():
     assert split.norm() <= 1e-12 * reference.norm()
     assert low.norm() >= 1e-4 * reference.norm()                 # the bow matters
     assert not ps.curved_cells(_two_p2_tets(0.0)).any()
+
+
+@pytest.mark.parametrize("order", [2, 3])
+def test_p1_interpolation_is_dolfinx_interpolation_matrix(order):
+    """solve.p1_interpolation (pmg's P1 -> Pk transfer) equals DOLFINx's own
+    interpolation_matrix, on a straight mesh and on curved P2 tets."""
+    from dolfinx.cpp.fem.petsc import interpolation_matrix
+    from dolfinx.mesh import create_unit_cube
+    for mesh in (create_unit_cube(MPI.COMM_WORLD, 2, 2, 2), _two_p2_tets(0.15)):
+        V = fem.VectorFunctionSpace(mesh, ("Lagrange", order))
+        V1 = fem.VectorFunctionSpace(mesh, ("Lagrange", 1))
+        mine = ps.p1_interpolation(V1, V)
+        theirs = interpolation_matrix(V1._cpp_object, V._cpp_object)
+        theirs.assemble()
+        assert mine.getSizes() == theirs.getSizes() and mine.getBlockSize() == 3
+        x = theirs.createVecRight()
+        x.setArray(np.random.default_rng(1).normal(size=x.getLocalSize()))
+        y, z = theirs.createVecLeft(), theirs.createVecLeft()
+        theirs.mult(x, y)
+        mine.mult(x, z)
+        z.axpy(-1.0, y)
+        assert z.norm() <= 1e-14 * y.norm()
