@@ -324,11 +324,6 @@ def mesh(d: Dimensions, spec: MeshSpec) -> float:
     # gmsh's own high-order optimiser is off: it spent 3/4 of the meshing time (10 s of
     # 13.5 s at No. 05 x1) repairing ~400 curved tets; _relax_curved does it in < 1 s.
     opt("Mesh.HighOrderOptimize", 0)
-    # The size field is integrated along each curve to place its nodes. gmsh's default
-    # precision, 1e-9, made that 1-D step the costliest part of a coarse mesh (No. 05 x4
-    # with refined places: 0.36 s of 0.62 s; the Ball fields are evaluated at every
-    # quadrature point); at 1e-6 it took 0.05 s (the x4 mesh: 3581 tets either way; x1: 39237 against 39079).
-    opt("Mesh.LcIntegrationPrecision", 1e-6)
     opt("General.NumThreads", 1)
     try:
         gmsh.model.mesh.generate(3)
