@@ -268,6 +268,8 @@ def p1_interpolation(V1, V) -> PETSc.Mat:
     rows, first = np.unique(nodes_k.ravel(), return_index=True)
     owned = rows < V.dofmap.index_map.size_local
     rows, first = rows[owned], first[owned]
+    if len(rows) != V.dofmap.index_map.size_local:  # row i of the matrix is owned node i
+        raise NumericalError("p-multigrid: an owned node is in no cell of this rank")
     w = weights[first % n_k]                                                   # (rows, 4)
     cols = V1.dofmap.index_map.local_to_global(nodes_1[first // n_k].ravel()).reshape(-1, 4)
     keep = np.abs(w) > 1e-14
