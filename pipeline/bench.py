@@ -375,7 +375,7 @@ def pareto_plot(path: Path, rows: list[dict], ref: dict) -> bool:
     series: dict[str, list[dict]] = {}
     for r in good:
         series.setdefault(label(r), []).append(r)
-    fig, axes = plt.subplots(1, 2, figsize=(13, 5.2))
+    fig, axes = plt.subplots(1, 2, figsize=(13, 6.8))
     markers = {1: "v", 2: "o", 3: "s"}
     floor = 1e-5
     for ax, key, title in ((axes[0], "peak_err", "global peak"), (axes[1], "critical_err", "critical-region peak")):
@@ -404,11 +404,13 @@ def pareto_plot(path: Path, rows: list[dict], ref: dict) -> bool:
         errs = [max(abs(r[key]), floor) for r in good] or [0.01]
         ax.set_ylim(min(0.5 * min(errs), 1e-3), max(1.5 * max(errs), 0.02))
         ax.set_xlabel("wall time, geometry → peaks (s; median of repeats)")
-        ax.set_ylabel("|relative error| vs extrapolated reference")
+        ax.set_ylabel("|relative error| vs the reference")
         ax.set_title(f"No. 05 {title} (reference {ref['peak' if key == 'peak_err' else 'critical']:.2f} MPa)")
         ax.grid(alpha=0.3, which="both")
-        ax.legend(fontsize=7)
-    fig.tight_layout()
+    # One legend for both panels (the same series), below them: inside, it covered data.
+    handles, labels = axes[0].get_legend_handles_labels()
+    fig.legend(handles, labels, loc="lower center", ncol=4, fontsize=7, frameon=False)
+    fig.tight_layout(rect=(0, 0.2, 1, 1))
     fig.savefig(path, dpi=110)
     plt.close(fig)
     return True
