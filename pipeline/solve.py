@@ -100,7 +100,13 @@ def von_mises_expr(u, mat: Material):
     return ufl.sqrt(1.5 * ufl.inner(dev, dev))
 
 
-STRAIGHT, CURVED = 1, 2  # cell markers of :func:`curved_cells`' quadrature split
+STRAIGHT, CURVED = 1, 2  # cell markers of the quadrature split (volume_measures)
+
+
+def _local_cells(mesh) -> int:
+    """Number of cells on this rank, owned and ghost (the rows of the cell dofmaps)."""
+    cells = mesh.topology.index_map(mesh.topology.dim)
+    return cells.size_local + cells.num_ghosts
 
 
 def curved_cells(mesh) -> np.ndarray:
@@ -109,7 +115,7 @@ def curved_cells(mesh) -> np.ndarray:
     A 10-node tet is affine when every mid-edge node sits at its edge's midpoint (to 1e-10
     of the cell's size); 4-node tets always are. Other cells count as curved.
     """
-    n = mesh.topology.index_map(3).size_local + mesh.topology.index_map(3).num_ghosts
+    n = _local_cells(mesh)
     nodes = mesh.geometry.dofmap.array.reshape(n, -1)
     if mesh.topology.cell_type != CellType.tetrahedron or nodes.shape[1] not in (4, 10):
         return np.ones(n, dtype=bool)
@@ -123,8 +129,14 @@ def curved_cells(mesh) -> np.ndarray:
     return bow > 1e-10 * size
 
 
-def volume_integral(integrand, mesh, order: int):
-    """integrand·dx with a quadrature that is exact on straight cells and cheaper there.
+def volume_integral(integrand, measures: tuple[ufl.Measure, ufl.Measure]):
+    """integrand·dx over the whole mesh, split into the two :func:`volume_measures`."""
+    straight, curved = measures
+    return integrand * straight + integrand * curved
+
+
+def volume_measures(mesh, order: int) -> tuple[ufl.Measure, ufl.Measure]:
+    """dx over the straight cells, with degree 2(k−1), and dx over the curved ones.
 
     Why: on an affine tet the stiffness integrand of Pk is a polynomial of degree 2(k−1),
     which that degree integrates exactly; UFL picks degree 5 for P2 on the curved (P2
@@ -139,7 +151,7 @@ def volume_integral(integrand, mesh, order: int):
                     np.where(curved, CURVED, STRAIGHT).astype(np.int32))
     dx = ufl.Measure("dx", domain=mesh, subdomain_data=tags)
     exact = {"quadrature_degree": max(2 * (order - 1), 0)}
-    return integrand * dx(STRAIGHT, metadata=exact) + integrand * dx(CURVED)
+    return dx(STRAIGHT, metadata=exact), dx(CURVED)
 
 
 def _assemble_aij(a, bcs) -> PETSc.Mat:
@@ -258,7 +270,7 @@ def p1_interpolation(V1, V) -> PETSc.Mat:
     vectorised: DOLFINx's took 0.28 s at No. 05 x1.3 on one core, for every solve.
     Rows: the Pk nodes this rank owns; columns: global P1 numbering.
     """
-    n_cells = V.mesh.topology.index_map(3).size_local + V.mesh.topology.index_map(3).num_ghosts
+    n_cells = _local_cells(V.mesh)
     p1 = basix.create_element(basix.ElementFamily.P, basix.CellType.tetrahedron, 1)
     weights = p1.tabulate(0, V.element.interpolation_points())[0, :, :, 0]   # (Pk nodes, 4)
     nodes_k = V.dofmap.list.array.reshape(n_cells, -1)
@@ -329,7 +341,8 @@ def solve(mesh, facet_tags, order: int, mat: Material, tractions: Sequence[Tract
     V = fem.VectorFunctionSpace(mesh, ("Lagrange", order))
     u, v = ufl.TrialFunction(V), ufl.TestFunction(V)
     ds = ufl.Measure("ds", domain=mesh, subdomain_data=facet_tags)
-    a_form = volume_integral(ufl.inner(stress(u, mat), strain(v)), mesh, order)
+    dx_split = volume_measures(mesh, order)  # once, for the stiffness and for the reactions
+    a_form = volume_integral(ufl.inner(stress(u, mat), strain(v)), dx_split)
     zero = fem.Constant(mesh, PETSc.ScalarType((0.0, 0.0, 0.0)))
     L_form = ufl.inner(zero, v) * ufl.dx
     for t in tractions:
@@ -385,7 +398,7 @@ def solve(mesh, facet_tags, order: int, mat: Material, tractions: Sequence[Tract
 
     # Reactions: residual of the unconstrained system, R = K u - f, at the fixed DOFs.
     t0 = time.perf_counter()
-    R = fem.petsc.assemble_vector(fem.form(volume_integral(ufl.inner(stress(uh, mat), strain(v)), mesh, order)
+    R = fem.petsc.assemble_vector(fem.form(volume_integral(ufl.inner(stress(uh, mat), strain(v)), dx_split)
                                            - L_form))
     R.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
     n_owned = V.dofmap.index_map.size_local * V.dofmap.index_map_bs

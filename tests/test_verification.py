@@ -366,7 +366,7 @@ def _two_p2_tets(bow: float):
 
 
 def test_quadrature_split_is_exact_on_straight_cells():
-    """solve.volume_integral integrates straight cells with degree 2(k-1) and curved ones
+    """solve.volume_measures integrate straight cells with degree 2(k-1) and curved ones
     with UFL's own degree: the P2 stiffness matrix equals the one of UFL's degree on every
     cell (round-off), while treating the curved cell as straight would change it."""
     from dolfinx.fem.petsc import assemble_matrix
@@ -385,7 +385,7 @@ def test_quadrature_split_is_exact_on_straight_cells():
         return A
 
     reference = matrix(integrand * ufl.dx)
-    split = matrix(ps.volume_integral(integrand, mesh, 2))
+    split = matrix(ps.volume_integral(integrand, ps.volume_measures(mesh, 2)))
     low = matrix(integrand * ufl.dx(metadata={"quadrature_degree": 2}))
     split.axpy(-1.0, reference)
     low.axpy(-1.0, reference)
