@@ -6,11 +6,18 @@ failure (nothing written).
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 import time
 from pathlib import Path
 
 T_START = time.perf_counter()
+
+# One process, one core: the parallelism is MPI ranks. BLAS only does small dense work here
+# (GAMG, eigenvalue estimates), and OpenBLAS's idle threads spin: one process on 2 cores
+# (make run RANKS=1) used 9.5 s of system time instead of 1.0 s, same wall time, the core
+# that the picture process needs. Read when numpy loads, so set before any import of it.
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 DESCRIPTION = """\
 Finite-element stress analysis of a DIN 15412 crane hook-block crosshead.
