@@ -333,6 +333,12 @@ def mesh(d: Dimensions, spec: MeshSpec) -> float:
     # DOLFINx's importer needs contiguous node tags.
     gmsh.model.mesh.renumberNodes()
     gmsh.model.mesh.renumberElements()
+    # Remove the size fields, so that the next mesh of this part (pipeline.mesh_io.Mesher)
+    # starts from the state of a new session. They are 1..fmin: gmsh numbers a new field
+    # after the largest, and there were none before this call (a new session, or the last
+    # call removed its own).
+    for tag in range(1, fmin + 1):
+        field.remove(tag)
     return quality
 
 

@@ -70,6 +70,7 @@ def run_point(spec: dict) -> dict | None:
 
     from .case import resolve
     comm = MPI.COMM_WORLD
+    from .mesh_io import Mesher
     from .run import pilot
     if spec["kind"] == "dolfinx":
         from .run import solve_level
@@ -91,11 +92,13 @@ def run_point(spec: dict) -> dict | None:
     # The pipeline's default mesh is refined where a pilot solve finds the peaks; both
     # kinds get that mesh and pay the pilot's time.
     hotspots, t_pilot = (), None
+    mesher = Mesher(case.dims, case.model)  # the pilot's geometry serves the point's mesh too
     if spec.get("pilot"):
-        pl = pilot(case, comm=comm)
+        pl = pilot(case, comm=comm, mesher=mesher)
         hotspots, t_pilot = pl.hotspots, pl.time_s
     if spec["kind"] == "dolfinx":
-        lv = solve_level(case, spec["factor"], comm=comm, hotspots=hotspots)
+        lv = solve_level(case, spec["factor"], comm=comm, hotspots=hotspots, mesher=mesher)
+        mesher.close()
         total = time.perf_counter() - t0
         stages = dict(lv.timings)
         out.update(dofs=lv.dofs, cells=lv.cells, iterations=lv.iterations,
@@ -105,7 +108,8 @@ def run_point(spec: dict) -> dict | None:
     else:
         if comm.size != 1:
             raise SystemExit("CalculiX points run on one rank (use threads)")
-        m = make_mesh(case.dims, case.model, case.mesh_spec(spec["factor"], hotspots), comm=comm)
+        m = make_mesh(case.dims, case.model, case.mesh_spec(spec["factor"], hotspots), comm=comm, mesher=mesher)
+        mesher.close()
         mat = Material(E=case.E_MPa, nu=case.nu)
         t1 = time.perf_counter()
         lc = crosshead_loads(m, case.dims, case.load_N, case.support)

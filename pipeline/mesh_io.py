@@ -6,6 +6,7 @@ broadcast, so later stages ask for "seat", never for a number.
 """
 from __future__ import annotations
 
+import contextlib
 import time
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
@@ -103,48 +104,98 @@ class MeshedPart:
     timings: dict[str, float]
 
 
-def generate(d: Dimensions, model: str, spec: MeshSpec, msh_path: Path | None = None) -> MeshedPart:
-    """Geometry → gmsh mesh → arrays, in this process only, in a gmsh session of its own.
+class Mesher:
+    """Part d (``model``) built once in this process's gmsh session, then meshed for one
+    spec after another: ``with Mesher(d, model) as m: part = m.generate(spec)``.
 
-    A session per mesh (not one for several) so that every mesh is made from the same
-    starting state: the mesh then depends only on its inputs, whichever rank makes it
-    and whatever it made before. If ``msh_path`` is given the gmsh mesh (with physical
-    names) is written there too, in mm. gmsh works in units of :func:`meshing_scale`.
+    Why: building the part (OpenCASCADE booleans) took 0.05-0.09 s of every mesh, and a
+    run makes two or more meshes per process (the pilot's, then the requested or the
+    error-bar ones). Each mesh starts from a cleared mesh and no size fields (the builder
+    removes its own), so it is bit for bit the mesh a fresh session makes: the mesh
+    depends only on its inputs, whichever rank makes it and whatever it made before
+    (tests/test_geometry.py). gmsh has one session per process: if something else
+    re-initialised it meanwhile, the part is built again.
     """
-    scale = meshing_scale(d)
-    dn, spec_n = _normalised(d, spec, scale)
-    timings: dict[str, float] = {}
-    # gmsh 4.8 cannot tell whether it is initialised; own it for the length of this call.
-    gmsh.initialize(readConfigFiles=False)
-    try:
-        gmsh.option.setNumber("General.Terminal", 0)
+
+    def __init__(self, d: Dimensions, model: str) -> None:
+        self.d, self.model = d, model
+        self.scale = meshing_scale(d)
+        self.name = f"crosshead-{id(self)}"
+        self.built: BuiltGeometry | None = None
+
+    def __enter__(self) -> "Mesher":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    def close(self) -> None:
+        """End the gmsh session (if it is still this part's); generate() would start another."""
+        if self._live():
+            gmsh.finalize()
+        self.built = None
+
+    def _live(self) -> bool:
+        """Is gmsh's current model still this Mesher's part?"""
+        if self.built is None:
+            return False
+        try:
+            return gmsh.model.getCurrent() == self.name
+        except Exception:  # gmsh was finalised by someone else
+            return False
+
+    def _build(self, dn: Dimensions) -> None:
+        # gmsh 4.8 cannot tell whether it is initialised; a fresh session either way.
+        gmsh.initialize(readConfigFiles=False)
+        try:
+            gmsh.option.setNumber("General.Terminal", 0)
+            gmsh.model.add(self.name)
+            self.built = build(dn, self.model)
+        except BaseException:
+            gmsh.finalize()
+            self.built = None
+            raise
+
+    def generate(self, spec: MeshSpec, msh_path: Path | None = None) -> MeshedPart:
+        """Mesh the part for ``spec`` → arrays (mm). If ``msh_path`` is given the gmsh mesh
+        (with physical names) is written there too, in mm. gmsh works in units of
+        :func:`meshing_scale`."""
+        dn, spec_n = _normalised(self.d, spec, self.scale)
+        timings: dict[str, float] = {}
         t0 = time.perf_counter()
-        gmsh.model.add("crosshead")
-        built = build(dn, model)
+        if self._live():
+            gmsh.model.mesh.clear()
+        else:
+            self._build(dn)
         timings["geometry"] = time.perf_counter() - t0
         t0 = time.perf_counter()
         # Every curved tet leaves the builder with a det J ratio >= HO_TARGET (0.3).
         quality = mesh(dn, spec_n)
         if msh_path is not None:
-            gmsh.option.setNumber("Mesh.ScalingFactor", scale)  # write in mm
+            gmsh.option.setNumber("Mesh.ScalingFactor", self.scale)  # write in mm
             gmsh.write(str(msh_path))
             gmsh.option.setNumber("Mesh.ScalingFactor", 1.0)
         names = {gmsh.model.getPhysicalName(dim, tag): tag for dim, tag in gmsh.model.getPhysicalGroups(2)}
-        x = gmshio.extract_geometry(gmsh.model) * scale
+        x = gmshio.extract_geometry(gmsh.model) * self.scale
         topo = gmshio.extract_topology_and_markers(gmsh.model)
         cell_type = max(topo, key=lambda t: gmsh.model.mesh.getElementProperties(t)[1])
         facet_types = [t for t in topo if gmsh.model.mesh.getElementProperties(t)[1] == 2]
         timings["mesh"] = time.perf_counter() - t0
-    finally:
-        gmsh.finalize()
-    if len(facet_types) != 1:
-        raise RuntimeError(f"mesh: expected one kind of boundary triangle, got gmsh types {facet_types}")
-    return MeshedPart(x=x, cells=np.asarray(topo[cell_type]["topology"], dtype=np.int64),
-                      cell_values=np.asarray(topo[cell_type]["cell_data"], dtype=np.int32),
-                      facets=np.asarray(topo[facet_types[0]]["topology"], dtype=np.int64),
-                      facet_values=np.asarray(topo[facet_types[0]]["cell_data"], dtype=np.int32),
-                      cell_type=int(cell_type), names=names, built=built, scale=scale,
-                      quality=quality, timings=timings)
+        if len(facet_types) != 1:
+            raise RuntimeError(f"mesh: expected one kind of boundary triangle, got gmsh types {facet_types}")
+        return MeshedPart(x=x, cells=np.asarray(topo[cell_type]["topology"], dtype=np.int64),
+                          cell_values=np.asarray(topo[cell_type]["cell_data"], dtype=np.int32),
+                          facets=np.asarray(topo[facet_types[0]]["topology"], dtype=np.int64),
+                          facet_values=np.asarray(topo[facet_types[0]]["cell_data"], dtype=np.int32),
+                          cell_type=int(cell_type), names=names, built=self.built, scale=self.scale,
+                          quality=quality, timings=timings)
+
+
+def generate(d: Dimensions, model: str, spec: MeshSpec, msh_path: Path | None = None) -> MeshedPart:
+    """Geometry → gmsh mesh → arrays, in this process only, in a gmsh session of its own
+    (see :class:`Mesher` for several meshes of one part)."""
+    with Mesher(d, model) as m:
+        return m.generate(spec, msh_path)
 
 
 def distribute(part: MeshedPart | None, owner: int, model: str, comm=MPI.COMM_WORLD) -> ImportedMesh:
@@ -190,9 +241,11 @@ def distribute(part: MeshedPart | None, owner: int, model: str, comm=MPI.COMM_WO
 
 
 def make_mesh(d: Dimensions, model: str, spec: MeshSpec, comm=MPI.COMM_WORLD,
-              msh_path: Path | None = None) -> ImportedMesh:
-    """Geometry → gmsh mesh (on rank 0) → DOLFINx mesh. Times each of the three stages (s)."""
-    return make_meshes(d, model, [spec], comm, [msh_path])[0]()
+              msh_path: Path | None = None, mesher: Mesher | None = None) -> ImportedMesh:
+    """Geometry → gmsh mesh (on rank 0) → DOLFINx mesh. Times each of the three stages (s).
+
+    ``mesher``: this process's :class:`Mesher` of part d, if it has one (else a new session)."""
+    return make_meshes(d, model, [spec], comm, [msh_path], mesher=mesher)[0]()
 
 
 def owners(costs: Sequence[float], ranks: int) -> list[int]:
@@ -208,7 +261,8 @@ def owners(costs: Sequence[float], ranks: int) -> list[int]:
 
 def make_meshes(d: Dimensions, model: str, specs: Sequence[MeshSpec], comm=MPI.COMM_WORLD,
                 msh_paths: Sequence[Path | None] | None = None,
-                solve_on: Sequence[int | None] | None = None) -> list[Callable[[], ImportedMesh] | None]:
+                solve_on: Sequence[int | None] | None = None,
+                mesher: Mesher | None = None) -> list[Callable[[], ImportedMesh] | None]:
     """Mesh several specs at once, each on one rank; return a loader per mesh.
 
     Why: gmsh is serial, and meshing the three meshes of a run's error bar one after the
@@ -217,19 +271,23 @@ def make_meshes(d: Dimensions, model: str, specs: Sequence[MeshSpec], comm=MPI.C
     mesh k over comm, and every rank calls loader k, in the same order; a rank number
     gives mesh k to that rank alone (sent there if another rank made it), whose loader
     returns it on MPI.COMM_SELF; the other ranks get None. A mesh that failed raises its
-    error on every rank, before anything is loaded, the first in spec order.
+    error on every rank, before anything is loaded, the first in spec order. ``mesher``:
+    this process's :class:`Mesher` of part d, if it has one (else one for this call).
     """
     paths = list(msh_paths) if msh_paths is not None else [None] * len(specs)
     target = list(solve_on) if solve_on is not None else [None] * len(specs)
     who = owners([s.factor ** -3 for s in specs], comm.size)
     parts: dict[int, MeshedPart] = {}
     error: tuple[int, Exception] | None = None
-    for k, spec in enumerate(specs):
-        if who[k] == comm.rank and error is None:
-            try:
-                parts[k] = generate(d, model, spec, paths[k])
-            except Exception as exc:  # re-raised on every rank below
-                error = (k, exc)
+    with contextlib.nullcontext(mesher) if mesher is not None else Mesher(d, model) as m:
+        if (m.d, m.model) != (d, model):
+            raise ValueError("make_meshes: the Mesher is of another part")
+        for k, spec in enumerate(specs):
+            if who[k] == comm.rank and error is None:
+                try:
+                    parts[k] = m.generate(spec, paths[k])
+                except Exception as exc:  # re-raised on every rank below
+                    error = (k, exc)
     errors = [e for e in comm.allgather(error) if e is not None]
     if errors:
         raise min(errors, key=lambda e: e[0])[1]

@@ -7,6 +7,7 @@ dataclasses below and files in the output folder; nothing is kept in module stat
 """
 from __future__ import annotations
 
+import contextlib
 import math
 import time
 from dataclasses import dataclass
@@ -21,7 +22,7 @@ from .case import Case
 from .convergence import Estimate, estimate, representative_size
 from .crosshead import crosshead_loads, equilibrium
 from .errors import NumericalError
-from .mesh_io import ImportedMesh, make_mesh, make_meshes, owners
+from .mesh_io import ImportedMesh, Mesher, make_mesh, make_meshes, owners
 from .post import Peak, hot_spots, peak, von_mises
 from .solve import Material, solve
 
@@ -63,17 +64,20 @@ def critical_region(case: Case) -> Callable[[np.ndarray], np.ndarray]:
 def solve_level(case: Case, factor: float, msh_path: Path | None = None,
                 keep_fields: bool = False, comm=MPI.COMM_WORLD,
                 progress: Progress | None = None, hotspots: Hotspots = (),
-                load_mesh: Callable[[], ImportedMesh] | None = None) -> Level:
+                load_mesh: Callable[[], ImportedMesh] | None = None,
+                mesher: Mesher | None = None) -> Level:
     """Build, mesh and solve the case with every mesh size times ``factor``; find the peaks.
 
     ``load_mesh``: that mesh made already (see :func:`analyse`); factor, msh_path and
-    hotspots are then only the mesh's description. Raises NumericalError if the mesh has
+    hotspots are then only the mesh's description. ``mesher``: this process's
+    mesh_io.Mesher of the case's part, if it has one. Raises NumericalError if the mesh has
     an inverted element, the solver fails, the result is not finite, or the loads do not
     balance to 1e-6·Q.
     """
     say = progress or (lambda s: None)
     if load_mesh is None:
-        m = make_mesh(case.dims, case.model, case.mesh_spec(factor, hotspots), comm=comm, msh_path=msh_path)
+        m = make_mesh(case.dims, case.model, case.mesh_spec(factor, hotspots), comm=comm, msh_path=msh_path,
+                      mesher=mesher)
     else:
         m = load_mesh()
     say(f"mesh ×{factor:.3g}: {m.mesh.topology.index_map(3).size_global} tets, "
@@ -183,7 +187,8 @@ class Pilot:
     time_s: float
 
 
-def pilot(case: Case, comm=MPI.COMM_WORLD, progress: Progress | None = None) -> Pilot:
+def pilot(case: Case, comm=MPI.COMM_WORLD, progress: Progress | None = None,
+          mesher: Mesher | None = None) -> Pilot:
     """Find the global and the critical peak on a mesh PILOT_RATIO times coarser than the case's.
 
     Why: the peak at the shoulder fillet sits in a stress gradient of ~2/rf; with P2 the
@@ -195,7 +200,7 @@ def pilot(case: Case, comm=MPI.COMM_WORLD, progress: Progress | None = None) -> 
     """
     t0 = time.perf_counter()
     say = progress or (lambda s: None)
-    lv = solve_level(case, pilot_factor(case), comm=comm, keep_fields=True)
+    lv = solve_level(case, pilot_factor(case), comm=comm, keep_fields=True, mesher=mesher)
     vm = lv.fields[1]
     sep = PILOT_SEPARATION * case.dims.h3
     spots = hot_spots(vm, PILOT_FRACTION * lv.peak.value_MPa, sep, PILOT_LIMIT)
@@ -221,22 +226,27 @@ def _fmt(p: Sequence[float]) -> str:
 def analyse(case: Case, levels: int = 3, ratio: float = 1.3, msh_path: Path | None = None,
             progress: Progress | None = None, comm=MPI.COMM_WORLD,
             pl: Pilot | None = None,
-            on_requested: Callable[[Level], None] | None = None) -> tuple[list[Level], Pilot]:
+            on_requested: Callable[[Level], None] | None = None,
+            mesher: Mesher | None = None) -> tuple[list[Level], Pilot]:
     """Solve on ``levels`` meshes, the requested one and coarser by ``ratio`` each; finest first.
 
     A pilot solve first puts refinement where the peaks are (see :func:`pilot`). Then all
     meshes are made at once, one per rank (gmsh is serial; see mesh_io.make_meshes). The
     requested mesh is solved on every rank and handed to ``on_requested`` (which may start
     work that runs beside what follows: the picture). The coarser meshes are then solved
-    side by side, each on one rank (see :func:`error_bar_ranks`).
+    side by side, each on one rank (see :func:`error_bar_ranks`). ``mesher``: this
+    process's mesh_io.Mesher of the case's part, if it has one (else one for the pilot
+    and the meshes).
     """
-    pl = pl or pilot(case, comm=comm, progress=progress)
+    with contextlib.nullcontext(mesher) if mesher is not None else Mesher(case.dims, case.model) as m:
+        pl = pl or pilot(case, comm=comm, progress=progress, mesher=m)
+        factors = [case.mesh_factor * ratio ** k for k in range(levels)]
+        on = error_bar_ranks(factors, comm.size)
+        t0 = time.perf_counter()
+        loaders = make_meshes(case.dims, case.model, [case.mesh_spec(f, pl.hotspots) for f in factors],
+                              comm=comm, msh_paths=[msh_path] + [None] * (levels - 1), solve_on=on,
+                              mesher=m)
     say = progress or (lambda s: None)
-    factors = [case.mesh_factor * ratio ** k for k in range(levels)]
-    on = error_bar_ranks(factors, comm.size)
-    t0 = time.perf_counter()
-    loaders = make_meshes(case.dims, case.model, [case.mesh_spec(f, pl.hotspots) for f in factors],
-                          comm=comm, msh_paths=[msh_path] + [None] * (levels - 1), solve_on=on)
     if comm.size > 1 and levels > 1:
         say(f"meshes ×{', ×'.join(f'{f:.3g}' for f in factors)} made on {min(comm.size, levels)} ranks at once "
             f"({time.perf_counter() - t0:.2f} s)")

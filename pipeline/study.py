@@ -15,6 +15,7 @@ from pathlib import Path
 from mpi4py import MPI
 
 from .case import Case
+from .mesh_io import Mesher
 from .output import staged_dir, write_json
 from .output import write_fields as write_field_files
 from .report import write_report
@@ -33,8 +34,8 @@ def execute_run(case: Case, out_dir: Path, levels: int = 3, ratio: float = 1.3,
     """
     say = progress or (lambda s: None)
     t_all = time.perf_counter()
-    with staged_dir(out_dir, comm) as stage:
-        pl = pilot(case, comm=comm, progress=say)
+    with staged_dir(out_dir, comm) as stage, Mesher(case.dims, case.model) as mesher:
+        pl = pilot(case, comm=comm, progress=say, mesher=mesher)
         files = {"results": "results.json", "mesh": "mesh.msh"}
         picture: Picture | None = None
         t_output = 0.0
@@ -54,7 +55,8 @@ def execute_run(case: Case, out_dir: Path, levels: int = 3, ratio: float = 1.3,
 
         try:
             lv, pl = analyse(case, levels=levels, ratio=ratio, msh_path=stage / "mesh.msh",
-                             progress=say, comm=comm, pl=pl, on_requested=fields_and_picture)
+                             progress=say, comm=comm, pl=pl, on_requested=fields_and_picture,
+                             mesher=mesher)
         except BaseException:
             if picture is not None:  # the run failed: no picture either
                 picture.proc.kill()
@@ -140,10 +142,11 @@ def execute_converge(case: Case, out_dir: Path, levels: int = 4, ratio: float = 
     finest = case.mesh_factor / ratio ** max(levels - 3, 0)
     from dataclasses import replace
     fine_case = replace(case, mesh_factor=finest)
-    with staged_dir(out_dir, comm) as stage:
+    with staged_dir(out_dir, comm) as stage, Mesher(case.dims, case.model) as mesher:
         # The pilot of the case itself, so the case's own mesh is one of the study's levels.
         lv, pl = analyse(fine_case, levels=levels, ratio=ratio, msh_path=stage / "mesh.msh",
-                         progress=say, comm=comm, pl=pilot(case, comm=comm, progress=say))
+                         progress=say, comm=comm, pl=pilot(case, comm=comm, progress=say, mesher=mesher),
+                         mesher=mesher)
         timings = sum_timings(lv, pl)
         res = build_results(fine_case, lv, timings, comm, pl)
         conv = {"ratio": ratio, "levels": res["fe"]["levels"],

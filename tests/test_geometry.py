@@ -1,5 +1,6 @@
 """Geometry: table row, validator, CAD volume against an independent volume, groups."""
 import math
+from dataclasses import replace
 
 import gmsh
 import pytest
@@ -86,3 +87,26 @@ def test_mesh_quality_agrees_with_gmsh(gmsh_session, factor):
     quality = mesh(d, MeshSpec.default_for(d, factor))
     assert 0.3 - 1e-9 <= quality < 1.0                 # curved tets, repaired to the target
     assert quality == pytest.approx(jacobian_ratio(), abs=1e-9)
+
+
+def test_mesher_meshes_like_a_new_session():
+    """mesh_io.Mesher builds the part once and meshes it for spec after spec (the pilot's
+    mesh, then the refined ones). Each mesh must be, bit for bit, the one a new gmsh session
+    makes (mesh_io.generate: build, mesh, finalise), whatever was meshed before it: the
+    1- and 2-rank runs make their meshes in different orders on different ranks."""
+    import numpy as np
+
+    from geometry.builder import MeshSpec
+    from pipeline.mesh_io import Mesher, generate
+    d = lookup("05").dims
+    places = ((0.0, 10.5, 0.0), (23.25, 8.0, 6.25))           # as a pilot finds them (mm)
+    specs = [MeshSpec.default_for(d, 4.0), replace(MeshSpec.default_for(d, 4.0), hotspots=places),
+             MeshSpec.default_for(d, 6.0)]
+    with Mesher(d, "quarter") as m:
+        reused = [m.generate(s) for s in specs]
+    assert len({len(r.cells) for r in reused}) == 3          # three different meshes
+    for spec, r in zip(specs, reused, strict=True):
+        new = generate(d, "quarter", spec)
+        for key in ("x", "cells", "cell_values", "facets", "facet_values"):
+            assert np.array_equal(getattr(new, key), getattr(r, key)), (spec.factor, spec.hotspots, key)
+        assert new.quality == r.quality and new.names == r.names
