@@ -180,6 +180,9 @@ class Mesher:
         topo = gmshio.extract_topology_and_markers(gmsh.model)
         cell_type = max(topo, key=lambda t: gmsh.model.mesh.getElementProperties(t)[1])
         facet_types = [t for t in topo if gmsh.model.mesh.getElementProperties(t)[1] == 2]
+        # Free gmsh's copy now: with it kept until the next mesh, DOLFINx's import of this
+        # one took 0.23-0.27 s instead of 0.17-0.19 s (x1.3, medians of 4; fresh memory).
+        gmsh.model.mesh.clear()
         timings["mesh"] = time.perf_counter() - t0
         if len(facet_types) != 1:
             raise RuntimeError(f"mesh: expected one kind of boundary triangle, got gmsh types {facet_types}")
