@@ -199,6 +199,10 @@ def _dispatch(args) -> int:
             except InputError as exc:
                 raise InputError(f"levels: the finest mesh of this study (mesh factor {case.mesh_factor:g} / "
                                  f"{args.ratio:g}^{args.levels - 3} = {finest:.3g}) is not allowed: {exc}") from None
+        if rank0:  # before any form is compiled; the other ranks wait for rank 0's compiles
+            from pipeline.formcache import jit_cache_dir, remove_interrupted
+            for stale in remove_interrupted(jit_cache_dir()):
+                _progress(f"removed {stale.name} from the form cache (an interrupted compile)")
         out = args.out or Path("results") / (case.name if args.command == "run" else f"{case.name}-converge")
         say = (lambda s: None) if (args.quiet or not rank0) else _progress
         _progress(f"imports {time.perf_counter() - T_START:.2f} s; case {case.name}: hook No. {case.size}, "

@@ -82,6 +82,9 @@ def run_point(spec: dict) -> dict | None:
         from .run import critical_region
         from .solve import Material
     imports = time.perf_counter() - t_imp
+    if comm.rank == 0:  # a bench stopped while compiling left a claim that would fail every point
+        from .formcache import jit_cache_dir, remove_interrupted
+        remove_interrupted(jit_cache_dir())
     order = int(spec.get("order", 2))
     case = resolve(spec.get("size", "05"),
                    overrides={"mesh_factor": spec["factor"], "order": order,
