@@ -7,7 +7,7 @@ PY := .venv/bin/python
 SETUP := .venv/.setup-done
 # make run / make converge use every core: the error bar's meshes are made one per rank at
 # once, the requested mesh is solved by all ranks, the coarser ones side by side
-# (No. 05: 21.9 s on 1 rank, 15.5 s on 2, median of 5). RANKS=1 runs without MPI.
+# (No. 05: 14.6 s on 2 ranks, median of 5; 24.2 s on 1, one run). RANKS=1 runs without MPI.
 RANKS ?= $(shell nproc 2>/dev/null || echo 1)
 RUN := $(if $(filter 1,$(RANKS)),$(PY),mpirun --allow-run-as-root -n $(RANKS) $(PY))
 SIZES := $(shell awk -F, '!/^\#/ && $$1 != "size" && NF > 1 {print $$1}' geometry/sizes.csv)
