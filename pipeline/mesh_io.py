@@ -194,6 +194,16 @@ class Mesher:
                           quality=quality, timings=timings)
 
 
+def given_or_new(mesher: Mesher | None, d: Dimensions, model: str) -> contextlib.AbstractContextManager[Mesher]:
+    """For a with-block: ``mesher`` itself, left open (its owner closes it), or a new
+    Mesher of part d closed at the block's end. A given Mesher must be of part d."""
+    if mesher is None:
+        return Mesher(d, model)
+    if (mesher.d, mesher.model) != (d, model):
+        raise ValueError("the Mesher is of another part")
+    return contextlib.nullcontext(mesher)
+
+
 def generate(d: Dimensions, model: str, spec: MeshSpec, msh_path: Path | None = None) -> MeshedPart:
     """Geometry → gmsh mesh → arrays, in this process only, in a gmsh session of its own
     (see :class:`Mesher` for several meshes of one part)."""
@@ -282,9 +292,7 @@ def make_meshes(d: Dimensions, model: str, specs: Sequence[MeshSpec], comm=MPI.C
     who = owners([s.factor ** -3 for s in specs], comm.size)
     parts: dict[int, MeshedPart] = {}
     error: tuple[int, Exception] | None = None
-    with contextlib.nullcontext(mesher) if mesher is not None else Mesher(d, model) as m:
-        if (m.d, m.model) != (d, model):
-            raise ValueError("make_meshes: the Mesher is of another part")
+    with given_or_new(mesher, d, model) as m:
         for k, spec in enumerate(specs):
             if who[k] == comm.rank and error is None:
                 try:

@@ -7,7 +7,6 @@ dataclasses below and files in the output folder; nothing is kept in module stat
 """
 from __future__ import annotations
 
-import contextlib
 import math
 import time
 from dataclasses import dataclass
@@ -22,7 +21,7 @@ from .case import Case
 from .convergence import Estimate, estimate, representative_size
 from .crosshead import crosshead_loads, equilibrium
 from .errors import NumericalError
-from .mesh_io import ImportedMesh, Mesher, make_mesh, make_meshes, owners
+from .mesh_io import ImportedMesh, Mesher, given_or_new, make_mesh, make_meshes, owners
 from .post import Peak, hot_spots, peak, von_mises
 from .solve import Material, solve
 
@@ -238,7 +237,7 @@ def analyse(case: Case, levels: int = 3, ratio: float = 1.3, msh_path: Path | No
     process's mesh_io.Mesher of the case's part, if it has one (else one for the pilot
     and the meshes).
     """
-    with contextlib.nullcontext(mesher) if mesher is not None else Mesher(case.dims, case.model) as m:
+    with given_or_new(mesher, case.dims, case.model) as m:
         pl = pl or pilot(case, comm=comm, progress=progress, mesher=m)
         factors = [case.mesh_factor * ratio ** k for k in range(levels)]
         on = error_bar_ranks(factors, comm.size)
