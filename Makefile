@@ -23,14 +23,15 @@ test: $(SETUP)
 converge: $(SETUP)
 	$(RUN) -m pipeline converge --size 05 --out results/05-converge
 
-# Run time against error (P1/P2/P3 x mesh levels x pmg/gamg/hypre/mumps, CalculiX, 1 and 2 ranks),
+# Run time against error (P1/P2/P3 x mesh levels x pmg/gamg/hypre/mumps, CalculiX iterative and
+# spooles; on 2 cores: every solver on the finest P2 mesh, P2 pmg and CalculiX on every level),
 # on the pipeline's pilot-refined meshes; makes the convergence study first if
 # results/05-converge/results.json is missing. Errors are measured against the independent
 # P3 + MUMPS solution of tests/test_regression.py (global 113.79, critical 66.27 MPa);
 # the study's own extrapolation of the global peak carries ± 5.64 MPa (order 0.76; make converge, c763ad0).
-# 35-48 min on 2 cores (the machine's speed varies); add --pilot both for the plain graded meshes too (~1.5 h).
-BENCH_ARGS ?= --pilot on --factors 4.0,2.5,2.0,1.3,1.0 --p3-factors 3.0,2.5,2.0 --repeats 3 --ccx-solvers iterative \
-	--reference-values 113.79,66.27
+# ~55 min on 2 cores (estimate; 44 min before spooles and the 2-core targets); add --pilot both for the plain graded meshes too (~1.5 h).
+BENCH_ARGS ?= --pilot on --factors 4.0,2.5,2.0,1.3,1.0 --p3-factors 3.0,2.5,2.0 --repeats 3 \
+	--ccx-solvers iterative,spooles --ranks-at targets --reference-values 113.79,66.27
 bench: $(SETUP)
 	$(PY) -m pipeline.bench --out results/bench --ranks 1,2 $(BENCH_ARGS)
 

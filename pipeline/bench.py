@@ -3,6 +3,7 @@
     python -m pipeline.bench --out results/bench            the full matrix (make bench)
     python -m pipeline.bench --quick --out /tmp/b           2 coarse levels, 1 repeat, P2 pmg/mumps + ccx
     python -m pipeline.bench --ranks 1,2                    also 2 MPI ranks on the finest P2 mesh
+    python -m pipeline.bench --ranks 1,2 --ranks-at targets also P2 pmg and CalculiX on every level on 2 cores
     python -m pipeline.bench --ranks 1,2 --ranks-at all     every point also on 2 cores (2 ranks; ccx 2 threads)
 
 The matrix: element order (P1, P2 on every mesh level, P3 on the coarse ones), mesh
@@ -442,12 +443,21 @@ def build_matrix(args) -> list[tuple[dict, int, int]]:
                 for cs in args.ccx_solvers:
                     pts.append(({"kind": "calculix", "order": 2, "factor": f, "ccx_solver": cs,
                                  "threads": thr, "pilot": pl}, 1, thr))
-    # On more cores: every point (--ranks-at all, to compare the time to 1 % with every core
-    # in use) or the finest P2 mesh only (the scaling check). The pipeline gets n MPI ranks,
-    # CalculiX (one process) n threads.
+    # On more cores: the finest P2 mesh (the scaling check, every solver), and with
+    # --ranks-at targets also the pipeline's default solver (pmg) on P2 and CalculiX at every
+    # mesh level (the time to 1 % with every core in use), or with --ranks-at all every point.
+    # The pipeline gets n MPI ranks, CalculiX (one process) n threads.
     finest = min(factors)
-    twins = [spec for spec, _, _ in pts if args.ranks_at == "all" or
-             (spec["order"] == 2 and spec["factor"] == finest and spec["pilot"] == pilots[-1])]
+
+    def twin(spec: dict) -> bool:
+        if args.ranks_at == "all":
+            return True
+        if spec["order"] != 2 or spec["pilot"] != pilots[-1]:
+            return False
+        return spec["factor"] == finest or (args.ranks_at == "targets" and
+                                            (spec["kind"] == "calculix" or spec["solver"] == "pmg"))
+
+    twins = [spec for spec, _, _ in pts if twin(spec)]
     for n in args.ranks:
         if n == 1:
             continue
@@ -483,9 +493,10 @@ def make_parser() -> argparse.ArgumentParser:
                         "plain graded meshes, or both (default; --quick: off)")
     p.add_argument("--ranks", type=_csv_list(int), default=[1],
                    help="MPI rank counts for the finest P2 mesh, e.g. 1,2 (default 1)")
-    p.add_argument("--ranks-at", choices=("finest", "all"), default="finest",
-                   help="where the --ranks counts above 1 run: the finest P2 mesh only (default), or "
-                        "every point, CalculiX with as many threads (time to 1 %% on every core)")
+    p.add_argument("--ranks-at", choices=("finest", "targets", "all"), default="finest",
+                   help="where the --ranks counts above 1 run: the finest P2 mesh only (default); "
+                        "targets: also P2 pmg and CalculiX (with as many threads) on every mesh level, "
+                        "for the time to 1 %% on every core; all: every point")
     p.add_argument("--threads", type=int, default=1, help="threads per rank and for ccx (default 1)")
     p.add_argument("--reference", type=Path, default=DEFAULT_REFERENCE,
                    help="convergence-study results.json with the extrapolated peaks")
@@ -586,7 +597,7 @@ def main(argv: list[str] | None = None) -> int:
             "its points may come from different meshes: run it again on a frozen tree")
     summ = summary(rows, cores=args.threads)
     by_cores = {n * args.threads: summary(rows, cores=n * args.threads)
-                for n in args.ranks if n != 1 and args.ranks_at == "all"}
+                for n in args.ranks if n != 1 and args.ranks_at != "finest"}
     text = table(rows)
     print()
     print(text)

@@ -198,3 +198,19 @@ def test_bench_ranks_at_all_repeats_every_point_on_more_cores():
     finest = bench.build_matrix(bench.make_parser().parse_args(argv))
     multi = [(s, r) for s, r, _ in finest if r > 1 or s.get("threads", 1) > 1]
     assert {(s["kind"], s["factor"]) for s, _ in multi} == {("dolfinx", 1.3), ("calculix", 1.3)}
+
+
+def test_bench_ranks_at_targets_adds_the_default_solver_and_calculix_on_every_level():
+    """--ranks-at targets: on 2 cores the finest P2 mesh with every solver (the scaling
+    check), and P2 pmg and CalculiX at every factor (the time to 1 % on both cores); no P3,
+    no other solver on the coarser meshes. (Matrix only; nothing is solved.)"""
+    from pipeline import bench
+    argv = ["--orders", "2,3", "--solvers", "pmg,mumps", "--factors", "4.0,2.5,1.3", "--p3-factors", "2.5",
+            "--ccx-solvers", "iterative,spooles", "--ranks", "1,2", "--pilot", "on", "--ranks-at", "targets"]
+    pts = bench.build_matrix(bench.make_parser().parse_args(argv))
+    two = {(s["kind"], s.get("solver") or s["ccx_solver"], s["order"], s["factor"])
+           for s, r, t in pts if r * t == 2}
+    expected = {("dolfinx", "pmg", 2, f) for f in (4.0, 2.5, 1.3)} | {("dolfinx", "mumps", 2, 1.3)} | \
+        {("calculix", c, 2, f) for c in ("iterative", "spooles") for f in (4.0, 2.5, 1.3)}
+    assert two == expected
+    assert all(s["threads"] == 2 for s, r, t in pts if s["kind"] == "calculix" and t == 2)
