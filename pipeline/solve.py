@@ -4,8 +4,9 @@ Generic on purpose: the crosshead (pipeline.crosshead) and the verification prob
 the tests (Lamé cylinder, plate with a hole, beam, patch test) go through this same code.
 Loads are surface tractions on tagged facets; constraints fix displacement components on
 tagged facets or at points. Default solver "pmg": CG preconditioned by a two-level
-p-multigrid (the P2 or P3 space, smoothed by Chebyshev-Jacobi, over P1 on the same mesh,
-where one V-cycle of GAMG with the rigid-body near-nullspace does the coarse work).
+p-multigrid (the P2 or P3 space in BAIJ, smoothed by Chebyshev-Jacobi, over the P1
+stiffness of the same mesh, where one V-cycle of GAMG with the rigid-body near-nullspace
+does the coarse work).
 "gamg" (GAMG straight on the P2 matrix, as in the DOLFINx elasticity demo), "hypre"
 (BoomerAMG) and "mumps" (direct) on request.
 """
@@ -159,14 +160,19 @@ def _assemble_aij(a, bcs) -> PETSc.Mat:
 
     Why through BAIJ: DOLFINx inserts each element matrix into a 3×3-block matrix faster
     than into AIJ, by enough to pay for the conversion (No. 05 x1, P2, one core: 1.18
-    against 1.63 s, median of 5; 0.70 against 0.94 s on 2 ranks). The solvers stay on AIJ:
-    pmg's Galerkin product (PtAP) is not defined for BAIJ, and CG + Chebyshev ran slower
-    on it. The converted matrix multiplies a vector bit for bit like the AIJ one.
+    against 1.63 s, median of 5; 0.70 against 0.94 s on 2 ranks). GAMG and hypre need AIJ;
+    "pmg" keeps the BAIJ matrix (:func:`_assemble_baij`).
     """
+    A = _assemble_baij(a, bcs)
+    A.convert("aij")  # in place (petsc4py converts self when no target is given)
+    return A
+
+
+def _assemble_baij(a, bcs) -> PETSc.Mat:
+    """The matrix of bilinear form ``a`` with ``bcs`` applied, as a BAIJ matrix (3×3 blocks)."""
     A = create_matrix(a, "baij")
     assemble_matrix(A, a, bcs=bcs)
     A.assemble()
-    A.convert("aij")  # in place (petsc4py converts self when no target is given)
     return A
 
 
@@ -302,17 +308,40 @@ def p1_interpolation(V1, V) -> PETSc.Mat:
     return P
 
 
-def _p_multigrid(ksp: PETSc.KSP, A: PETSc.Mat, V) -> tuple[PETSc.Mat, PETSc.Mat]:
+def _p_multigrid(ksp: PETSc.KSP, V, mat: Material, facet_tags,
+                 constraints: Sequence[Constraint]) -> tuple[PETSc.Mat, PETSc.Mat]:
     """Make ksp's preconditioner a two-level p-multigrid over P1 on V's mesh.
 
-    Coarse operator: the Galerkin product P^T A P with P the interpolation P1 -> V, which
-    keeps the boundary conditions A carries; it gets the rigid-body near-nullspace of P1
-    for GAMG. Returns (P, coarse matrix), to be destroyed after the solve.
+    Coarse operator: the P1 stiffness matrix of the same mesh and material, with the same
+    constraints; it gets the rigid-body near-nullspace of P1 for GAMG. The interpolation P
+    (P1 -> V) has its columns at constrained P1 DOFs zeroed, so a coarse correction never
+    moves a constrained DOF: the constrained rows of the P1 matrix are identity rows, and
+    without the zeroing CG did not converge (1000 iterations at No. 05 x1.3).
+
+    Why not the Galerkin product P^T A P (used up to commit c40a1a4): PETSc forms it only
+    for AIJ, and the fine matrix in AIJ cost a BAIJ -> AIJ conversion (0.24 s at No. 05
+    x1.3) and a slower product with a vector in every smoothing step (10.3 against 6.7 ms,
+    median of 30). Measured at No. 05 P2, interleaved in one process, medians of 3-5: assembly
+    + solve 3.58 -> 2.45 s at x1.3 (31 -> 30 iterations), 8.17 -> 5.50 s at x1 (35 both),
+    4.88 -> 3.07 s at x1 on 2 ranks; peaks changed by <= 1e-8 relative. Returns (P, coarse
+    matrix), to be destroyed after the solve.
     """
-    V1 = fem.VectorFunctionSpace(V.mesh, ("Lagrange", 1))
-    P = p1_interpolation(V1, V)
-    Ac = A.PtAP(P)
+    mesh = V.mesh
+    V1 = fem.VectorFunctionSpace(mesh, ("Lagrange", 1))
+    u1, v1 = ufl.TrialFunction(V1), ufl.TestFunction(V1)
+    bcs1 = [bc for c in constraints for bc in _dirichlet(V1, facet_tags, c)[0]]
+    Ac = _assemble_aij(fem.form(volume_integral(ufl.inner(stress(u1, mat), strain(v1)),
+                                                volume_measures(mesh, 1))), bcs1)
     Ac.setNearNullSpace(rigid_body_nullspace(V1))
+    P = p1_interpolation(V1, V)
+    free = Ac.createVecRight()
+    free.set(1.0)
+    n_owned = V1.dofmap.index_map.size_local * V1.dofmap.index_map_bs
+    for bc in bcs1:
+        dofs = bc.dof_indices()[0]
+        free.array[dofs[dofs < n_owned]] = 0.0
+    P.diagonalScale(None, free)  # columns
+    free.destroy()
     pc = ksp.getPC()
     pc.setType("mg")
     pc.setMGLevels(2)
@@ -354,7 +383,8 @@ def solve(mesh, facet_tags, order: int, mat: Material, tractions: Sequence[Tract
         bc_dofs.append(np.concatenate(d_) if d_ else np.array([], dtype=np.int32))
     a = fem.form(a_form)
     L = fem.form(L_form)
-    A = _assemble_aij(a, bcs)
+    # pmg multiplies with the fine matrix in BAIJ (see _p_multigrid); the others need AIJ.
+    A = _assemble_baij(a, bcs) if solver == "pmg" else _assemble_aij(a, bcs)
     b = assemble_vector(L)
     apply_lifting(b, [a], bcs=[bcs])
     b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
@@ -372,7 +402,7 @@ def solve(mesh, facet_tags, order: int, mat: Material, tractions: Sequence[Tract
     for k, val in solver_options(solver, rtol).items():
         opts[prefix + k] = val
     ksp.setOperators(A)
-    mg_parts = _p_multigrid(ksp, A, V) if solver == "pmg" else ()
+    mg_parts = _p_multigrid(ksp, V, mat, facet_tags, constraints) if solver == "pmg" else ()
     ksp.setFromOptions()
     # PCSetUp reads the multigrid levels' options (mg_levels_*): set up before deleting them.
     ksp.setUp()
