@@ -4,7 +4,7 @@ Generic on purpose: the crosshead (pipeline.crosshead) and the verification prob
 the tests (Lamé cylinder, plate with a hole, beam, patch test) go through this same code.
 Loads are surface tractions on tagged facets; constraints fix displacement components on
 tagged facets or at points. Default solver "pmg": CG preconditioned by a two-level
-p-multigrid (the P2 or P3 space in BAIJ, smoothed by Chebyshev-Jacobi, over the P1
+p-multigrid (the P2 or P3 space in SBAIJ, smoothed by Chebyshev-Jacobi, over the P1
 stiffness of the same mesh, where one V-cycle of GAMG with the rigid-body near-nullspace
 does the coarse work).
 "gamg" (GAMG straight on the P2 matrix, as in the DOLFINx elasticity demo), "hypre"
@@ -136,7 +136,8 @@ def volume_integral(integrand, measures: tuple[ufl.Measure, ufl.Measure]):
     return integrand * straight + integrand * curved
 
 
-def volume_measures(mesh, order: int) -> tuple[ufl.Measure, ufl.Measure]:
+def volume_measures(mesh, order: int, like: tuple[ufl.Measure, ufl.Measure] | None = None
+                    ) -> tuple[ufl.Measure, ufl.Measure]:
     """dx over the straight cells, with degree 2(k−1), and dx over the curved ones.
 
     Why: on an affine tet the stiffness integrand of Pk is a polynomial of degree 2(k−1),
@@ -145,11 +146,16 @@ def volume_measures(mesh, order: int) -> tuple[ufl.Measure, ufl.Measure]:
     not touching the fillet, bore and journal surfaces). Measured there, P2, one core,
     median of 5: assembly 1.68 s split against 2.12 s with degree 5 everywhere (x1.3: 0.93
     against 1.19 s). Curved cells keep UFL's degree; the peaks changed by 1e-13.
+    ``like``: measures of this mesh made before, whose cell split is reused (it costs 0.03 s
+    at x1.3).
     """
-    curved = curved_cells(mesh)
-    cells = np.arange(len(curved), dtype=np.int32)
-    tags = meshtags(mesh, mesh.topology.dim, cells,
-                    np.where(curved, CURVED, STRAIGHT).astype(np.int32))
+    if like is not None:
+        tags = like[0].subdomain_data()
+    else:
+        curved = curved_cells(mesh)
+        cells = np.arange(len(curved), dtype=np.int32)
+        tags = meshtags(mesh, mesh.topology.dim, cells,
+                        np.where(curved, CURVED, STRAIGHT).astype(np.int32))
     dx = ufl.Measure("dx", domain=mesh, subdomain_data=tags)
     exact = {"quadrature_degree": max(2 * (order - 1), 0)}
     return dx(STRAIGHT, metadata=exact), dx(CURVED)
@@ -174,6 +180,22 @@ def _assemble_baij(a, bcs) -> PETSc.Mat:
     assemble_matrix(A, a, bcs=bcs)
     A.assemble()
     return A
+
+
+def _assemble_sbaij(a, bcs) -> PETSc.Mat:
+    """The matrix of the symmetric bilinear form ``a`` with ``bcs`` applied (rows and columns
+    zeroed: still symmetric), stored as its upper triangle in 3×3 blocks (SBAIJ).
+
+    Why: the product with a vector, most of pmg's time, reads half the matrix: 5.5 against
+    6.7 ms with BAIJ and 10.3 ms with AIJ at No. 05 x1.3 (median of 30). The conversion from
+    BAIJ costs 0.04 s there. Interleaved in one process, medians of 7: assembly + solve 2.27
+    -> 2.09 s at x1.3 (one rank), the same iterations and peaks to the printed 9 digits;
+    on 2 ranks 1.40 -> 1.34 s at x1.3 and 2.81 / 2.83 s at x1.
+    """
+    A = _assemble_baij(a, bcs)
+    S = A.convert("sbaij", PETSc.Mat())
+    A.destroy()
+    return S
 
 
 def _point_dofs(V, component: int, points: np.ndarray, tol: float) -> np.ndarray:
@@ -308,30 +330,32 @@ def p1_interpolation(V1, V) -> PETSc.Mat:
     return P
 
 
-def _p_multigrid(ksp: PETSc.KSP, V, mat: Material, facet_tags,
-                 constraints: Sequence[Constraint]) -> tuple[PETSc.Mat, PETSc.Mat]:
+def _p_multigrid(ksp: PETSc.KSP, V, mat: Material, facet_tags, constraints: Sequence[Constraint],
+                 measures: tuple[ufl.Measure, ufl.Measure]) -> tuple[PETSc.Mat, PETSc.Mat]:
     """Make ksp's preconditioner a two-level p-multigrid over P1 on V's mesh.
 
     Coarse operator: the P1 stiffness matrix of the same mesh and material, with the same
-    constraints; it gets the rigid-body near-nullspace of P1 for GAMG. The interpolation P
+    constraints (``measures``: V's :func:`volume_measures`, whose cell split it reuses); it
+    gets the rigid-body near-nullspace of P1 for GAMG. The interpolation P
     (P1 -> V) has its columns at constrained P1 DOFs zeroed, so a coarse correction never
     moves a constrained DOF: the constrained rows of the P1 matrix are identity rows, and
     without the zeroing CG did not converge (1000 iterations at No. 05 x1.3).
 
     Why not the Galerkin product P^T A P (used up to commit c40a1a4): PETSc forms it only
     for AIJ, and the fine matrix in AIJ cost a BAIJ -> AIJ conversion (0.24 s at No. 05
-    x1.3) and a slower product with a vector in every smoothing step (10.3 against 6.7 ms,
-    median of 30). Measured at No. 05 P2, interleaved in one process, medians of 3-5: assembly
-    + solve 3.58 -> 2.45 s at x1.3 (31 -> 30 iterations), 8.17 -> 5.50 s at x1 (35 both),
-    4.88 -> 3.07 s at x1 on 2 ranks; peaks changed by <= 1e-8 relative. Returns (P, coarse
-    matrix), to be destroyed after the solve.
+    x1.3) and a slower product with a vector in every smoothing step (10.3 against 6.7 ms
+    in BAIJ, median of 30; see also :func:`_assemble_sbaij`). Measured at No. 05 P2 with the
+    fine matrix in BAIJ, interleaved in one process, medians of 3-5: assembly + solve 3.58
+    -> 2.45 s at x1.3 (31 -> 30 iterations), 8.17 -> 5.50 s at x1 (35 both), 4.88 -> 3.07 s
+    at x1 on 2 ranks; peaks changed by <= 1e-8 relative. Returns (P, coarse matrix), to be
+    destroyed after the solve.
     """
     mesh = V.mesh
     V1 = fem.VectorFunctionSpace(mesh, ("Lagrange", 1))
     u1, v1 = ufl.TrialFunction(V1), ufl.TestFunction(V1)
     bcs1 = [bc for c in constraints for bc in _dirichlet(V1, facet_tags, c)[0]]
     Ac = _assemble_aij(fem.form(volume_integral(ufl.inner(stress(u1, mat), strain(v1)),
-                                                volume_measures(mesh, 1))), bcs1)
+                                                volume_measures(mesh, 1, like=measures))), bcs1)
     Ac.setNearNullSpace(rigid_body_nullspace(V1))
     P = p1_interpolation(V1, V)
     free = Ac.createVecRight()
@@ -383,8 +407,8 @@ def solve(mesh, facet_tags, order: int, mat: Material, tractions: Sequence[Tract
         bc_dofs.append(np.concatenate(d_) if d_ else np.array([], dtype=np.int32))
     a = fem.form(a_form)
     L = fem.form(L_form)
-    # pmg multiplies with the fine matrix in BAIJ (see _p_multigrid); the others need AIJ.
-    A = _assemble_baij(a, bcs) if solver == "pmg" else _assemble_aij(a, bcs)
+    # pmg multiplies with the fine matrix in SBAIJ (see _p_multigrid); the others need AIJ.
+    A = _assemble_sbaij(a, bcs) if solver == "pmg" else _assemble_aij(a, bcs)
     b = assemble_vector(L)
     apply_lifting(b, [a], bcs=[bcs])
     b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
@@ -402,7 +426,7 @@ def solve(mesh, facet_tags, order: int, mat: Material, tractions: Sequence[Tract
     for k, val in solver_options(solver, rtol).items():
         opts[prefix + k] = val
     ksp.setOperators(A)
-    mg_parts = _p_multigrid(ksp, V, mat, facet_tags, constraints) if solver == "pmg" else ()
+    mg_parts = _p_multigrid(ksp, V, mat, facet_tags, constraints, dx_split) if solver == "pmg" else ()
     ksp.setFromOptions()
     # PCSetUp reads the multigrid levels' options (mg_levels_*): set up before deleting them.
     ksp.setUp()
