@@ -391,9 +391,15 @@ def pareto_plot(path: Path, rows: list[dict], ref: dict) -> bool:
             rs = sorted(rs, key=lambda r: r["t_total"])
             err = [max(abs(r[key]), floor) for r in rs]
             if rs[0]["kind"] == "calculix":
-                ax.plot([r["t_total"] for r in rs], err, "k-*", ms=9, label=f"{name} (geometry→peak)")
-                ax.plot([r["t_core"] for r in rs], err, "k:*", ms=7, mfc="none",
-                        label=f"{name} (write+ccx+read only)")
+                # Black for the iterative solver, grey for spooles; dashed on more threads;
+                # CalculiX's own part (write + ccx + read) dotted, on one thread only.
+                colour = "k" if rs[0]["solver"] == "ccx-iterative" else "0.55"
+                one = rs[0].get("threads", 1) == 1
+                ax.plot([r["t_total"] for r in rs], err, "-" if one else "--", marker="*", color=colour,
+                        ms=9, label=f"{name} (geometry→peak)")
+                if one:
+                    ax.plot([r["t_core"] for r in rs], err, ":", marker="*", color=colour, ms=7, mfc="none",
+                            label=f"{name} (write+ccx+read only)")
             else:
                 ax.plot([r["t_total"] for r in rs], err, "-" if rs[0]["ranks"] == 1 else "--",
                         marker=markers.get(rs[0]["order"], "o"), color=f"C{k % 10}", label=name)

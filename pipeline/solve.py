@@ -261,9 +261,10 @@ def solver_options(name: str, rtol: float) -> dict[str, object]:
     if name == "pmg":
         # Why: GAMG on the P2 matrix spent half its time in set-up (Galerkin products of a
         # matrix with ~80 entries per row: 3.8 s of 6.2 s at No. 05 x1 on 2 ranks). The P1
-        # matrix of the same mesh has 1/7 of the rows and is formed by a product with the
-        # interpolation P1 -> P2 (two entries per row). Same mesh, same rtol: 35 iterations
-        # in 3.0 s against GAMG's 52 in 6.2 s, peaks equal to 1e-9 (measured, 2 ranks).
+        # matrix of the same mesh has 1/7 of the rows (it was then formed as the product
+        # with the interpolation P1 -> P2; now assembled, see _p_multigrid). Same mesh, same
+        # rtol: 35 iterations in 3.0 s against GAMG's 52 in 6.2 s, peaks equal to 1e-9
+        # (measured, 2 ranks; make bench of 0b7f5ac: 1.8 against 7.8 s of solve).
         return {**cg, "pc_type": "mg",
                 "mg_levels_ksp_type": "chebyshev", "mg_levels_pc_type": "jacobi",
                 "mg_levels_ksp_chebyshev_esteig_steps": 20,
