@@ -167,7 +167,7 @@ def _assemble_aij(a, bcs) -> PETSc.Mat:
     Why through BAIJ: DOLFINx inserts each element matrix into a 3×3-block matrix faster
     than into AIJ, by enough to pay for the conversion (No. 05 x1, P2, one core: 1.18
     against 1.63 s, median of 5; 0.70 against 0.94 s on 2 ranks). GAMG and hypre need AIJ;
-    "pmg" keeps the BAIJ matrix (:func:`_assemble_baij`).
+    "pmg" converts to SBAIJ instead (:func:`_assemble_sbaij`).
     """
     A = _assemble_baij(a, bcs)
     A.convert("aij")  # in place (petsc4py converts self when no target is given)
@@ -408,7 +408,8 @@ def solve(mesh, facet_tags, order: int, mat: Material, tractions: Sequence[Tract
         bc_dofs.append(np.concatenate(d_) if d_ else np.array([], dtype=np.int32))
     a = fem.form(a_form)
     L = fem.form(L_form)
-    # pmg multiplies with the fine matrix in SBAIJ (see _p_multigrid); the others need AIJ.
+    # pmg multiplies with the fine matrix in SBAIJ (see _assemble_sbaij, _p_multigrid); the
+    # others need AIJ.
     A = _assemble_sbaij(a, bcs) if solver == "pmg" else _assemble_aij(a, bcs)
     b = assemble_vector(L)
     apply_lifting(b, [a], bcs=[bcs])
