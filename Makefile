@@ -9,19 +9,19 @@ SETUP := .venv/.setup-done
 # once, the requested mesh is solved by all ranks, the coarser ones side by side
 # (No. 05: 12.9 s on 2 ranks, median of 5; 16.0 s on 1, one run). RANKS=1 runs without MPI.
 RANKS ?= $(shell nproc 2>/dev/null || echo 1)
-RUN := $(if $(filter 1,$(RANKS)),$(PY),mpirun --allow-run-as-root -n $(RANKS) $(PY))
+RUN := $(if $(filter 1,$(RANKS)),$(PY) -m pipeline,$(PY) -m pipeline.launch $(RANKS))
 SIZES := $(shell awk -F, '!/^\#/ && $$1 != "size" && NF > 1 {print $$1}' geometry/sizes.csv)
 
 .PHONY: run test converge bench sizes setup clean $(SIZES)
 
 run: $(SETUP)
-	$(RUN) -m pipeline run --size 05 --out results/05
+	$(RUN) run --size 05 --out results/05
 
 test: $(SETUP)
 	$(PY) -m pytest -q tests
 
 converge: $(SETUP)
-	$(RUN) -m pipeline converge --size 05 --out results/05-converge
+	$(RUN) converge --size 05 --out results/05-converge
 
 # Run time against error (P1/P2/P3 x mesh levels x pmg/gamg/hypre/mumps, CalculiX iterative and
 # spooles; on 2 cores: every solver on the finest P2 mesh, P2 pmg and CalculiX on every level),

@@ -19,6 +19,10 @@ T_START = time.perf_counter()
 # that the picture process needs. Read when numpy loads, so set before any import of it.
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
+from pipeline.interrupts import install as install_interrupts, no_petsc_handlers  # noqa: E402
+
+no_petsc_handlers()  # before anything imports PETSc
+
 DESCRIPTION = """\
 Finite-element stress analysis of a DIN 15412 crane hook-block crosshead.
 
@@ -36,7 +40,9 @@ examples:
   python -m pipeline run --size 05 --dim rf=2.0 --mesh-factor 0.8
   python -m pipeline converge --size 05                 mesh convergence study
 
-exit status: 0 done, 2 bad input (nothing written), 3 numerical failure (nothing written)
+exit status: 0 done; 2 bad input or an output folder that cannot be used (nothing written);
+3 numerical failure (nothing written); 130 interrupted (Ctrl-C), 143 terminated (SIGTERM):
+the earlier result in the output folder is left as it was
 """
 
 
@@ -153,16 +159,20 @@ CASE_KEYS = ("support", "model", "E_MPa", "nu", "allowable_MPa", "approximate_sp
              "size_fillet_mm", "grading_mm", "solver", "rtol")
 
 
-def main(argv: list[str] | None = None) -> int:
+def main(argv: list[str] | None = None, handle_signals: bool = False) -> int:
+    """The command line; ``handle_signals`` (the program, not a test calling in) makes
+    Ctrl-C and SIGTERM stop a run cleanly with exit 130 / 143 (pipeline.interrupts)."""
     args = make_parser().parse_args(argv)
     if args.command is None:
         make_parser().print_help()
         sys.stderr.write("error: command: choose run or converge (see --help)\n")
         return 2
+    if handle_signals:
+        install_interrupts(speak=os.environ.get("OMPI_COMM_WORLD_RANK", os.environ.get("PMI_RANK", "0")) == "0")
     try:
         return _dispatch(args)
     except KeyboardInterrupt:
-        sys.stderr.write("interrupted: nothing written\n")
+        sys.stderr.write("interrupted (Ctrl-C): nothing written, the output folder is as it was\n")
         return 130
 
 
@@ -203,7 +213,10 @@ def _dispatch(args) -> int:
             from pipeline.formcache import jit_cache_dir, remove_interrupted
             for stale in remove_interrupted(jit_cache_dir()):
                 _progress(f"removed {stale.name} from the form cache (an interrupted compile)")
-        out = args.out or Path("results") / (case.name if args.command == "run" else f"{case.name}-converge")
+        from pipeline.outdir import check_out, default_out
+        out = args.out if args.out is not None else default_out(
+            case.name if args.command == "run" else f"{case.name}-converge")
+        check_out(out)  # refused before any work; checked again under the lock
         say = (lambda s: None) if (args.quiet or not rank0) else _progress
         _progress(f"imports {time.perf_counter() - T_START:.2f} s; case {case.name}: hook No. {case.size}, "
                   f"Q = {case.load_N:g} N, {case.model} model, {case.support} support, P{case.order}") \
@@ -226,6 +239,19 @@ def _dispatch(args) -> int:
         if rank0:
             sys.stderr.write(f"numerical failure: {_one_line(exc)}; nothing written\n")
         return 3
+    except OSError as exc:  # disk full, permission, ...: the staging folder is already gone
+        if rank0:
+            where = f" {exc.filename}" if exc.filename else ""
+            sys.stderr.write(f"error: out: cannot write{where}: {exc.strerror or exc}; nothing written, "
+                             "the output folder is as it was\n")
+        return 2
+    except Exception as exc:  # a failure no check foresaw: still one line and nothing written
+        if os.environ.get("CROSSHEAD_TRACEBACK"):
+            raise
+        if rank0:
+            sys.stderr.write(f"failure: {type(exc).__name__}: {_one_line(exc)}; nothing written "
+                             "(set CROSSHEAD_TRACEBACK=1 for the traceback)\n")
+        return 3
 
 
 def _one_line(exc: Exception) -> str:
@@ -233,7 +259,17 @@ def _one_line(exc: Exception) -> str:
 
 
 def _progress(msg: str) -> None:
-    print(f"[{time.perf_counter() - T_START:7.2f} s] {msg}", flush=True)
+    _print(f"[{time.perf_counter() - T_START:7.2f} s] {msg}")
+
+
+def _print(line: str) -> None:
+    """Print a line; a closed stdout (``| head``) silences the rest instead of ending the run."""
+    try:
+        print(line, flush=True)
+    except (BrokenPipeError, ValueError):
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        os.close(devnull)
 
 
 def _summary(res: dict, out: Path) -> None:
@@ -248,4 +284,4 @@ def _summary(res: dict, out: Path) -> None:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    sys.exit(main(handle_signals=True))

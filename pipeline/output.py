@@ -1,62 +1,13 @@
-"""Writing a run's files all-or-nothing, and the ParaView fields.
-
-Everything goes into a hidden staging folder beside the output folder; only a complete
-run is renamed into place, so a failed or interrupted run leaves no results behind.
-"""
+"""Writing a run's files: results.json and the ParaView fields (into the staging folder
+that pipeline.outdir puts in place when the run is complete)."""
 from __future__ import annotations
 
-import contextlib
 import json
-import os
-import shutil
-import tempfile
 from pathlib import Path
-from typing import Iterator
 
 from mpi4py import MPI
 
 from .jsonio import json_safe
-
-from .errors import InputError
-
-
-@contextlib.contextmanager
-def staged_dir(out_dir: Path, comm=MPI.COMM_WORLD) -> Iterator[Path]:
-    """Yield a fresh staging folder; on success it replaces ``out_dir``, on error it is removed.
-
-    An output location that cannot be written raises InputError before any work is done.
-    """
-    out_dir = Path(out_dir).resolve()
-    tmp = None
-    if comm.rank == 0:
-        try:
-            out_dir.parent.mkdir(parents=True, exist_ok=True)
-            if out_dir.exists() and not out_dir.is_dir():
-                raise InputError(f"out: {out_dir} exists and is not a folder")
-            tmp = tempfile.mkdtemp(prefix=f".{out_dir.name}.", suffix=".partial", dir=out_dir.parent)
-        except InputError as exc:
-            tmp = exc
-        except OSError as exc:
-            tmp = InputError(f"out: cannot write to {out_dir.parent}: {exc.strerror or exc}")
-    tmp = comm.bcast(tmp, root=0)
-    if isinstance(tmp, Exception):
-        raise tmp
-    staging = Path(tmp)
-    try:
-        yield staging
-        comm.barrier()
-        if comm.rank == 0:
-            old = None
-            if out_dir.exists():
-                old = out_dir.with_name(f".{out_dir.name}.old-{os.getpid()}")
-                out_dir.rename(old)
-            staging.rename(out_dir)
-            if old is not None:
-                shutil.rmtree(old, ignore_errors=True)
-    except BaseException:
-        if comm.rank == 0:
-            shutil.rmtree(staging, ignore_errors=True)
-        raise
 
 
 def write_json(path: Path, data: dict, comm=MPI.COMM_WORLD) -> None:

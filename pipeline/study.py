@@ -16,7 +16,9 @@ from mpi4py import MPI
 
 from .case import Case
 from .mesh_io import Mesher
-from .output import staged_dir, write_json
+from .interrupts import on_stop
+from .outdir import staged_dir
+from .output import write_json
 from .output import write_fields as write_field_files
 from .report import write_report
 from .run import Level, Progress, analyse, build_results, describe_location, pilot, sum_timings
@@ -34,7 +36,8 @@ def execute_run(case: Case, out_dir: Path, levels: int = 3, ratio: float = 1.3,
     """
     say = progress or (lambda s: None)
     t_all = time.perf_counter()
-    with staged_dir(out_dir, comm) as stage, Mesher(case.dims, case.model) as mesher:
+    with staged_dir(out_dir, comm, say) as stage, Mesher(case.dims, case.model) as mesher, \
+            contextlib.ExitStack() as stack:
         pl = pilot(case, comm=comm, progress=say, mesher=mesher)
         files = {"results": "results.json", "mesh": "mesh.msh"}
         picture: Picture | None = None
@@ -52,6 +55,7 @@ def execute_run(case: Case, out_dir: Path, levels: int = 3, ratio: float = 1.3,
             t_output = time.perf_counter() - t0
             if comm.rank == 0:
                 picture = start_picture(stage)
+                stack.enter_context(on_stop(picture.proc.kill))  # a stopped run draws nothing
 
         try:
             lv, pl = analyse(case, levels=levels, ratio=ratio, msh_path=stage / "mesh.msh",
@@ -142,7 +146,7 @@ def execute_converge(case: Case, out_dir: Path, levels: int = 4, ratio: float = 
     finest = case.mesh_factor / ratio ** max(levels - 3, 0)
     from dataclasses import replace
     fine_case = replace(case, mesh_factor=finest)
-    with staged_dir(out_dir, comm) as stage, Mesher(case.dims, case.model) as mesher:
+    with staged_dir(out_dir, comm, say) as stage, Mesher(case.dims, case.model) as mesher:
         # The pilot of the case itself, so the case's own mesh is one of the study's levels.
         lv, pl = analyse(fine_case, levels=levels, ratio=ratio, msh_path=stage / "mesh.msh",
                          progress=say, comm=comm, pl=pilot(case, comm=comm, progress=say, mesher=mesher),

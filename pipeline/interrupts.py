@@ -1,0 +1,111 @@
+"""Ctrl-C and SIGTERM end a run cleanly: the staging folder is removed, the lock released,
+the picture process stopped, and the earlier result left as it was (exit 130 / 143).
+
+The stop is done by a watcher thread, not by an exception in the main thread: a signal's
+Python handler runs only between bytecodes, and a run spends seconds inside C calls
+(gmsh meshing, PETSc solves) or, under MPI, waiting in a collective for a rank that has
+already left; an exception would then come late or never. The C-level signal handler
+writes the signal number to a wake-up pipe even while the main thread is blocked; the
+watcher reads it, runs the clean-ups registered with :func:`on_stop` (newest first),
+writes one line (rank 0) and ends the process with ``os._exit``.
+
+gmsh's Python module resets SIGINT to the default action when imported, and PETSc
+installs handlers that abort the MPI job on SIGTERM and on a closed pipe (SIGPIPE, exit
+59). So PETSc is started without its handlers, gmsh is imported before ours are set.
+"""
+from __future__ import annotations
+
+import contextlib
+import os
+import signal
+import sys
+import threading
+from typing import Callable, Iterator
+
+EXIT_FOR = {signal.SIGINT: 130, signal.SIGTERM: 143}
+STOP_LINE = {signal.SIGINT: "interrupted (Ctrl-C): nothing written, the output folder is as it was",
+             signal.SIGTERM: "terminated (SIGTERM): nothing written, the output folder is as it was"}
+
+
+class _Watcher:
+    """The process's signal watcher and its clean-up stack (one per process, like atexit)."""
+
+    def __init__(self) -> None:
+        self.cleanups: list[Callable[[], None]] = []
+        self.lock = threading.Lock()
+        self.speak = True
+
+
+_WATCHER = _Watcher()  # process-wide by nature: signals and their handlers are per process
+
+
+def no_petsc_handlers() -> None:
+    """Ask PETSc (read at its start) not to install signal handlers; call before importing it."""
+    opts = os.environ.get("PETSC_OPTIONS", "")
+    if "-no_signal_handler" not in opts.split():
+        os.environ["PETSC_OPTIONS"] = f"{opts} -no_signal_handler".strip()
+
+
+@contextlib.contextmanager
+def on_stop(cleanup: Callable[[], None]) -> Iterator[None]:
+    """Run ``cleanup`` if the process is stopped by a signal while inside this block."""
+    with _WATCHER.lock:
+        _WATCHER.cleanups.append(cleanup)
+    try:
+        yield
+    finally:
+        with _WATCHER.lock:
+            if cleanup in _WATCHER.cleanups:
+                _WATCHER.cleanups.remove(cleanup)
+
+
+def signals_wait() -> threading.Lock:
+    """A block that a stop waits for (as a context manager): keep it short."""
+    return _WATCHER.lock
+
+
+def _stop(signum: int) -> None:
+    """Run the clean-ups, say how the run stopped (rank 0), end the process."""
+    with _WATCHER.lock:
+        cleanups = list(reversed(_WATCHER.cleanups))
+    for cleanup in cleanups:
+        try:
+            cleanup()
+        except Exception:  # noqa: BLE001  (the others must still run)
+            pass
+    if _WATCHER.speak:
+        try:
+            os.write(2, (STOP_LINE[signum] + "\n").encode())
+        except OSError:
+            pass
+    os._exit(EXIT_FOR[signum])
+
+
+def _watch(read_fd: int) -> None:
+    while True:
+        data = os.read(read_fd, 1)
+        if data and data[0] in EXIT_FOR:
+            _stop(signal.Signals(data[0]))
+
+
+def _noop(signum: int, frame) -> None:
+    """The Python-level handler: the watcher thread does the work (see module doc)."""
+
+
+def install(speak: bool = True) -> None:
+    """Import gmsh (its import resets SIGINT), then route SIGINT and SIGTERM to the watcher.
+
+    ``speak``: write the one line when stopped (False on MPI ranks other than 0).
+    Only the main thread of a program may call this; a second call changes ``speak`` only.
+    """
+    import gmsh  # noqa: F401  (imported for its side effect on SIGINT, before ours is set)
+    _WATCHER.speak = speak
+    if signal.getsignal(signal.SIGTERM) is _noop:
+        return
+    read_fd, write_fd = os.pipe()
+    os.set_blocking(write_fd, False)
+    signal.set_wakeup_fd(write_fd, warn_on_full_buffer=False)
+    for s in EXIT_FOR:
+        signal.signal(s, _noop)
+    threading.Thread(target=_watch, args=(read_fd,), name="stop-watcher", daemon=True).start()
+    sys.stdout.flush()

@@ -1,0 +1,228 @@
+"""The tool never loses a user's files (docs/design.md, "Output folder" and "Exit status").
+
+- ``--out`` never replaces a folder the tool did not write: a user's folder, the working
+  folder, the repository, ``/``, the home folder, mount points (symlinks judged by target);
+- Ctrl-C and SIGTERM end a run with exit 130 / 143 and one line, leave no staging folder and
+  leave the earlier result as it was, with one process and under MPI (pipeline.launch);
+- a staging folder left by a killed run is removed by the next run to the same folder;
+- a second run to a folder that is being written stops with exit 2 naming the other run;
+- a closed stdout does not lose the result; a full disk is exit 2 with nothing written.
+
+The runs are real subprocesses on coarse meshes (mesh factor 3, one level: a few seconds).
+"""
+from __future__ import annotations
+
+import errno
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+PY = sys.executable
+FAST = ["run", "--size", "05", "--mesh-factor", "3", "--levels", "1", "--no-fields"]
+SLOW = ["run", "--size", "05", "--mesh-factor", "1.0", "--levels", "3", "--no-fields"]  # ~10 s
+ENV = dict(os.environ, PYTHONPATH=str(ROOT))
+
+
+def cli(args: list[str], cwd: Path = ROOT, **kw) -> subprocess.CompletedProcess:
+    return subprocess.run([PY, "-m", "pipeline", *map(str, args)], cwd=cwd, env=ENV,
+                          capture_output=True, text=True, timeout=300, **kw)
+
+
+def one_error_line(proc: subprocess.CompletedProcess, code: int, *words: str) -> str:
+    assert proc.returncode == code, (proc.returncode, proc.stderr)
+    assert "Traceback" not in proc.stderr
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1, proc.stderr
+    for w in words:
+        assert w in lines[0], (w, lines[0])
+    return lines[0]
+
+
+def snapshot(folder: Path) -> dict[str, bytes]:
+    """Every file under ``folder`` (relative path -> content)."""
+    return {str(p.relative_to(folder)): p.read_bytes() for p in sorted(folder.rglob("*")) if p.is_file()}
+
+
+def debris(parent: Path, name: str) -> list[str]:
+    """Hidden staging, replaced-results or lock entries the tool left beside ``parent/name``."""
+    return sorted(p.name for p in parent.glob(f".{name}.*"))
+
+
+@pytest.fixture(scope="module")
+def earlier(tmp_path_factory) -> Path:
+    """A finished results folder (the earlier result that must survive failures)."""
+    out = tmp_path_factory.mktemp("earlier") / "res"
+    proc = cli(FAST + ["--out", out])
+    assert proc.returncode == 0, proc.stderr
+    assert (out / ".crosshead-results").is_file() and (out / "results.json").is_file()
+    return out
+
+
+def fresh_copy(src: Path, dst: Path) -> Path:
+    shutil.copytree(src, dst)
+    return dst
+
+
+# ------------------------------------------------------------------ 1. folders that are not ours
+
+def test_user_folder_with_a_file_is_refused_and_the_file_survives(tmp_path):
+    user = tmp_path / "u"
+    user.mkdir()
+    (user / "thesis.tex").write_text("x")
+    t0 = time.perf_counter()
+    line = one_error_line(cli(FAST + ["--out", user]), 2, "out", str(user), "marker")
+    assert time.perf_counter() - t0 < 20  # refused before any meshing
+    assert (user / "thesis.tex").read_text() == "x" and len(list(user.iterdir())) == 1, line
+    assert debris(tmp_path, "u") == []
+
+
+def test_symlink_is_judged_by_its_target(tmp_path):
+    user = tmp_path / "target"
+    user.mkdir()
+    (user / "notes.txt").write_text("keep")
+    link = tmp_path / "link"
+    link.symlink_to(user)
+    one_error_line(cli(FAST + ["--out", link]), 2, "out", str(user))
+    assert (user / "notes.txt").read_text() == "keep" and link.is_symlink()
+
+
+@pytest.mark.parametrize("out", ["", ".", "/", "~", "/proc", "geometry", "pipeline", ".git", ".."])
+def test_protected_folders_are_refused_before_any_work(out):
+    before = {p.name for p in ROOT.iterdir()}
+    proc = cli(FAST + ["--out", out])
+    one_error_line(proc, 2, "out", "refusing")
+    assert {p.name for p in ROOT.iterdir()} == before
+
+
+def test_out_dot_in_a_scratch_copy_deletes_nothing(tmp_path):
+    """From a scratch copy of the code: --out . and --out '' leave every file as it was."""
+    scratch = tmp_path / "scratch"
+    scratch.mkdir()
+    for name in ("pipeline", "geometry", "cases"):
+        fresh_copy(ROOT / name, scratch / name)
+    (scratch / "dolfinx_jit_parameters.json").write_text((ROOT / "dolfinx_jit_parameters.json").read_text())
+    (scratch / "mywork.txt").write_text("precious")
+    before = snapshot(scratch)
+    env = dict(os.environ, PYTHONPATH=str(scratch))
+    for out in (".", ""):
+        proc = subprocess.run([PY, "-m", "pipeline", *FAST, "--out", out], cwd=scratch, env=env,
+                              capture_output=True, text=True, timeout=120)
+        one_error_line(proc, 2, "out", "refusing")
+    after = snapshot(scratch)
+    assert {k: v for k, v in after.items() if "__pycache__" not in k} == \
+        {k: v for k, v in before.items() if "__pycache__" not in k}
+
+
+def test_an_empty_folder_and_our_own_results_are_replaced(tmp_path, earlier):
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    assert cli(FAST + ["--out", empty, "--quiet"]).returncode == 0
+    assert (empty / ".crosshead-results").is_file()
+    ours = fresh_copy(earlier, tmp_path / "ours")
+    (ours / "results.json").write_text("{}")  # replaced by the new run's
+    assert cli(FAST + ["--out", ours, "--quiet"]).returncode == 0
+    assert (ours / "results.json").read_text() != "{}"
+    assert debris(tmp_path, "ours") == [] and debris(tmp_path, "empty") == []
+
+
+# ------------------------------------------------------------------ 2. interrupts
+
+def start(args: list[str], launcher_ranks: int | None = None) -> subprocess.Popen:
+    cmd = [PY, "-m", "pipeline", *map(str, args)] if launcher_ranks is None else \
+        [PY, "-m", "pipeline.launch", str(launcher_ranks), *map(str, args)]
+    return subprocess.Popen(cmd, cwd=ROOT, env=ENV, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            text=True)
+
+
+def wait_for_staging(parent: Path, name: str, proc: subprocess.Popen, timeout: float = 120) -> None:
+    t0 = time.monotonic()
+    while not list(parent.glob(f".{name}.*.partial")):
+        assert proc.poll() is None, proc.communicate()
+        assert time.monotonic() - t0 < timeout
+        time.sleep(0.05)
+    time.sleep(1.0)  # well inside the run: pilot meshing or solving
+
+
+@pytest.mark.parametrize("sig,code,word", [(signal.SIGINT, 130, "interrupted"),
+                                           (signal.SIGTERM, 143, "terminated")])
+@pytest.mark.parametrize("ranks", [None, 2], ids=["one-process", "mpi-2-ranks"])
+def test_signal_mid_run_cleans_up_and_keeps_the_earlier_result(tmp_path, earlier, sig, code, word, ranks):
+    out = fresh_copy(earlier, tmp_path / "res")
+    before = snapshot(out)
+    proc = start(SLOW + ["--out", out], launcher_ranks=ranks)
+    wait_for_staging(tmp_path, "res", proc)
+    proc.send_signal(sig)
+    _, err = proc.communicate(timeout=120)
+    assert proc.returncode == code, err
+    lines = [ln for ln in err.strip().splitlines() if ln]
+    assert len(lines) == 1 and word in lines[0] and "Traceback" not in err, err
+    assert snapshot(out) == before
+    assert debris(tmp_path, "res") == []
+
+
+def test_staging_left_by_sigkill_is_removed_by_the_next_run(tmp_path, earlier):
+    out = fresh_copy(earlier, tmp_path / "res")
+    proc = start(SLOW + ["--out", out])
+    wait_for_staging(tmp_path, "res", proc)
+    proc.kill()
+    proc.communicate()
+    assert any(n.endswith(".partial") for n in debris(tmp_path, "res"))
+    again = cli(FAST + ["--out", out])
+    assert again.returncode == 0, again.stderr
+    assert "removed" in again.stdout
+    assert debris(tmp_path, "res") == []
+
+
+# ------------------------------------------------------------------ 3. two runs, one folder
+
+def test_second_run_to_a_folder_being_written_exits_2_naming_the_other(tmp_path, earlier):
+    out = fresh_copy(earlier, tmp_path / "res")
+    first = start(SLOW + ["--out", out])
+    wait_for_staging(tmp_path, "res", first)
+    second = cli(FAST + ["--out", out])
+    line = one_error_line(second, 2, "out", str(out), "another run", f"pid {first.pid}")
+    first.communicate(timeout=300)
+    assert first.returncode == 0, line
+    assert (out / ".crosshead-results").is_file() and debris(tmp_path, "res") == []
+
+
+# ------------------------------------------------------------------ 4. failures are one line
+
+def test_closed_stdout_does_not_lose_the_result(tmp_path):
+    out = tmp_path / "res"
+    proc = subprocess.Popen([PY, "-m", "pipeline", *FAST, "--out", str(out)], cwd=ROOT, env=ENV,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    proc.stdout.readline()  # like `| head -n 1`: read one line, then close the pipe
+    proc.stdout.close()
+    err = proc.stderr.read().decode()
+    assert proc.wait(timeout=300) == 0, err
+    assert "Traceback" not in err
+    assert (out / "results.json").is_file() and (out / ".crosshead-results").is_file()
+
+
+def test_disk_full_is_exit_2_with_nothing_written(tmp_path, earlier, monkeypatch, capsys):
+    """The disk fills up while results.json is written (in-process: a file-size limit would
+    also stop MPI's shared-memory start-up): exit 2, one line, nothing written, and the
+    parent folders the run created are gone again."""
+    import pipeline.study
+    from pipeline import __main__ as cli_main
+
+    def full(path, *a, **k):
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), str(path))
+    monkeypatch.setattr(pipeline.study, "write_json", full)
+    out = fresh_copy(earlier, tmp_path / "res")
+    before = snapshot(out)
+    for target in (out, tmp_path / "a" / "b" / "c"):
+        code = cli_main.main([*FAST, "--out", str(target), "--quiet"])
+        err = capsys.readouterr().err
+        assert code == 2 and len(err.strip().splitlines()) == 1, err
+        assert "out: cannot write" in err and "No space left" in err and "nothing written" in err
+    assert snapshot(out) == before and debris(tmp_path, "res") == []
+    assert not (tmp_path / "a").exists()
