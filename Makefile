@@ -33,7 +33,7 @@ converge: $(SETUP)
 BENCH_ARGS ?= --pilot on --factors 4.0,2.5,2.0,1.3,1.0 --p3-factors 3.0,2.5,2.0 --repeats 3 \
 	--ccx-solvers iterative,spooles --ranks-at targets --reference-values 113.79,66.27
 bench: $(SETUP)
-	$(PY) -m pipeline.bench --out results/bench --ranks 1,2 $(BENCH_ARGS)
+	$(PY) -m bench --out results/bench --ranks 1,2 $(BENCH_ARGS)
 
 setup: $(SETUP)
 

@@ -5,7 +5,7 @@ Units: every length in mm, every load in N (the table also carries the rated loa
 The table (``sizes.csv`` beside this file) has one row per hook number. Only the
 No. 05 row is published (Imrak et al. 2007, Table 1); every row says in its ``source``
 column where it came from. The columns ``dj_mm``, ``rf_mm``, ``seat_inner_mm`` and
-``seat_outer_mm`` are this project's assumptions (DESIGN §2): left empty they take
+``seat_outer_mm`` are this project's assumptions (docs/design.md §2): left empty they take
 the default rules of :func:`default_extras`.
 """
 from __future__ import annotations
@@ -49,7 +49,7 @@ class Dimensions:
 
 
 def default_extras(b1: float, d14: float, h3: float) -> dict[str, float]:
-    """The assumed dimensions of DESIGN §2 that the paper does not give, in mm.
+    """The assumed dimensions of docs/design.md §2 that the paper does not give, in mm.
 
     dj = 0.8·h, rf = 0.06·h, seat annulus Dm·(1 ∓ 0.19).
     """

@@ -12,10 +12,11 @@ from dataclasses import asdict, dataclass, field, fields, replace
 from pathlib import Path
 from typing import Any, Sequence
 
-from geometry.builder import MODELS, MeshSpec
+from geometry.part import MODELS
+from geometry.sizing import MeshSpec
 from geometry.table import Dimensions, InputError, lookup, validate
 
-from .crosshead import SUPPORTS
+from .loads import SUPPORTS
 from .solve import SOLVERS
 
 DIMENSION_KEYS = tuple(f.name for f in fields(Dimensions))
@@ -50,7 +51,7 @@ class Case:
     def mesh_spec(self, factor: float | None = None,
                   hotspots: Sequence[tuple[float, float, float]] = ()) -> MeshSpec:
         """The mesh sizes of this case (defaults scaled to the part), times ``factor``,
-        refined around ``hotspots`` (mm; see pipeline.run.pilot)."""
+        refined around ``hotspots`` (mm; see pipeline.pilot.pilot)."""
         base = MeshSpec.default_for(self.dims, order=min(self.order, 2))
         return replace(
             base,

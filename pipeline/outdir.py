@@ -192,7 +192,7 @@ def _prepare(raw: str) -> tuple[Path, Lock, list[Path], list[Path]]:
     try:
         created = _created_parents(out)
     except OSError as exc:
-        raise InputError(f"out: cannot create {out.parent}: {exc.strerror or exc}") from None
+        raise InputError(f"out: cannot write to {out.parent} (creating it failed: {exc.strerror or exc})") from None
     try:
         lock = acquire_lock(out)
     except OSError as exc:

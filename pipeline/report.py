@@ -6,10 +6,10 @@ import sys
 from pathlib import Path
 
 ASSUMED_WHY = {
-    "dj": "journal diameter, 0.8·h (DESIGN §2)",
-    "rf": "shoulder fillet radius, 0.06·h (DESIGN §2)",
-    "seat_inner": "seat annulus inner diameter (DESIGN §2)",
-    "seat_outer": "seat annulus outer diameter (DESIGN §2)",
+    "dj": "journal diameter, 0.8·h (docs/design.md §2)",
+    "rf": "shoulder fillet radius, 0.06·h (docs/design.md §2)",
+    "seat_inner": "seat annulus inner diameter (docs/design.md §2)",
+    "seat_outer": "seat annulus outer diameter (docs/design.md §2)",
 }
 DIM_NAMES = {"b1": "body width and length", "b2": "journal length", "b6": "tip-to-tip length",
              "d14": "bearing track mean diameter Dm", "d2": "bore diameter di",
@@ -133,7 +133,7 @@ def render_markdown(res: dict) -> str:
             f"within {100 * (1 - fe['pilot_fraction']):.0f} % of the global or critical peak: "
             f"{', '.join(_loc(p) for p in spots)} (and their mirror images).\n")
 
-    add("## Hand formulas (paper, DESIGN §4)\n")
+    add("## Hand formulas (paper, docs/design.md §4)\n")
     at = an["approximate_terms"]
     add(f"Approximate: Me = Q/2·(l/2 − Dm/π) with l = {_f(an['approximate_span_mm'], 2)} mm: "
         f"lever {_f(at['lever_mm'], 3)} mm, Me = {_f(at['Me_Nmm'], 0)} N·mm, "
@@ -203,7 +203,7 @@ def render_markdown(res: dict) -> str:
 
 
 def convergence_table(conv: dict) -> str:
-    """Markdown table of a convergence study (see pipeline.study)."""
+    """Markdown table of a convergence study (see pipeline.commands)."""
     rows = ["| mesh factor | DOFs | global peak (MPa) | critical peak (MPa) | time (s) |", "|---|---|---|---|---|"]
     for lv in conv["levels"]:
         rows.append(f"| {lv['mesh_factor']:.3g} | {lv['dofs']} | {_f(lv['peak_MPa'], 3)} | "

@@ -1,4 +1,4 @@
-"""Bad input never gets past validation (DESIGN §7, issue 5 items 1-2).
+"""Bad input never gets past validation (docs/design.md §7, §8).
 
 Every bad case must give exit status 2, exactly one line on stderr naming the field and
 the rule, no traceback, and nothing written: no --out folder and no hidden staging
@@ -23,11 +23,11 @@ import pytest
 from hypothesis import HealthCheck, event, given, settings
 from hypothesis import strategies as st
 
-import pipeline.run
+import pipeline.level
 import pipeline.solve
-import pipeline.study
-from geometry.builder import GeometryError
-from pipeline import __main__ as cli_main
+import pipeline.commands
+from geometry.part import GeometryError
+from pipeline import cli as cli_main
 from pipeline.case import SCHEMA, Case, check, resolve
 from pipeline.errors import InputError
 
@@ -74,8 +74,8 @@ def tripwire(monkeypatch):
     """
     def boom(*a, **k):
         raise AssertionError("bad input reached the mesher/solver")
-    monkeypatch.setattr(pipeline.study, "analyse", boom)
-    monkeypatch.setattr(pipeline.study, "pilot", boom)
+    monkeypatch.setattr(pipeline.commands, "analyse", boom)
+    monkeypatch.setattr(pipeline.commands, "pilot", boom)
 
 
 # --------------------------------------------------------------------------- corpus
@@ -300,7 +300,7 @@ def test_geometry_failure_exit_3(monkeypatch, no_stage_left):
 
     def fail(*a, **k):
         raise GeometryError("OpenCASCADE could not fuse the journal")
-    monkeypatch.setattr(pipeline.run, "make_mesh", fail)
+    monkeypatch.setattr(pipeline.level, "make_mesh", fail)
     code, _, err = call_main(["run", "--size", "05", "--levels", "1", "--quiet", "--out", out])
     assert code == 3 and "Traceback" not in err
     assert err.splitlines() == ["numerical failure: OpenCASCADE could not fuse the journal; nothing written"]
@@ -535,8 +535,8 @@ def test_cli_random_arguments(monkeypatch, fuzz_dir, argv):
     def stub(case, out_dir, levels=3, ratio=1.3, progress=None, **kw):
         calls.append((case, Path(out_dir), levels, ratio))
         return {}
-    monkeypatch.setattr(pipeline.study, "execute_run", stub)
-    monkeypatch.setattr(pipeline.study, "execute_converge", stub)
+    monkeypatch.setattr(pipeline.commands, "execute_run", stub)
+    monkeypatch.setattr(pipeline.commands, "execute_converge", stub)
     monkeypatch.setattr(cli_main, "_summary", lambda res, out: None)
     argv = [a.replace("{valid}", str(fuzz_dir / "valid.toml")).replace("{bad}", str(fuzz_dir / "bad.toml"))
             .replace("{missing}", str(fuzz_dir / "missing.toml")).replace("{tmp}", str(fuzz_dir)) for a in argv]

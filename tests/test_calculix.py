@@ -1,4 +1,4 @@
-"""CalculiX peer (pipeline.calculix) and the bench driver (pipeline.bench) on a coarse mesh.
+"""CalculiX peer (bench.calculix) and the bench driver (bench.run) on a coarse mesh.
 
 CalculiX and DOLFINx get the same second-order mesh, supports and consistent nodal loads,
 so they solve the same discrete problem up to the element quadrature: C3D10 integrates
@@ -20,13 +20,15 @@ import ufl
 from dolfinx.fem.petsc import LinearProblem
 from mpi4py import MPI
 
-from pipeline.calculix import FIELD_MAX, LINE_MAX, fmt, read_dat_displacements, solve_ccx
+from bench.calculix import FIELD_MAX, LINE_MAX, fmt, read_dat_displacements, solve_ccx
 from pipeline.case import resolve
-from pipeline.crosshead import crosshead_loads
-from pipeline.mesh_io import make_mesh
-from pipeline.post import peak, von_mises
-from pipeline.run import critical_region
-from pipeline.solve import Material, _dirichlet, solve, strain, stress
+from pipeline.loads import crosshead_loads
+from pipeline.meshing import make_mesh
+from pipeline.peaks import peak, von_mises
+from pipeline.features import critical_region
+from pipeline.elasticity import Material, strain, stress
+from pipeline.assembly import _dirichlet
+from pipeline.solve import solve
 
 ROOT = Path(__file__).resolve().parents[1]
 FACTOR = 2.0
@@ -155,7 +157,7 @@ def test_bench_quick(tmp_path):
                                "convergence": {"peak": {"extrapolated": 110.0, "status": "converged"},
                                                "critical": {"extrapolated": 66.5, "status": "converged"}}}))
     out = tmp_path / "bench"
-    p = subprocess.run([sys.executable, "-m", "pipeline.bench", "--quick", "--no-warmup",
+    p = subprocess.run([sys.executable, "-m", "bench.run", "--quick", "--no-warmup",
                         "--reference", str(ref), "--out", str(out)],
                        cwd=ROOT, capture_output=True, text=True, timeout=1800)
     assert p.returncode == 0, p.stdout[-2000:] + p.stderr[-2000:]
@@ -183,7 +185,7 @@ def test_bench_ranks_at_all_repeats_every_point_on_more_cores():
     """--ranks-at all: every 1-core point once more on 2 cores, the pipeline as 2 MPI ranks
     and CalculiX as one process with 2 threads; the default keeps 2 ranks on the finest P2
     mesh only. (Matrix only; nothing is solved.)"""
-    from pipeline import bench
+    from bench import run as bench
     argv = ["--orders", "2,3", "--solvers", "mumps", "--factors", "4.0,1.3", "--p3-factors", "2.5",
             "--ccx-solvers", "iterative", "--ranks", "1,2", "--pilot", "on"]
     every = bench.build_matrix(bench.make_parser().parse_args(argv + ["--ranks-at", "all"]))
@@ -204,7 +206,7 @@ def test_bench_ranks_at_targets_adds_the_default_solver_and_calculix_on_every_le
     """--ranks-at targets: on 2 cores the finest P2 mesh with every solver (the scaling
     check), and P2 pmg and CalculiX at every factor (the time to 1 % on both cores); no P3,
     no other solver on the coarser meshes. (Matrix only; nothing is solved.)"""
-    from pipeline import bench
+    from bench import run as bench
     argv = ["--orders", "2,3", "--solvers", "pmg,mumps", "--factors", "4.0,2.5,1.3", "--p3-factors", "2.5",
             "--ccx-solvers", "iterative,spooles", "--ranks", "1,2", "--pilot", "on", "--ranks-at", "targets"]
     pts = bench.build_matrix(bench.make_parser().parse_args(argv))

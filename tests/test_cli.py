@@ -1,4 +1,4 @@
-"""End-to-end: the CLI on a coarse mesh writes every key of the contract (DESIGN §7)."""
+"""End-to-end: the CLI on a coarse mesh writes every key of the contract (docs/design.md §7)."""
 import json
 import subprocess
 import sys
@@ -85,12 +85,12 @@ def test_bad_input_exit_2_one_line(tmp_path, args, field):
 
 
 def test_picture_draws_the_outer_surface_only():
-    """pipeline.render.boundary_surface on a cube of 5·n³ disconnected tets (each tet its own
+    """pipeline.picture.boundary_surface on a cube of 5·n³ disconnected tets (each tet its own
     nodes, like von_mises.vtu): the outer surface of a cube split into tets has 2 triangles
     per face square, 12 n² in all, whatever the split; the triangles use original nodes
     (by index, so each keeps its own value). (numpy only: no VTK in this process, which cannot share one with DOLFINx.)"""
     import itertools
-    from pipeline.render import boundary_surface
+    from pipeline.picture import boundary_surface
     n = 3
     # The 5-tet split of a unit cube, mirrored cube to cube so that faces match.
     base = [(0, 1, 2, 4), (1, 3, 2, 7), (1, 4, 5, 7), (2, 4, 7, 6), (1, 2, 4, 7)]

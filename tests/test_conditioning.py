@@ -1,4 +1,4 @@
-"""Conditioning (issue 5 item 5): iterations and residual are reported; CG with the default
+"""Conditioning: iterations and residual are reported; CG with the default
 p-multigrid (GAMG with the rigid-body near-nullspace on its P1 level), and CG + GAMG on the
 P2 matrix, need a mesh-independent number of iterations.
 
@@ -19,7 +19,7 @@ from pathlib import Path
 import pytest
 
 from pipeline.case import resolve
-from pipeline.run import solve_level
+from pipeline.level import solve_level
 
 ROOT = Path(__file__).resolve().parents[1]
 FACTORS = (2.5, 1.8, 1.3)      # coarse to fine

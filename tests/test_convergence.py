@@ -4,8 +4,10 @@ import math
 import pytest
 
 from pipeline.case import resolve
-from pipeline.convergence import estimate, observed_order
-from pipeline.run import analyse, build_results, singular_feature
+from pipeline.errorbar import estimate, observed_order
+from pipeline.analysis import analyse
+from pipeline.results import build_results
+from pipeline.features import singular_feature
 
 H = [1.0, 1.3, 1.69]
 
@@ -113,7 +115,7 @@ def test_pilot_is_never_coarser_than_the_fillet():
     elements (0.25·rf × factor by default) would exceed rf, i.e. at 4, and never finer than
     the case's own mesh. No. 05: rf = 1.5 mm, fillet size 0.375 mm."""
     from pipeline.case import resolve
-    from pipeline.run import pilot_factor
+    from pipeline.pilot import pilot_factor
     assert pilot_factor(resolve("05")) == pytest.approx(2.2)
     assert pilot_factor(resolve("05", overrides={"mesh_factor": 1.69})) == pytest.approx(1.69 * 2.2)
     assert pilot_factor(resolve("05", overrides={"mesh_factor": 2.5})) == pytest.approx(1.5 / 0.375)

@@ -8,8 +8,8 @@ from mpi4py import MPI
 
 from geometry.table import lookup
 from pipeline.case import resolve
-from pipeline.crosshead import crosshead_loads
-from pipeline.mesh_io import make_mesh, owners
+from pipeline.loads import crosshead_loads
+from pipeline.meshing import make_mesh, owners
 
 D05 = lookup("05").dims
 Q = 10_000.0
@@ -33,7 +33,7 @@ def test_loads_integrate_to_q_and_match_closed_form_pressures(model, share):
     assert abs(fz_seat + fz_bear) < 1e-6 * Q
     # The mesh-scaled pressures differ from the closed forms only by the faceting error.
     p_seat_closed = Q / (math.pi / 4 * (37 ** 2 - 25 ** 2))
-    p0_closed = Q / (math.pi * 10 * 11)       # p0 = Q / (π rj Lj), DESIGN §3
+    p0_closed = Q / (math.pi * 10 * 11)       # p0 = Q / (π rj Lj), docs/design.md §3
     area = integrate(m.mesh, fem.Constant(m.mesh, 1.0), ds(m.facet_ids["seat"]))
     assert share * Q / area == pytest.approx(p_seat_closed, rel=2e-3)
     # p0 from the scaled load: the vertical resultant of p0·cos²θ over the faceted half-cylinder.
@@ -61,7 +61,7 @@ def test_meshes_are_shared_out_largest_first():
 def test_error_bar_meshes_are_solved_one_per_rank_rank_0_least():
     """run.error_bar_ranks: the requested mesh on all ranks (None), the coarser ones shared
     out largest first, counting from the last rank (rank 0 also starts the picture)."""
-    from pipeline.run import error_bar_ranks
+    from pipeline.analysis import error_bar_ranks
     assert error_bar_ranks([1.0, 1.3, 1.69], 2) == [None, 1, 0]
     assert error_bar_ranks([0.77, 1.0, 1.3, 1.69], 2) == [None, 1, 0, 0]  # 1.0 against 0.66
     assert error_bar_ranks([1.0, 1.3, 1.69], 1) == [None, 0, 0]

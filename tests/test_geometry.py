@@ -6,7 +6,7 @@ import gmsh
 import pytest
 from scipy.integrate import quad
 
-from geometry.builder import build
+from geometry.part import build
 from geometry.table import InputError, lookup, validate, with_overrides
 
 D05 = lookup("05").dims
@@ -27,7 +27,7 @@ def test_no05_row_is_the_paper_table():
     row = lookup("05")
     d = row.dims
     assert (d.b1, d.b2, d.b6, d.d14, d.d2, d.h3) == (45, 12.5, 70, 31, 21, 25)
-    assert (d.dj, d.rf, d.seat_inner, d.seat_outer) == (20, 1.5, 25, 37)   # DESIGN §2 defaults
+    assert (d.dj, d.rf, d.seat_inner, d.seat_outer) == (20, 1.5, 25, 37)   # docs/design.md §2 defaults
     assert row.load_N == 10_000 and "Imrak" in row.source
 
 
@@ -81,7 +81,8 @@ def test_unbuildable_rows_name_the_field(field, over):
 def test_mesh_quality_agrees_with_gmsh(gmsh_session, factor):
     """builder.mesh's worst det J ratio (numpy, from the node positions after the curved-tet
     repair) is gmsh's own (getJacobians at the same sample points)."""
-    from geometry.builder import MeshSpec, jacobian_ratio, mesh
+    from geometry.sizing import MeshSpec, mesh
+    from geometry.curved import jacobian_ratio
     d = lookup("05").dims
     build(d, "quarter")
     quality = mesh(d, MeshSpec.default_for(d, factor))
@@ -96,8 +97,8 @@ def test_mesher_meshes_like_a_new_session():
     1- and 2-rank runs make their meshes in different orders on different ranks."""
     import numpy as np
 
-    from geometry.builder import MeshSpec
-    from pipeline.mesh_io import Mesher, generate
+    from geometry.sizing import MeshSpec
+    from pipeline.meshing import Mesher, generate
     d = lookup("05").dims
     places = ((0.0, 10.5, 0.0), (23.25, 8.0, 6.25))           # as a pilot finds them (mm)
     specs = [MeshSpec.default_for(d, 4.0), replace(MeshSpec.default_for(d, 4.0), hotspots=places),

@@ -1,4 +1,4 @@
-"""Near-limit rows (issue 5 item 4): solve with a mesh-quality figure, or refuse clearly.
+"""Near-limit rows: solve with a mesh-quality figure, or refuse clearly.
 
 Units mm, N, MPa. Each row is No. 05 with a few dimensions pushed towards a rule of
 geometry.table.validate. A row either
@@ -22,10 +22,10 @@ import time
 
 import pytest
 
-from geometry.builder import GeometryError
+from geometry.part import GeometryError
 from pipeline.case import resolve
 from pipeline.errors import InputError, NumericalError
-from pipeline.run import solve_level
+from pipeline.level import solve_level
 
 FACTOR = 2.5
 MAX_ITERATIONS = 200      # CG + GAMG needs ~40-130 here; 1000 is the solver's own cap

@@ -1,4 +1,4 @@
-"""Invariance tests (issue 5 item 3): answers that physics says must not change.
+"""Invariance tests: answers that physics says must not change.
 
 Units mm, N, MPa. Every expected number below comes from an invariance of linear
 elasticity, never from a pasted output:
@@ -31,7 +31,8 @@ import pytest
 
 from geometry.table import lookup
 from pipeline.case import resolve
-from pipeline.run import estimate_levels, solve_level
+from pipeline.analysis import estimate_levels
+from pipeline.level import solve_level
 
 ROOT = Path(__file__).resolve().parents[1]
 FACTOR = 2.0              # coarse mesh for every solve in this file
@@ -186,7 +187,7 @@ def test_one_and_two_mpi_ranks_agree(tmp_path):
 
     The partition changes the order of floating-point sums and GAMG's aggregates (so the
     iterates), not the converged answer; stresses are sampled in a DG space (no averaging
-    across the partition) and peak ties are broken by coordinates (pipeline.post.peak).
+    across the partition) and peak ties are broken by coordinates (pipeline.peaks.peak).
     On 2 ranks the two coarser meshes are made by rank 1 while rank 0 makes the finest
     (mesh_io.make_meshes): a mesh must not depend on the rank that made it.
     """

@@ -1,6 +1,6 @@
-"""Regression values for No. 05 with the DESIGN defaults (mm, N, MPa).
+"""Regression values for No. 05 with the defaults of docs/design.md §2 (mm, N, MPa).
 
-Formula baselines: the paper (Imrak et al. 2007 §5) and DESIGN §6.
+Formula baselines: the paper (Imrak et al. 2007 §5) and docs/design.md §6.
 
 FE baselines: an independent solution of the same model with P3 elements and MUMPS
 (another element order and solver than the P2/GAMG default), on its own pilot-refined
@@ -31,16 +31,17 @@ numbers with the date.
 """
 import pytest
 
-from pipeline import analytic
+from pipeline import formulas
 from pipeline.case import resolve
-from pipeline.run import pilot, solve_level
+from pipeline.pilot import pilot
+from pipeline.level import solve_level
 
 GLOBAL_LIMIT, GLOBAL_BAND = 113.79, 1.4
 CRITICAL_LIMIT, CRITICAL_BAND = 66.27, 0.2
 
 
 def test_formulas_against_paper():
-    h = analytic.hand_results(resolve("05").dims, 10_000.0)
+    h = formulas.hand_results(resolve("05").dims, 10_000.0)
     assert h.approximate.sigma_MPa == pytest.approx(37.8, abs=0.05)      # paper 37.8
     assert h.exact.sigma_MPa == pytest.approx(43.75, abs=0.07)           # paper 43.75 (43.81)
 

@@ -21,11 +21,11 @@ from pathlib import Path
 
 import pytest
 
-from geometry.builder import analytic_volume, build
+from geometry.part import analytic_volume, build
 from geometry.table import G_MS2, TABLE_PATH, load_table, validate
-from pipeline import analytic
+from pipeline import formulas
 from pipeline.case import resolve
-from pipeline.convergence import estimate, representative_size
+from pipeline.errorbar import estimate, representative_size
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tools"))
@@ -100,7 +100,7 @@ def _log_sensitivities(method: str) -> dict[str, float]:
             d[k] *= f
             if k in ("b1", "b2"):
                 d["b6"] = d["b1"] + 2 * d["b2"]
-            vals.append(getattr(analytic.hand_results(type(BASE.dims)(**d), BASE.load_N), method).sigma_MPa)
+            vals.append(getattr(formulas.hand_results(type(BASE.dims)(**d), BASE.load_N), method).sigma_MPa)
         out[k] = math.log(vals[0] / vals[1]) / math.log((1 + 1e-6) / (1 - 1e-6))
     return out
 
@@ -112,7 +112,7 @@ def test_formula_stresses_move_only_by_the_rounding(size):
     log-sensitivities S_k times the rounding ε_k = L_k/(s·L_k,05) − 1 of each length (with
     20 % allowance for second-order terms)."""
     row, s = TABLE[size], nominal_scale(size)
-    hr, hb = analytic.hand_results(row.dims, row.load_N), analytic.hand_results(BASE.dims, BASE.load_N)
+    hr, hb = formulas.hand_results(row.dims, row.load_N), formulas.hand_results(BASE.dims, BASE.load_N)
     eps = {k: getattr(row.dims, k) / (s * getattr(BASE.dims, k)) - 1 for k in ("b1", "b2", "d14", "d2", "h3")}
     for m in ("approximate", "exact"):
         sens = _log_sensitivities(m)
@@ -184,7 +184,7 @@ _SOLVES: dict = {}
 
 def solved(key: str, factor: float = FACTOR):
     """Coarse solve of a table row, or of "05x2" (No. 05 with every length ×2, load ×4)."""
-    from pipeline.run import solve_level
+    from pipeline.level import solve_level
     if (key, factor) not in _SOLVES:
         if key == "05x2":
             over = {f"dims.{k}": 2 * v for k, v in asdict(BASE.dims).items()}
@@ -202,7 +202,7 @@ def test_coarse_solve_of_smallest_and_largest_rows(size):
     assert lv.jacobian_ratio > 0
     assert lv.equilibrium_error_N <= 1e-6 * case.load_N
     assert lv.constraint_reaction_N <= 1e-6 * case.load_N
-    hand = analytic.hand_results(d, case.load_N)
+    hand = formulas.hand_results(d, case.load_N)
     crit, glob = lv.critical.value_MPa, lv.peak.value_MPa
     assert math.isfinite(glob) and glob >= crit
     # Ligament peak: above the nominal formula stresses, not absurdly so (FE concentration).
@@ -215,7 +215,7 @@ def test_coarse_solve_of_smallest_and_largest_rows(size):
 
 def test_exact_similarity_copy_gives_the_same_stresses():
     """No. 05 with every length ×2 and the load ×4 on the same mesh factor: the mesh is
-    No. 05's scaled (pipeline.mesh_io meshes at No. 05's size), so peaks agree to round-off."""
+    No. 05's scaled (pipeline.meshing meshes at No. 05's size), so peaks agree to round-off."""
     _, a = solved("05")
     _, b = solved("05x2")
     assert b.cells == a.cells
@@ -259,7 +259,7 @@ def test_rounded_row_matches_no05_within_its_rounding(size):
     """
     row = TABLE[size]
     k = similarity_ratio(size)
-    hr, hb = analytic.hand_results(row.dims, row.load_N), analytic.hand_results(BASE.dims, BASE.load_N)
+    hr, hb = formulas.hand_results(row.dims, row.load_N), formulas.hand_results(BASE.dims, BASE.load_N)
     deltas = [getattr(hr, m).sigma_MPa / getattr(hb, m).sigma_MPa / k - 1 for m in ("approximate", "exact")]
     mesh = 2 * _mesh_error_rel()
     _, a = solved("05")

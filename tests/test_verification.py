@@ -1,12 +1,12 @@
 """Verification of the solver against closed-form solutions (mm, N, MPa).
 
 Every problem goes through the product's own code: pipeline.solve.solve for the
-displacement, pipeline.solve.stress for stress components and pipeline.post.von_mises /
-pipeline.post.peak for von Mises peaks. The meshes come from gmsh/OpenCASCADE
+displacement, pipeline.solve.stress for stress components and pipeline.peaks.von_mises /
+pipeline.peaks.peak for von Mises peaks. The meshes come from gmsh/OpenCASCADE
 (tests/verification_problems.py). Every expected number below is a closed form written
 out here; none is a stored output of the code.
 
-The pipeline modules are used through their module objects (``ps.stress``, not
+The pipeline modules are used through their module objects (``pe.stress``, not
 ``from pipeline.solve import stress``), so a test sees exactly what the product runs,
 monkeypatches included.
 
@@ -27,11 +27,13 @@ from dolfinx import fem
 from mpi4py import MPI
 from petsc4py import PETSc
 
-import pipeline.post as pp
+import pipeline.peaks as pp
+import pipeline.elasticity as pe
 import pipeline.solve as ps
+from pipeline.pmultigrid import p1_interpolation
 import verification_problems as vp
 
-MAT = ps.Material(E=210_000.0, nu=0.3)
+MAT = pe.Material(E=210_000.0, nu=0.3)
 E, NU = MAT.E, MAT.nu
 MU = E / (2 * (1 + NU))
 LAM = E * NU / ((1 + NU) * (1 - 2 * NU))
@@ -66,10 +68,10 @@ def lame_solve(lc, order, lc_bore=None, solver="pmg"):
     prob = vp.lame_quarter_ring(LA, LB, LT, lc, order, lc_bore=lc_bore)
     ids = prob.ids
     n = ufl.FacetNormal(prob.mesh)
-    cons = [ps.Constraint(0, marker=ids["sym_x"]), ps.Constraint(1, marker=ids["sym_y"]),
-            ps.Constraint(2, marker=ids["z0"]), ps.Constraint(2, marker=ids["z1"])]
+    cons = [pe.Constraint(0, marker=ids["sym_x"]), pe.Constraint(1, marker=ids["sym_y"]),
+            pe.Constraint(2, marker=ids["z0"]), pe.Constraint(2, marker=ids["z1"])]
     sol = ps.solve(prob.mesh, prob.facet_tags, order, MAT,
-                   [ps.Traction(ids["bore"], -P_BORE * n)], cons, solver=solver)
+                   [pe.Traction(ids["bore"], -P_BORE * n)], cons, solver=solver)
     return prob, sol
 
 
@@ -82,7 +84,7 @@ def test_lame_bore_stresses_p2_curved_mesh():
     r = ufl.sqrt(x[0] ** 2 + x[1] ** 2)
     er = ufl.as_vector((x[0] / r, x[1] / r, 0))
     et = ufl.as_vector((-x[1] / r, x[0] / r, 0))
-    s = ps.stress(sol.u, MAT)
+    s = pe.stress(sol.u, MAT)
     srr, xyz = dg_values(sol.u, ufl.dot(er, ufl.dot(s, er)), 1)
     stt, _ = dg_values(sol.u, ufl.dot(et, ufl.dot(s, et)), 1)
     szz, _ = dg_values(sol.u, s[2, 2], 1)
@@ -162,11 +164,11 @@ def test_plate_with_hole_kt():
     prob = vp.plate_with_hole(PD, PW, L, t_half, lc_hole=0.35, lc_far=4.0, order=2)
     ids, mesh = prob.ids, prob.mesh
     traction = fem.Constant(mesh, PETSc.ScalarType((PS, 0.0, 0.0)))
-    cons = [ps.Constraint(0, marker=ids["sym_x"]), ps.Constraint(1, marker=ids["sym_y"]),
-            ps.Constraint(2, marker=ids["mid"])]
-    sol = ps.solve(mesh, prob.facet_tags, 2, MAT, [ps.Traction(ids["end"], traction)], cons)
+    cons = [pe.Constraint(0, marker=ids["sym_x"]), pe.Constraint(1, marker=ids["sym_y"]),
+            pe.Constraint(2, marker=ids["mid"])]
+    sol = ps.solve(mesh, prob.facet_tags, 2, MAT, [pe.Traction(ids["end"], traction)], cons)
     expected = kt_gross_peterson(PD / PW) * PS  # 3.227 × 100 MPa
-    sxx, xyz = dg_values(sol.u, ps.stress(sol.u, MAT)[0, 0], 1)
+    sxx, xyz = dg_values(sol.u, pe.stress(sol.u, MAT)[0, 0], 1)
     i = int(np.argmax(sxx))
     pk = pp.peak(pp.von_mises(sol.u, MAT))
     err_sxx = sxx[i] / expected - 1
@@ -204,11 +206,11 @@ def test_pure_bending_sigma_xx():
     ids, mesh = prob.ids, prob.mesh
     x = ufl.SpatialCoordinate(mesh)
     end = ufl.as_vector((-M * x[1] / BI, 0 * x[0], 0 * x[0]))  # σ·n on x = L/2, n = +x
-    cons = [ps.Constraint(0, marker=ids["x0"]), ps.Constraint(2, marker=ids["z0"]),
-            ps.Constraint(1, points=np.array([[0.0, -BH / 2, 0.0]]))]
-    sol = ps.solve(mesh, prob.facet_tags, 2, MAT, [ps.Traction(ids["x1"], end)], cons)
+    cons = [pe.Constraint(0, marker=ids["x0"]), pe.Constraint(2, marker=ids["z0"]),
+            pe.Constraint(1, points=np.array([[0.0, -BH / 2, 0.0]]))]
+    sol = ps.solve(mesh, prob.facet_tags, 2, MAT, [pe.Traction(ids["x1"], end)], cons)
     s_max = M * BC / BI
-    sxx, xyz = dg_values(sol.u, ps.stress(sol.u, MAT)[0, 0], 1)
+    sxx, xyz = dg_values(sol.u, pe.stress(sol.u, MAT)[0, 0], 1)
     away = xyz[:, 0] < BL / 4  # the half of the model away from the loaded end
     err = np.max(np.abs(sxx[away] + M * xyz[away, 1] / BI)) / s_max
     pk = pp.peak(pp.von_mises(sol.u, MAT), region=lambda p: p[:, 0] < BL / 4)
@@ -227,18 +229,18 @@ def test_cantilever_bending_stress_away_from_ends():
     extreme-fibre node of the middle half (x in [L/4, 3L/4], 2.5 h from either end)
     σ_xx within 1 % of M(x) c/I. The clamp reaction equals F (half of it in the model).
     MUMPS: with GAMG this slender bar trips solve()'s true-residual check at some mesh
-    sizes (see the report of issue 3 item 4).
+    sizes (docs/accuracy.md).
     """
     F = 1000.0  # N, on the full width
     prob = vp.bar(BL, BH, BB / 2, lc=3.0, order=2)
     ids, mesh = prob.ids, prob.mesh
     x = ufl.SpatialCoordinate(mesh)
     q = F / (2 * BI) * (BH ** 2 / 4 - x[1] ** 2)  # ∫ q dA over the full section = F
-    cons = [ps.Constraint(None, marker=ids["x0"]), ps.Constraint(2, marker=ids["z0"])]
+    cons = [pe.Constraint(None, marker=ids["x0"]), pe.Constraint(2, marker=ids["z0"])]
     sol = ps.solve(mesh, prob.facet_tags, 2, MAT,
-                   [ps.Traction(ids["x1"], ufl.as_vector((0 * x[0], -q, 0 * x[0])))], cons,
+                   [pe.Traction(ids["x1"], ufl.as_vector((0 * x[0], -q, 0 * x[0])))], cons,
                    solver="mumps")
-    sxx, xyz = dg_values(sol.u, ps.stress(sol.u, MAT)[0, 0], 1)
+    sxx, xyz = dg_values(sol.u, pe.stress(sol.u, MAT)[0, 0], 1)
     middle = (xyz[:, 0] > BL / 4) & (xyz[:, 0] < 3 * BL / 4)
     fibre = middle & (np.abs(np.abs(xyz[:, 1]) - BC) < 1e-9)
     assert fibre.sum() > 100
@@ -270,7 +272,7 @@ def stress_tensor_values(u, degree):
     mesh = u.function_space.mesh
     T = fem.TensorFunctionSpace(mesh, ("DG", degree))
     f = fem.Function(T)
-    f.interpolate(fem.Expression(ps.stress(u, MAT), T.element.interpolation_points()))
+    f.interpolate(fem.Expression(pe.stress(u, MAT), T.element.interpolation_points()))
     return f.x.array.reshape(-1, 9)
 
 
@@ -286,12 +288,12 @@ def test_patch_constant_stress_by_tractions(box_mesh):
     order, prob = box_mesh
     mesh, ids = prob.mesh, prob.ids
     sig = hooke(0.5 * (GRAD + GRAD.T))
-    tractions = [ps.Traction(ids[k], fem.Constant(mesh, PETSc.ScalarType(sig @ np.array(n, float))))
+    tractions = [pe.Traction(ids[k], fem.Constant(mesh, PETSc.ScalarType(sig @ np.array(n, float))))
                  for k, n in NORMALS.items()]
     lx, ly, _ = BOX
     pts = [(0, (0, 0, 0)), (1, (0, 0, 0)), (2, (0, 0, 0)), (1, (lx, 0, 0)), (2, (lx, 0, 0)),
            (2, (0, ly, 0))]
-    cons = [ps.Constraint(c, value=float(GRAD[c] @ np.array(p, float)), points=np.array([p], float))
+    cons = [pe.Constraint(c, value=float(GRAD[c] @ np.array(p, float)), points=np.array([p], float))
             for c, p in pts]
     sol = ps.solve(mesh, prob.facet_tags, order, MAT, tractions, cons, solver="mumps")
     xyz = sol.u.function_space.tabulate_dof_coordinates()
@@ -321,7 +323,7 @@ def test_patch_displacement_driven(box_mesh):
     e = np.array([1.0e-3, -0.4e-3, 0.7e-3])
     cons = []
     for i, (n0, n1) in enumerate((("x0", "x1"), ("y0", "y1"), ("z0", "z1"))):
-        cons += [ps.Constraint(i, 0.0, marker=ids[n0]), ps.Constraint(i, e[i] * BOX[i], marker=ids[n1])]
+        cons += [pe.Constraint(i, 0.0, marker=ids[n0]), pe.Constraint(i, e[i] * BOX[i], marker=ids[n1])]
     sol = ps.solve(mesh, prob.facet_tags, order, MAT, [], cons, solver="mumps")
     xyz = sol.u.function_space.tabulate_dof_coordinates()
     u_exact = xyz * e
@@ -371,13 +373,13 @@ def test_quadrature_split_is_exact_on_straight_cells():
     cell (round-off), while treating the curved cell as straight would change it."""
     from dolfinx.fem.petsc import assemble_matrix
     mesh = _two_p2_tets(0.15)
-    curved = ps.curved_cells(mesh)
+    curved = pe.curved_cells(mesh)
     assert curved.sum() == 1
     centroid = mesh.geometry.x[mesh.geometry.dofmap.array.reshape(2, 10)[:, :4]].mean(axis=1)
     assert centroid[curved][0].sum() > 1.0                      # the tet at (1, 1, 1)
     V = fem.VectorFunctionSpace(mesh, ("Lagrange", 2))
     u, v = ufl.TrialFunction(V), ufl.TestFunction(V)
-    integrand = ufl.inner(ps.stress(u, ps.Material()), ps.strain(v))
+    integrand = ufl.inner(pe.stress(u, pe.Material()), pe.strain(v))
 
     def matrix(form):
         A = assemble_matrix(fem.form(form))
@@ -385,25 +387,25 @@ def test_quadrature_split_is_exact_on_straight_cells():
         return A
 
     reference = matrix(integrand * ufl.dx)
-    split = matrix(ps.volume_integral(integrand, ps.volume_measures(mesh, 2)))
+    split = matrix(pe.volume_integral(integrand, pe.volume_measures(mesh, 2)))
     low = matrix(integrand * ufl.dx(metadata={"quadrature_degree": 2}))
     split.axpy(-1.0, reference)
     low.axpy(-1.0, reference)
     assert split.norm() <= 1e-12 * reference.norm()
     assert low.norm() >= 1e-4 * reference.norm()                 # the bow matters
-    assert not ps.curved_cells(_two_p2_tets(0.0)).any()
+    assert not pe.curved_cells(_two_p2_tets(0.0)).any()
 
 
 @pytest.mark.parametrize("order", [2, 3])
 def test_p1_interpolation_is_dolfinx_interpolation_matrix(order):
-    """solve.p1_interpolation (pmg's P1 -> Pk transfer) equals DOLFINx's own
+    """pmultigrid.p1_interpolation (pmg's P1 -> Pk transfer) equals DOLFINx's own
     interpolation_matrix, on a straight mesh and on curved P2 tets."""
     from dolfinx.cpp.fem.petsc import interpolation_matrix
     from dolfinx.mesh import create_unit_cube
     for mesh in (create_unit_cube(MPI.COMM_WORLD, 2, 2, 2), _two_p2_tets(0.15)):
         V = fem.VectorFunctionSpace(mesh, ("Lagrange", order))
         V1 = fem.VectorFunctionSpace(mesh, ("Lagrange", 1))
-        mine = ps.p1_interpolation(V1, V)
+        mine = p1_interpolation(V1, V)
         theirs = interpolation_matrix(V1._cpp_object, V._cpp_object)
         theirs.assemble()
         assert mine.getSizes() == theirs.getSizes() and mine.getBlockSize() == 3

@@ -19,7 +19,7 @@ import numpy as np
 from dolfinx.io import gmshio
 from mpi4py import MPI
 
-from geometry.builder import size_field
+from geometry.sizing import size_field
 
 TOL = 1e-6  # mm: geometric tolerance for picking planar faces by bounding box
 CURVED_TOL = 1e-4  # relative: OCC pads the bounding boxes of curved entities slightly

@@ -40,7 +40,7 @@ BASE_KG = 1000.0
 STEP_MM = 0.5
 SCALED_TAG = "scaled from No. 05 by geometric similarity"
 
-# DIN 15400 rated loads, kg, strength class S / mechanism group 2m (issue 6's transcription
+# DIN 15400 rated loads, kg, strength class S / mechanism group 2m (a transcription
 # of DIN 15400 Table 3), in hook-number order.
 RATED_KG: dict[str, float] = {
     "025": 500, "04": 800, "05": 1000, "08": 1600, "1": 2000, "1.6": 3200, "2.5": 5000,
@@ -58,13 +58,13 @@ HEADER = """\
 # (its assumed dj, rf and seat included) times s = sqrt(Q/1000 kg), rounded to 0.5 mm,
 # b6 = b1 + 2*b2. Those rows are written by tools/scale_sizes.py; do not edit them by hand
 # (`python tools/scale_sizes.py --check` verifies them).
-# Empty dj_mm, rf_mm, seat_*_mm cells take the assumed defaults of DESIGN §2 (dj = 0.8*h3,
+# Empty dj_mm, rf_mm, seat_*_mm cells take the assumed defaults of docs/design.md §2 (dj = 0.8*h3,
 # rf = 0.06*h3, seat annulus d14*(1 -/+ 0.19)). Empty load_N means rated_load_kg * 9.81.
 # To add a row copied from DIN 15412: write one line with the hook number, b1 b2 b6 d14 d2 h3
 # from the standard's table (type A; b6 must equal b1 + 2*b2), the DIN 15400 rated load in kg,
 # load_N empty, dj_mm rf_mm seat_inner_mm seat_outer_mm empty (defaults) or your own values,
 # and a source naming the standard, edition and table, e.g. "DIN 15412-1:1990 Table 1, type A,
-# copied by <who> <date>; dj rf seat assumed (DESIGN §2)". A copied row replaces the scaled row
+# copied by <who> <date>; dj rf seat assumed (docs/design.md §2)". A copied row replaces the scaled row
 # of the same hook number: run `python tools/scale_sizes.py` to drop that scaled row, then
 # `make <size>`.
 """

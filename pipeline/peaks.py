@@ -1,6 +1,6 @@
 """Post-processing: von Mises in a discontinuous space and its peaks (mm, MPa).
 
-Peaks are taken over element-nodal values without averaging (DESIGN §5): for P2
+Peaks are taken over element-nodal values without averaging (docs/design.md §5): for P2
 displacements the stress is interpolated into discontinuous P1, for Pk into DG(k−1).
 """
 from __future__ import annotations
@@ -12,7 +12,7 @@ import numpy as np
 from dolfinx import fem
 from mpi4py import MPI
 
-from .solve import Material, von_mises_expr
+from .elasticity import Material, von_mises_expr
 
 
 @dataclass(frozen=True)

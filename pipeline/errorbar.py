@@ -1,22 +1,5 @@
-"""Richardson extrapolation, observed order and Roache's grid convergence index (GCI).
-
-Follows Celik et al. (2008), "Procedure for estimation and reporting of uncertainty due
-to discretization in CFD applications", J. Fluids Eng. 130: the representative mesh size
-of an unstructured 3-D mesh is h = N^(-1/3) (N = DOFs), the observed order p comes from
-the finest three meshes by fixed-point iteration (refinement ratios may differ), and
-GCI_fine = Fs·|e21/f1| / (r21^p − 1) with Fs = 1.25.
-
-With four or more meshes the estimate is a least-squares fit instead (Eça & Hoekstra
-2014, "A procedure for the estimation of the numerical uncertainty of CFD calculations
-based on grid refinement studies", J. Comput. Phys. 262): f = f0 + C·h^p fitted over all
-meshes, the scatter σ of the fit measured, and the uncertainty U = Fs·|f1 − f0| + σ +
-|f1 − fit(h1)| with Fs = 1.25 when the data are smooth (σ below the data range per step)
-and Fs = 3 when they scatter. Peaks of unstructured meshes scatter by about 1 % from
-mesh to mesh, which a three-mesh Richardson estimate cannot see.
-
-A peak at a singular feature (re-entrant corner, edge of a rigid constraint) has no
-finite limit: its values keep growing under refinement with p → 0. Such a study gets
-status "singular" and no extrapolated value.
+"""The error bar of a peak from three or more meshes: observed order, Richardson
+extrapolation, grid convergence index (GCI), and the statuses when values do not converge.
 """
 from __future__ import annotations
 
@@ -27,7 +10,11 @@ from typing import Sequence
 import numpy as np
 
 FS = 1.25          # Roache's safety factor for three or more meshes
+
+
 P_SINGULAR = 0.5   # observed order below this: the peak is not converging
+
+
 SETTLED = 1e-3     # all meshes within this relative spread: "settled", no order fitted
 
 

@@ -1,21 +1,21 @@
 """The crosshead in CalculiX (ccx 2.20, C3D10) on the very mesh DOLFINx solves (mm, N, MPa).
 
-The peer of the bench (issue 4): the same gmsh second-order mesh, the same supports and
+The peer of the bench: the same gmsh second-order mesh, the same supports and
 the same loads, so that CalculiX and this pipeline solve the same discrete problem and
 differ only in element formulation (quadrature) and linear solver.
 
 - Nodes: the second-order gmsh nodes as DOLFINx imported them (``mesh.geometry.x``),
   numbered 1..N; elements: ``mesh.geometry.dofmap`` reordered to the C3D10 node order
   (DOLFINx tetra10 → C3D10 is ``DOLFINX_TO_C3D10``; it equals gmsh's tetra10 order with
-  the last two nodes swapped, STACK.md). Curved (isoparametric) mid-side nodes are kept.
+  the last two nodes swapped, docs/stack.md). Curved (isoparametric) mid-side nodes are kept.
 - Supports: the DOFs the pipeline's own Dirichlet conditions fix (pipeline.solve), as
   node sets with ``*BOUNDARY``.
 - Loads: ``*CLOAD`` nodal forces equal to the consistent load vector DOLFINx assembles
   for the same tractions (P2 on P2 geometry: one vector DOF block per geometry node).
 - Output: ``*NODE PRINT`` of U to the .dat file, read back into a DOLFINx P2 function
-  so von Mises and its peaks come from pipeline.post, exactly as for the pipeline.
+  so von Mises and its peaks come from pipeline.peaks, exactly as for the pipeline.
 
-CalculiX reads every number from a field of at most 20 characters (STACK.md): floats are
+CalculiX reads every number from a field of at most 20 characters (docs/stack.md): floats are
 written with 12 significant digits (``%.12g``: at most 19 characters), every input line
 stays below CalculiX's 132-character limit. Serial only (one MPI rank).
 """
@@ -37,9 +37,10 @@ from dolfinx.fem.petsc import assemble_vector
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from .crosshead import LoadCase
-from .errors import NumericalError
-from .solve import Material, _dirichlet
+from pipeline.loads import LoadCase
+from pipeline.errors import NumericalError
+from pipeline.elasticity import Material
+from pipeline.assembly import _dirichlet
 
 # Local node i of a C3D10 element is DOLFINx tetra10 node DOLFINX_TO_C3D10[i].
 # DOLFINx: vertices 0-3, then edges (2,3) (1,3) (1,2) (0,3) (0,2) (0,1).
@@ -265,11 +266,11 @@ def compare(case, factor: float, threads: int = 1, solver: str = "mumps",
     Returns both peaks of both codes, their relative differences and the largest
     displacement difference relative to the largest displacement.
     """
-    from .crosshead import crosshead_loads
-    from .mesh_io import make_mesh
-    from .post import peak, von_mises
-    from .run import critical_region
-    from .solve import solve
+    from pipeline.loads import crosshead_loads
+    from pipeline.meshing import make_mesh
+    from pipeline.peaks import peak, von_mises
+    from pipeline.features import critical_region
+    from pipeline.solve import solve
 
     if case.order != 2:
         raise ValueError("the CalculiX comparison needs the P2 (C3D10) case")
@@ -301,12 +302,12 @@ def compare(case, factor: float, threads: int = 1, solver: str = "mumps",
 
 
 def main(argv: list[str] | None = None) -> int:
-    """python -m pipeline.calculix [--size 05] [--factor 2.0]: DOLFINx vs CalculiX on one mesh."""
+    """python -m bench.calculix [--size 05] [--factor 2.0]: DOLFINx vs CalculiX on one mesh."""
     import argparse
     import json
 
-    from .case import resolve
-    p = argparse.ArgumentParser(prog="python -m pipeline.calculix",
+    from pipeline.case import resolve
+    p = argparse.ArgumentParser(prog="python -m bench.calculix",
                                 description="Solve one mesh with DOLFINx P2 and CalculiX C3D10; compare peaks.")
     p.add_argument("--size", default="05")
     p.add_argument("--factor", type=float, default=2.0, help="mesh factor (default 2.0, coarse)")

@@ -1,15 +1,15 @@
-"""Run time against error for No. 05, side by side with CalculiX (issue 4; mm, N, MPa, s).
+"""Run time against error for No. 05, side by side with CalculiX (mm, N, MPa, s).
 
-    python -m pipeline.bench --out results/bench            the full matrix (make bench)
-    python -m pipeline.bench --quick --out /tmp/b           2 coarse levels, 1 repeat, P2 pmg/mumps + ccx
-    python -m pipeline.bench --ranks 1,2                    also 2 MPI ranks on the finest P2 mesh
-    python -m pipeline.bench --ranks 1,2 --ranks-at targets also P2 pmg and CalculiX on every level on 2 cores
-    python -m pipeline.bench --ranks 1,2 --ranks-at all     every point also on 2 cores (2 ranks; ccx 2 threads)
+    python -m bench --out results/bench            the full matrix (make bench)
+    python -m bench --quick --out /tmp/b           2 coarse levels, 1 repeat, P2 pmg/mumps + ccx
+    python -m bench --ranks 1,2                    also 2 MPI ranks on the finest P2 mesh
+    python -m bench --ranks 1,2 --ranks-at targets also P2 pmg and CalculiX on every level on 2 cores
+    python -m bench --ranks 1,2 --ranks-at all     every point also on 2 cores (2 ranks; ccx 2 threads)
 
 The matrix: element order (P1, P2 on every mesh level, P3 on the coarse ones), mesh
-factor, solver (pmg, gamg, hypre, mumps; pmg is gamg for P1, so P1 skips it); plus CalculiX (ccx 2.20, C3D10, pipeline.calculix)
+factor, solver (pmg, gamg, hypre, mumps; pmg is gamg for P1, so P1 skips it); plus CalculiX (ccx 2.20, C3D10, bench.calculix)
 on the same P2 meshes. Every repeat of every point runs in a fresh process
-(``python -m pipeline.bench --point JSON``, under ``mpirun -n 2`` for 2 ranks), so the
+(``python -m bench --point JSON``, under ``mpirun -n 2`` for 2 ranks), so the
 peak memory (ru_maxrss) belongs to that point alone and each repeat is what a user's
 ``python -m pipeline run`` sees: a new interpreter with a warm form-compiler cache. One
 warm-up run per kind and order fills that cache before timing starts. Interpreter start
@@ -69,22 +69,22 @@ def run_point(spec: dict) -> dict | None:
     t_imp = time.perf_counter()
     from mpi4py import MPI
 
-    from .case import resolve
+    from pipeline.case import resolve
     comm = MPI.COMM_WORLD
-    from .mesh_io import Mesher
-    from .run import pilot
+    from pipeline.meshing import Mesher
+    from pipeline.pilot import pilot
     if spec["kind"] == "dolfinx":
-        from .run import solve_level
+        from pipeline.level import solve_level
     else:
-        from .calculix import solve_ccx
-        from .crosshead import crosshead_loads
-        from .mesh_io import make_mesh
-        from .post import peak, von_mises
-        from .run import critical_region
-        from .solve import Material
+        from bench.calculix import solve_ccx
+        from pipeline.loads import crosshead_loads
+        from pipeline.meshing import make_mesh
+        from pipeline.peaks import peak, von_mises
+        from pipeline.features import critical_region
+        from pipeline.elasticity import Material
     imports = time.perf_counter() - t_imp
     if comm.rank == 0:  # a bench stopped while compiling left a claim that would fail every point
-        from .formcache import jit_cache_dir, remove_interrupted
+        from pipeline.formcache import jit_cache_dir, remove_interrupted
         remove_interrupted(jit_cache_dir())
     order = int(spec.get("order", 2))
     case = resolve(spec.get("size", "05"),
@@ -173,7 +173,7 @@ def mpirun_prefix(ranks: int) -> list[str]:
 
 def spawn_point(spec: dict, ranks: int, threads: int, timeout: float) -> dict:
     """Run one repeat of a point in a fresh process; its result, or {"error": ...}."""
-    cmd = mpirun_prefix(ranks) + [sys.executable, "-m", "pipeline.bench", "--point", json.dumps(spec)]
+    cmd = mpirun_prefix(ranks) + [sys.executable, "-m", "bench.run", "--point", json.dumps(spec)]
     t0 = time.perf_counter()
     try:
         proc = subprocess.run(cmd, cwd=ROOT, env=_env(threads), capture_output=True, text=True,
@@ -480,7 +480,7 @@ def _csv_list(conv):
 
 
 def make_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="python -m pipeline.bench", description=__doc__,
+    p = argparse.ArgumentParser(prog="python -m bench", description=__doc__,
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--out", type=Path, default=Path("results/bench"), help="output folder (default results/bench)")
     p.add_argument("--quick", action="store_true",

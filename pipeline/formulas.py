@@ -1,4 +1,4 @@
-"""The paper's two hand formulas (DESIGN §4), every intermediate term kept (mm, N, MPa).
+"""The paper's two hand formulas (docs/design.md §4), every intermediate term kept (mm, N, MPa).
 
 The span l is an explicit input to both, because the paper uses l = b1 + b2 = 57.5 mm
 (journal centres) in the approximate method and l = b6 = 70 mm in the exact one.

@@ -15,13 +15,17 @@ from pathlib import Path
 from mpi4py import MPI
 
 from .case import Case
-from .mesh_io import Mesher
+from .meshing import Mesher
 from .interrupts import on_stop
 from .outdir import staged_dir
-from .output import write_json
-from .output import write_fields as write_field_files
+from .fields import write_json
+from .fields import write_fields as write_field_files
 from .report import write_report
-from .run import Level, Progress, analyse, build_results, describe_location, pilot, sum_timings
+from .level import Level, Progress
+from .analysis import analyse
+from .results import build_results, sum_timings
+from .features import describe_location
+from .pilot import pilot
 
 
 def execute_run(case: Case, out_dir: Path, levels: int = 3, ratio: float = 1.3,
@@ -112,8 +116,8 @@ class Picture:
 
 
 def start_picture(folder: Path) -> Picture:
-    """Start pipeline.render in its own process (VTK cannot share one with DOLFINx)."""
-    proc = subprocess.Popen([sys.executable, "-m", "pipeline.render", str(folder)],
+    """Start pipeline.picture in its own process (VTK cannot share one with DOLFINx)."""
+    proc = subprocess.Popen([sys.executable, "-m", "pipeline.picture", str(folder)],
                             stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
                             cwd=Path(__file__).resolve().parents[1])
     # mpirun binds each rank to one core, and a child inherits its parent's binding: the

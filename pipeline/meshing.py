@@ -19,7 +19,8 @@ from dolfinx.io import gmshio
 from dolfinx.mesh import create_mesh, meshtags_from_entities
 from mpi4py import MPI
 
-from geometry.builder import BuiltGeometry, MeshSpec, build, mesh
+from geometry.part import BuiltGeometry, build
+from geometry.sizing import MeshSpec, mesh
 from geometry.table import Dimensions
 
 

@@ -1,4 +1,4 @@
-"""Loads and supports of the crosshead (DESIGN §3), in terms of pipeline.solve (mm, N, MPa).
+"""Loads and supports of the crosshead (docs/design.md §3), in terms of pipeline.solve (mm, N, MPa).
 
 Seat: uniform pressure on the seat annulus, total Q down. Support "bearing": normal
 pressure p0·cos θ on the lower half of each journal's bearing surface, resultant Q/2 up
@@ -17,8 +17,8 @@ from mpi4py import MPI
 
 from geometry.table import Dimensions
 
-from .mesh_io import ImportedMesh
-from .solve import Constraint, Traction
+from .meshing import ImportedMesh
+from .elasticity import Constraint, Traction
 
 SUPPORTS = ("bearing", "rigid")
 

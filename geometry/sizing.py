@@ -1,0 +1,181 @@
+"""Meshing the built part: element sizes at the features, fillets and refined places
+(size fields), then second-order elements with their curved-tet repair.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import gmsh
+
+from .curved import _ensure_curved_quality
+from .part import GeometryError, _tol
+from .table import Dimensions
+
+HOTSPOT_SIZE = 0.4  # × the smaller of the feature and fillet sizes, at a pilot's stress peak
+
+
+HOTSPOT_RADIUS = 0.024  # × h3: how far that size holds around the peak (not scaled by factor)
+
+
+GRADE = 0.5  # largest growth of the element size per unit distance near the fillets
+
+
+@dataclass(frozen=True)
+class MeshSpec:
+    """Mesh size controls, mm. ``factor`` scales every size together (refinement studies).
+
+    size_body: size far from features; size_feature: size on the bore edges and the seat
+    band edges; size_fillet: size on the shoulder fillets (the journal-root stress peak
+    sits there); grading: distance over which sizes grow to size_body; order: geometric
+    order of the elements (1 or 2).
+    """
+
+    size_body: float
+    size_feature: float
+    size_fillet: float
+    grading: float
+    factor: float = 1.0
+    order: int = 2
+    # Stress peaks found on a pilot mesh (mm, any quadrant: mirrored into all four):
+    # size_hotspot within hotspot_radius of each, then growing like near the fillets.
+    hotspots: tuple[tuple[float, float, float], ...] = ()
+    size_hotspot: float = 0.0
+    hotspot_radius: float = 0.0
+
+    @staticmethod
+    def default_for(d: Dimensions, factor: float = 1.0, order: int = 2) -> "MeshSpec":
+        """Sizes proportional to the part so every row meshes alike.
+
+        The ratios were chosen for No. 05 by the convergence study (`make converge`).
+        """
+        fillet = 0.25 * d.rf if d.rf > 0 else 0.02 * d.h3
+        feature = 0.05 * d.h3
+        return MeshSpec(size_body=0.16 * d.h3, size_feature=feature, size_fillet=fillet,
+                        grading=0.4 * d.h3, factor=factor, order=order,
+                        size_hotspot=HOTSPOT_SIZE * min(feature, fillet),
+                        hotspot_radius=HOTSPOT_RADIUS * d.h3)
+
+
+def _balls(point: tuple[float, float, float], size: float, size_far: float, radius: float,
+           thickness: float) -> list[int]:
+    """gmsh Ball fields (mm): ``size`` within ``radius`` of the point and of its mirror
+    images in the planes x = 0 and y = 0 (the part and its loads have that symmetry),
+    growing linearly to size_far over ``thickness``.
+
+    A Ball is the same size function as a Threshold on a MathEval distance, but gmsh
+    evaluates it natively: with ten refined places the MathEval version made the first-order
+    mesh 3x slower (No. 05 x2: 1.10 s against 0.34 s without places)."""
+    x, y, z = abs(point[0]), abs(point[1]), point[2]
+    field = gmsh.model.mesh.field
+    tags = []
+    for cx, cy in sorted({(sx * x, sy * y) for sx in (1, -1) for sy in (1, -1)}):
+        tag = field.add("Ball")
+        for name, value in (("XCenter", cx), ("YCenter", cy), ("ZCenter", z), ("Radius", radius),
+                            ("Thickness", thickness), ("VIn", size), ("VOut", size_far)):
+            field.setNumber(tag, name, value)
+        tags.append(tag)
+    return tags
+
+
+def size_field(curves: list[int], size: float, size_far: float, dist_min: float,
+               dist_max: float) -> int:
+    """A gmsh Threshold field (mm): ``size`` within dist_min of the curves, growing linearly
+    to size_far at dist_max; returns its tag. gmsh 4.8 option names (EdgesList,
+    NNodesByEdge; newer gmsh: CurvesList, Sampling)."""
+    field = gmsh.model.mesh.field
+    dist = field.add("Distance")
+    field.setNumbers(dist, "EdgesList", curves)
+    field.setNumber(dist, "NNodesByEdge", 200)
+    thr = field.add("Threshold")
+    field.setNumber(thr, "IField", dist)
+    field.setNumber(thr, "LcMin", size)
+    field.setNumber(thr, "LcMax", size_far)
+    field.setNumber(thr, "DistMin", dist_min)
+    field.setNumber(thr, "DistMax", dist_max)
+    return thr
+
+
+def mesh(d: Dimensions, spec: MeshSpec) -> float:
+    """Mesh the current gmsh model: graded sizes, refined at the stress raisers.
+
+    Size fields: distance from the bore edges, the seat band edges and the shoulder
+    fillets; size_feature within that distance, growing linearly to size_body over
+    ``grading``. Every size is multiplied by spec.factor. Second order if spec.order == 2.
+    Returns the mesh's worst det J ratio (see :func:`jacobian_ratio`; 1 for linear tets).
+    """
+    f = spec.factor
+    hmax = spec.size_body * f
+    edges, fillets = _feature_curves(d)
+    field = gmsh.model.mesh.field
+
+    def threshold(curves: list[int], size: float, dist_min: float, dist_max: float) -> int:
+        return size_field(curves, size, hmax, dist_min, dist_max)
+
+    fields_ = [threshold(edges, spec.size_feature * f, 0.25 * spec.grading * f, spec.grading)]
+    if fillets:
+        # Fine only on the fillet, then sizes grow with slope <= 0.5: steeper growth gave
+        # slivers that curve into inverted P2 elements (seen at rf/6 on No. 05). (Distance
+        # from the fillet surface instead of its edge curves was tried: its curved meshes
+        # changed from run to run at coarse factors, peaks by up to 3 %.)
+        h_f = spec.size_fillet * f
+        fields_.append(threshold(fillets, h_f, 0.5 * d.rf, 0.5 * d.rf + (hmax - h_f) / GRADE))
+    for point in spec.hotspots:
+        # The radius is a region, not a size: it stays put while the sizes are scaled, so
+        # the DOFs grow with refinement like everywhere else (a scaled radius kept the
+        # number of elements in the ball constant and stalled the error-bar ratios).
+        h_s, r_s = spec.size_hotspot * f, spec.hotspot_radius
+        fields_ += _balls(point, h_s, hmax, r_s, (hmax - h_s) / GRADE)
+    fmin = field.add("Min")
+    field.setNumbers(fmin, "FieldsList", fields_)
+    field.setAsBackgroundMesh(fmin)
+    hmin = min([spec.size_feature, spec.size_fillet] + ([spec.size_hotspot] if spec.hotspots else [])) * f
+    opt = gmsh.option.setNumber
+    opt("Mesh.MeshSizeExtendFromBoundary", 0)
+    opt("Mesh.MeshSizeFromPoints", 0)
+    opt("Mesh.MeshSizeFromCurvature", 0)
+    opt("Mesh.MeshSizeMax", hmax)
+    opt("Mesh.MeshSizeMin", 0.5 * hmin)
+    opt("Mesh.Algorithm", 6)
+    opt("Mesh.Algorithm3D", 1)
+    opt("Mesh.ElementOrder", spec.order)
+    # gmsh's own high-order optimiser is off: it spent 3/4 of the meshing time (10 s of
+    # 13.5 s at No. 05 x1) repairing ~400 curved tets; _relax_curved does it in < 1 s.
+    opt("Mesh.HighOrderOptimize", 0)
+    opt("General.NumThreads", 1)
+    try:
+        gmsh.model.mesh.generate(3)
+    except Exception as exc:
+        raise GeometryError(f"gmsh could not mesh the part: {exc}") from None
+    quality = _ensure_curved_quality(spec.order) if spec.order >= 2 else 1.0
+    # DOLFINx's importer needs contiguous node tags.
+    gmsh.model.mesh.renumberNodes()
+    gmsh.model.mesh.renumberElements()
+    # Remove the size fields, so that the next mesh of this part (pipeline.meshing.Mesher)
+    # starts from the state of a new session. They are 1..fmin: gmsh numbers a new field
+    # after the largest, and there were none before this call (a new session, or the last
+    # call removed its own).
+    for tag in range(1, fmin + 1):
+        field.remove(tag)
+    return quality
+
+
+def _feature_curves(d: Dimensions) -> tuple[list[int], list[int]]:
+    """Curves where stress varies fast: (bore edges and seat circles, fillet edges)."""
+    rb, rsi, rso = d.d2 / 2, d.seat_inner / 2, d.seat_outer / 2
+    x_fillet = (d.b1 / 2, d.b1 / 2 + d.rf)
+    tol = 10 * _tol(d)
+    tags, fillet = [], []
+    for _, t in gmsh.model.getEntities(1):
+        xmin, ymin, zmin, xmax, ymax, zmax = gmsh.model.getBoundingBox(1, t)
+        if gmsh.model.getType(1, t) not in ("Circle", "Ellipse", "BSpline", "TrimmedCurve"):
+            continue
+        horizontal = abs(zmax - zmin) < _tol(d)
+        rmax = max(abs(xmin), abs(xmax), abs(ymin), abs(ymax))
+        if horizontal and any(abs(rmax - r) < tol for r in (rb, rsi, rso)):
+            tags.append(t)
+            continue
+        lo = min(abs(xmin), abs(xmax))
+        hi = max(abs(xmin), abs(xmax))
+        if abs(hi - lo) < _tol(d) and any(abs(lo - xf) < tol for xf in x_fillet):
+            fillet.append(t)
+    return tags, fillet

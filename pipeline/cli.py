@@ -1,0 +1,284 @@
+"""Command line: python -m pipeline {run,converge} ... (units: mm, N, MPa).
+
+Exit status: 0 done; 2 bad input (one line on stderr, nothing written); 3 numerical
+failure (nothing written).
+"""
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import time
+from pathlib import Path
+
+T_START = time.perf_counter()
+
+# One process, one core: the parallelism is MPI ranks. BLAS only does small dense work here
+# (GAMG, eigenvalue estimates), and OpenBLAS's idle threads spin: one process on 2 cores
+# (make run RANKS=1) used 9.5 s of system time instead of 1.0 s, same wall time, the core
+# that the picture process needs. Read when numpy loads, so set before any import of it.
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+
+from pipeline.interrupts import install as install_interrupts, no_petsc_handlers  # noqa: E402
+
+no_petsc_handlers()  # before anything imports PETSc
+
+DESCRIPTION = """\
+Finite-element stress analysis of a DIN 15412 crane hook-block crosshead.
+
+Builds the part from its table dimensions (gmsh/OpenCASCADE), meshes it, solves 3-D
+linear elasticity (DOLFINx) and reports the peak von Mises stress, where it sits and its
+discretisation error bar, beside the paper's approximate and exact hand formulas.
+Units everywhere: mm, N, MPa.
+"""
+
+EPILOG = """\
+examples:
+  python -m pipeline run --size 05                      hook No. 05 under its 10 kN load
+  python -m pipeline run --case cases/05.toml --out results/my05
+  python -m pipeline run --size 05 --load 12500 --support rigid
+  python -m pipeline run --size 05 --dim rf=2.0 --mesh-factor 0.8
+  python -m pipeline converge --size 05                 mesh convergence study
+
+exit status: 0 done; 2 bad input or an output folder that cannot be used (nothing written);
+3 numerical failure (nothing written); 130 interrupted (Ctrl-C), 143 terminated (SIGTERM):
+the earlier result in the output folder is left as it was
+"""
+
+
+class OneLineParser(argparse.ArgumentParser):
+    """argparse that reports a usage error as one line and exit status 2."""
+
+    def error(self, message: str) -> None:  # type: ignore[override]
+        sys.stderr.write(f"error: {' '.join(message.split())} (see --help)\n")
+        sys.exit(2)
+
+
+def _positive_float(text: str) -> float:
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+    return v
+
+
+def _loads(text: str) -> list[float]:
+    """--load: one value, a comma list (5000,10000) or a range START:STOP:COUNT, in N."""
+    parts = text.split(":")
+    if len(parts) == 3:
+        a, b = _positive_float(parts[0]), _positive_float(parts[1])
+        try:
+            n = int(parts[2])
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"load_N: range count {parts[2]!r} is not an integer") from None
+        if not 2 <= n <= 1000:
+            raise argparse.ArgumentTypeError(f"load_N: range count must lie in 2..1000, got {n}")
+        return [a + (b - a) * k / (n - 1) for k in range(n)]
+    if len(parts) != 1:
+        raise argparse.ArgumentTypeError(f"load_N: {text!r}: give N, N1,N2,... or START:STOP:COUNT")
+    values = [_positive_float(v) for v in text.split(",")]
+    if not values or len(values) > 1000:
+        raise argparse.ArgumentTypeError("load_N: give between 1 and 1000 loads")
+    return values
+
+
+def _dim(text: str) -> tuple[str, float]:
+    from geometry.table import Dimensions
+    names = list(Dimensions.__dataclass_fields__)
+    if "=" not in text:
+        raise argparse.ArgumentTypeError(f"{text!r}: expected NAME=VALUE with NAME one of {', '.join(names)}")
+    k, v = text.split("=", 1)
+    if k not in names:
+        raise argparse.ArgumentTypeError(f"unknown dimension {k!r}; known: {', '.join(names)}")
+    try:
+        return k, _positive_float(v)
+    except argparse.ArgumentTypeError as exc:
+        raise argparse.ArgumentTypeError(f"{k}: {exc}") from None
+
+
+def add_case_options(p: argparse.ArgumentParser) -> None:
+    """Options shared by run and converge: what to analyse and how finely."""
+    g = p.add_argument_group("what to analyse")
+    g.add_argument("--size", help="hook number from geometry/sizes.csv, e.g. 05, 1.6, 10")
+    g.add_argument("--case", type=Path, help="case file (TOML), e.g. cases/05.toml")
+    g.add_argument("--load", type=_loads, dest="loads", metavar="N",
+                   help="hook load Q in N (default: the size's rated load); a list 5000,10000 or a range "
+                        "5000:20000:4 is solved once and scaled (linear elasticity)")
+    g.add_argument("--dim", type=_dim, action="append", default=[], metavar="NAME=MM",
+                   help="override one dimension in mm (b1 b2 b6 d14 d2 h3 dj rf seat_inner seat_outer); repeatable")
+    g.add_argument("--support", choices=("bearing", "rigid"),
+                   help="journal support: cosine bearing pressure (default) or rigid u_z = 0 (singular edges)")
+    g.add_argument("--model", choices=("quarter", "full"), help="quarter with symmetry planes (default) or full part")
+    g.add_argument("--E", type=_positive_float, dest="E_MPa", metavar="MPA", help="Young's modulus, MPa (default 210000)")
+    g.add_argument("--nu", type=_positive_float, metavar="NU", help="Poisson's ratio (default 0.3)")
+    g.add_argument("--allowable", type=_positive_float, dest="allowable_MPa", metavar="MPA",
+                   help="allowable stress for the safety factor, MPa (default 80)")
+    g.add_argument("--span-approximate", type=_positive_float, dest="approximate_span_mm", metavar="MM",
+                   help="span l of the approximate formula, mm (default b1 + b2, as the paper)")
+    g.add_argument("--span-exact", type=_positive_float, dest="exact_span_mm", metavar="MM",
+                   help="span l of the exact formula, mm (default b6, as the paper)")
+    m = p.add_argument_group("mesh and solver")
+    m.add_argument("--order", type=int, help="element order of the displacement: 1, 2 (default) or 3")
+    m.add_argument("--mesh-factor", type=_positive_float, dest="mesh_factor", metavar="F",
+                   help="multiply every mesh size by F (<1 finer, >1 coarser; default 1)")
+    m.add_argument("--size-body", type=_positive_float, dest="size_body_mm", metavar="MM", help="element size away from features, mm")
+    m.add_argument("--size-feature", type=_positive_float, dest="size_feature_mm", metavar="MM", help="element size at bore and seat edges, mm")
+    m.add_argument("--size-fillet", type=_positive_float, dest="size_fillet_mm", metavar="MM", help="element size on the shoulder fillets, mm")
+    m.add_argument("--grading", type=_positive_float, dest="grading_mm", metavar="MM", help="distance over which sizes grow, mm")
+    m.add_argument("--solver", choices=("pmg", "gamg", "hypre", "mumps"),
+                   help="CG + p-multigrid over P1 with GAMG (default), CG + GAMG, CG + BoomerAMG, or direct MUMPS")
+    m.add_argument("--rtol", type=_positive_float, help="relative tolerance of the iterative solver on the true residual (default 1e-8)")
+    p.add_argument("--out", type=Path, help="output folder (default results/<case name>)")
+    p.add_argument("--quiet", action="store_true", help="no progress lines")
+
+
+def make_parser() -> argparse.ArgumentParser:
+    parser = OneLineParser(prog="python -m pipeline", description=DESCRIPTION, epilog=EPILOG,
+                           formatter_class=argparse.RawDescriptionHelpFormatter)
+    sub = parser.add_subparsers(dest="command", metavar="{run,converge}", parser_class=OneLineParser)
+    run = sub.add_parser("run", help="analyse one case and write results, report, fields, picture",
+                         description=DESCRIPTION, epilog=EPILOG,
+                         formatter_class=argparse.RawDescriptionHelpFormatter)
+    add_case_options(run)
+    run.add_argument("--levels", type=int, default=3,
+                     help="meshes solved for the error bar: the requested one and coarser ones (default 3; 1 = no error bar)")
+    run.add_argument("--ratio", type=_positive_float, default=1.3, help="mesh-size ratio between those meshes (default 1.3)")
+    run.add_argument("--no-fields", action="store_true", help="skip ParaView files, picture and report (benchmarks)")
+    conv = sub.add_parser("converge", help="mesh convergence study: >= 4 meshes, extrapolation, GCI, plot",
+                          description=DESCRIPTION, epilog=EPILOG,
+                          formatter_class=argparse.RawDescriptionHelpFormatter)
+    add_case_options(conv)
+    conv.add_argument("--levels", type=int, default=4,
+                      help="number of meshes (default 4, at least 4); the finest is the case's mesh / ratio^(levels-3)")
+    conv.add_argument("--ratio", type=_positive_float, default=1.3, help="mesh-size ratio between meshes, >= 1.3 (default 1.3)")
+    return parser
+
+
+CASE_KEYS = ("support", "model", "E_MPa", "nu", "allowable_MPa", "approximate_span_mm",
+             "exact_span_mm", "order", "mesh_factor", "size_body_mm", "size_feature_mm",
+             "size_fillet_mm", "grading_mm", "solver", "rtol")
+
+
+def main(argv: list[str] | None = None, handle_signals: bool = False) -> int:
+    """The command line; ``handle_signals`` (the program, not a test calling in) makes
+    Ctrl-C and SIGTERM stop a run cleanly with exit 130 / 143 (pipeline.interrupts)."""
+    args = make_parser().parse_args(argv)
+    if args.command is None:
+        make_parser().print_help()
+        sys.stderr.write("error: command: choose run or converge (see --help)\n")
+        return 2
+    if handle_signals:
+        install_interrupts(speak=os.environ.get("OMPI_COMM_WORLD_RANK", os.environ.get("PMI_RANK", "0")) == "0")
+    try:
+        return _dispatch(args)
+    except KeyboardInterrupt:
+        sys.stderr.write("interrupted (Ctrl-C): nothing written, the output folder is as it was\n")
+        return 130
+
+
+def _dispatch(args) -> int:
+    from mpi4py import MPI
+
+    from geometry.part import GeometryError
+    from pipeline.errors import InputError, NumericalError
+    rank0 = MPI.COMM_WORLD.rank == 0
+    try:
+        from dataclasses import replace
+
+        from pipeline.case import check, resolve
+        overrides = {k: getattr(args, k) for k in CASE_KEYS}
+        overrides.update({f"dims.{k}": v for k, v in args.dim})
+        loads = args.loads or []
+        if loads:
+            overrides["load_N"] = loads[0]
+        for q in loads[1:]:  # every load of a sweep must pass the same checks as the first
+            check(replace(resolve(args.size, args.case, overrides), load_N=q))
+        if args.size is None and args.case is None:
+            raise InputError("size: give --size (hook number) or --case (case file)")
+        case = resolve(args.size, args.case, overrides)
+        if args.levels < 1 or args.levels > 8:
+            raise InputError(f"levels: must lie in 1..8, got {args.levels}")
+        if args.command == "converge" and (args.levels < 4 or args.ratio < 1.3):
+            raise InputError("levels/ratio: a convergence study needs at least 4 meshes and ratio >= 1.3")
+        if not 1.1 <= args.ratio <= 3:
+            raise InputError(f"ratio: must lie in [1.1, 3], got {args.ratio:g}")
+        if args.command == "converge":  # the study's finest mesh must pass the case's mesh checks too
+            finest = case.mesh_factor / args.ratio ** max(args.levels - 3, 0)
+            try:
+                check(replace(case, mesh_factor=finest))
+            except InputError as exc:
+                raise InputError(f"levels: the finest mesh of this study (mesh factor {case.mesh_factor:g} / "
+                                 f"{args.ratio:g}^{args.levels - 3} = {finest:.3g}) is not allowed: {exc}") from None
+        if rank0:  # before any form is compiled; the other ranks wait for rank 0's compiles
+            from pipeline.formcache import jit_cache_dir, remove_interrupted
+            for stale in remove_interrupted(jit_cache_dir()):
+                _progress(f"removed {stale.name} from the form cache (an interrupted compile)")
+        from pipeline.outdir import check_out, default_out
+        out = args.out if args.out is not None else default_out(
+            case.name if args.command == "run" else f"{case.name}-converge")
+        check_out(out)  # refused before any work; checked again under the lock
+        say = (lambda s: None) if (args.quiet or not rank0) else _progress
+        _progress(f"imports {time.perf_counter() - T_START:.2f} s; case {case.name}: hook No. {case.size}, "
+                  f"Q = {case.load_N:g} N, {case.model} model, {case.support} support, P{case.order}") \
+            if not args.quiet and rank0 else None
+        if args.command == "run":
+            from pipeline.commands import execute_run
+            res = execute_run(case, out, levels=args.levels, ratio=args.ratio, progress=say,
+                              write_fields=not args.no_fields, loads=loads if len(loads) > 1 else None)
+        else:
+            from pipeline.commands import execute_converge
+            res = execute_converge(case, out, levels=args.levels, ratio=args.ratio, progress=say)
+        if rank0 and not args.quiet:
+            _summary(res, out)
+        return 0
+    except InputError as exc:
+        if rank0:
+            sys.stderr.write(f"error: {_one_line(exc)}\n")
+        return 2
+    except (NumericalError, GeometryError) as exc:
+        if rank0:
+            sys.stderr.write(f"numerical failure: {_one_line(exc)}; nothing written\n")
+        return 3
+    except OSError as exc:  # disk full, permission, ...: the staging folder is already gone
+        if rank0:
+            where = f" {exc.filename}" if exc.filename else ""
+            sys.stderr.write(f"error: out: cannot write{where}: {exc.strerror or exc}; nothing written, "
+                             "the output folder is as it was\n")
+        return 2
+    except Exception as exc:  # a failure no check foresaw: still one line and nothing written
+        if os.environ.get("CROSSHEAD_TRACEBACK"):
+            raise
+        if rank0:
+            sys.stderr.write(f"failure: {type(exc).__name__}: {_one_line(exc)}; nothing written "
+                             "(set CROSSHEAD_TRACEBACK=1 for the traceback)\n")
+        return 3
+
+
+def _one_line(exc: Exception) -> str:
+    return " ".join(str(exc).split())
+
+
+def _progress(msg: str) -> None:
+    _print(f"[{time.perf_counter() - T_START:7.2f} s] {msg}")
+
+
+def _print(line: str) -> None:
+    """Print a line; a closed stdout (``| head``) silences the rest instead of ending the run."""
+    try:
+        print(line, flush=True)
+    except (BrokenPipeError, ValueError):
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        os.close(devnull)
+
+
+def _summary(res: dict, out: Path) -> None:
+    from pipeline.report import error_bar_text
+    fe = res["fe"]
+    print(f"global peak   {fe['peak']['value_MPa']:8.2f} MPa  {error_bar_text(fe['peak'])}  [{fe['peak']['feature']}]")
+    print(f"critical peak {fe['critical']['value_MPa']:8.2f} MPa  {error_bar_text(fe['critical'])}  [{fe['critical']['feature']}]")
+    an = res["analytic"]
+    print(f"formulas: approximate {an['approximate_MPa']:.2f} MPa, exact {an['exact_MPa']:.2f} MPa; "
+          f"safety factor {fe['safety_factor']:.2f} (global), {fe['critical_safety_factor']:.2f} (critical)")
+    print(f"written to {out}/ (results.json, report.md, ...) in {res['timings_s']['total']:.1f} s")
+

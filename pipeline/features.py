@@ -1,0 +1,61 @@
+"""Places on the part: the critical region, the name of the feature a point lies on, and
+whether that feature is singular (no finite peak).
+"""
+from __future__ import annotations
+
+import math
+from typing import Callable
+
+import numpy as np
+
+from .case import Case
+
+
+def critical_region(case: Case) -> Callable[[np.ndarray], np.ndarray]:
+    """The ligaments beside the bore: |x| <= di/2 (docs/design.md §5)."""
+    half = case.dims.d2 / 2 * (1 + 1e-9)
+    return lambda xyz: np.abs(xyz[:, 0]) <= half
+
+
+def describe_location(case: Case, xyz: tuple[float, float, float]) -> str:
+    """Plain-words name of the feature at point xyz (mm), for the report."""
+    d = case.dims
+    x, y, z = (abs(xyz[0]), abs(xyz[1]), xyz[2])
+    r_axis = math.hypot(x, y)
+    tol = 0.02 * d.h3
+    vertical = "bottom" if z < tol else "top" if z > d.h3 - tol else "mid-height"
+    if abs(r_axis - d.d2 / 2) < tol:
+        return f"bore edge ({vertical} face)" if vertical != "mid-height" else "bore wall"
+    if d.b1 / 2 - tol <= x <= d.b1 / 2 + d.rf + tol and x >= d.b1 / 2 - tol and \
+            math.hypot(y, z - d.h3 / 2) < d.dj / 2 + d.rf + tol and d.rf > 0:
+        return "journal shoulder fillet"
+    if x > d.b1 / 2 + tol:
+        return "journal"
+    if z > d.h3 - tol and min(abs(r_axis - d.seat_inner / 2), abs(r_axis - d.seat_outer / 2)) < tol:
+        return "seat band edge (top face)"
+    if x <= d.d2 / 2:
+        return f"ligament beside the bore ({vertical})"
+    return f"body ({vertical})"
+
+
+def singular_feature(case: Case, xyz: tuple[float, float, float]) -> str | None:
+    """Name of the known stress singularity at point xyz (mm), or None.
+
+    Theory, not numerics: a shoulder without fillet (rf = 0) is a re-entrant 90° edge; the
+    boundary of a rigid support patch (support "rigid") is an edge where a displacement
+    constraint meets a free surface. Stresses there grow without bound under refinement.
+    """
+    d = case.dims
+    x, y, z = abs(xyz[0]), abs(xyz[1]), xyz[2]
+    tol = max(0.03 * d.h3, 1e-9)
+    r = math.hypot(y, z - d.h3 / 2)
+    if d.rf == 0 and abs(x - d.b1 / 2) < tol and abs(r - d.dj / 2) < tol:
+        return "re-entrant edge at the journal shoulder (rf = 0, no fillet)"
+    if case.support == "rigid" and x >= d.b1 / 2 + d.rf - tol and abs(r - d.dj / 2) < tol and z <= d.h3 / 2 + tol:
+        if abs(x - (d.b1 / 2 + d.rf)) < tol:
+            return "edge of the rigid support patch at the fillet run-out"
+        if abs(z - d.h3 / 2) < tol:
+            return "edge of the rigid support patch at journal mid-height (θ = 90°)"
+        if abs(x - d.b6 / 2) < tol:
+            return "edge of the rigid support patch at the journal tip"
+    return None

@@ -1,0 +1,94 @@
+"""One mesh level of an analysis: mesh -> loads -> solve -> peaks (mm, N, MPa)."""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Callable, Sequence
+
+from mpi4py import MPI
+
+from .case import Case
+from .elasticity import Material
+from .errors import NumericalError
+from .features import critical_region
+from .loads import crosshead_loads, equilibrium
+from .meshing import ImportedMesh, Mesher, make_mesh
+from .peaks import Peak, peak, von_mises
+from .solve import solve
+
+Progress = Callable[[str], None]
+
+
+Hotspots = Sequence[tuple[float, float, float]]
+
+
+@dataclass
+class Level:
+    """The result of one mesh: peaks (MPa, mm), sizes, solver data, times (s)."""
+
+    factor: float
+    dofs: int
+    cells: int
+    peak: Peak
+    critical: Peak
+    iterations: int
+    residual_rel: float
+    seat_force_N: float
+    support_force_N: float
+    equilibrium_error_N: float
+    constraint_reaction_N: float
+    jacobian_ratio: float
+    timings: dict[str, float]
+    fields: tuple | None = None  # (u, von_mises) on the requested mesh only
+
+
+def solve_level(case: Case, factor: float, msh_path: Path | None = None,
+                keep_fields: bool = False, comm=MPI.COMM_WORLD,
+                progress: Progress | None = None, hotspots: Hotspots = (),
+                load_mesh: Callable[[], ImportedMesh] | None = None,
+                mesher: Mesher | None = None) -> Level:
+    """Build, mesh and solve the case with every mesh size times ``factor``; find the peaks.
+
+    ``load_mesh``: that mesh made already (see :func:`analyse`); factor, msh_path and
+    hotspots are then only the mesh's description. ``mesher``: this process's
+    mesh_io.Mesher of the case's part, if it has one. Raises NumericalError if the mesh has
+    an inverted element, the solver fails, the result is not finite, or the loads do not
+    balance to 1e-6·Q.
+    """
+    say = progress or (lambda s: None)
+    if load_mesh is None:
+        m = make_mesh(case.dims, case.model, case.mesh_spec(factor, hotspots), comm=comm, msh_path=msh_path,
+                      mesher=mesher)
+    else:
+        m = load_mesh()
+    say(f"mesh ×{factor:.3g}: {m.mesh.topology.index_map(3).size_global} tets, "
+        f"geometry {m.timings['geometry']:.2f} s, mesh {m.timings['mesh']:.2f} s, "
+        f"import {m.timings['import']:.2f} s")
+    if not m.jacobian_ratio > 0:
+        raise NumericalError(f"mesh: a curved element is inverted (worst det J ratio {m.jacobian_ratio:.3g}) "
+                             f"at mesh factor {factor:.3g}; try a slightly different --mesh-factor")
+    mat = Material(E=case.E_MPa, nu=case.nu)
+    lc = crosshead_loads(m, case.dims, case.load_N, case.support)
+    sol = solve(m.mesh, m.facet_tags, case.order, mat, lc.tractions, lc.constraints,
+                solver=case.solver, rtol=case.rtol)
+    support, eq_err, point_r = equilibrium(lc, sol.reactions)
+    limit = 1e-6 * case.load_N
+    if not (eq_err <= limit and point_r <= limit):
+        raise NumericalError(f"loads out of balance: equilibrium error {eq_err:.3g} N, "
+                             f"constraint reaction {point_r:.3g} N (limit {limit:.3g} N)")
+    t0 = time.perf_counter()
+    vm = von_mises(sol.u, mat)
+    pk = peak(vm)
+    crit = peak(vm, critical_region(case))
+    t_post = time.perf_counter() - t0
+    timings = dict(m.timings, **sol.timings, post=t_post)
+    say(f"solve ×{factor:.3g}: {sol.dofs} DOFs, {sol.iterations} iterations ({case.solver}), "
+        f"assemble {sol.timings['assemble']:.2f} s, solve {sol.timings['solve']:.2f} s; "
+        f"peak {pk.value_MPa:.2f} MPa, critical {crit.value_MPa:.2f} MPa")
+    return Level(factor=factor, dofs=sol.dofs, cells=m.mesh.topology.index_map(3).size_global,
+                 peak=pk, critical=crit, iterations=sol.iterations,
+                 residual_rel=sol.residual_rel, seat_force_N=lc.seat_force_z_N,
+                 support_force_N=support, equilibrium_error_N=eq_err,
+                 constraint_reaction_N=point_r, jacobian_ratio=m.jacobian_ratio,
+                 timings=timings, fields=(sol.u, vm) if keep_fields else None)

@@ -1,0 +1,106 @@
+"""results.json: the content of a run's results file, built from the solved levels."""
+from __future__ import annotations
+
+from mpi4py import MPI
+
+from . import formulas
+from .analysis import estimate_levels
+from .case import Case
+from .errorbar import Estimate
+from .features import describe_location, singular_feature
+from .level import Level
+from .peaks import Peak
+from .pilot import PILOT_FRACTION, Pilot
+
+
+def pct(a: float, b: float) -> float:
+    """Percentage difference of a relative to b."""
+    return 100.0 * (a - b) / b
+
+
+def build_results(case: Case, levels: list[Level], timings: dict[str, float],
+                  comm=MPI.COMM_WORLD, pl: Pilot | None = None) -> dict:
+    """The results.json content of docs/design.md §7 from the solved levels (finest first)."""
+    fine = levels[0]
+    hand = formulas.hand_results(case.dims, case.load_N, case.approximate_span_mm,
+                                 case.exact_span_mm)
+    est_peak = estimate_levels(levels, case, "peak") if len(levels) >= 3 else None
+    est_crit = estimate_levels(levels, case, "critical") if len(levels) >= 3 else None
+
+    def peak_block(p: Peak, est: Estimate | None) -> dict:
+        block = {"value_MPa": p.value_MPa, "location_mm": list(p.location_mm),
+                 "feature": describe_location(case, p.location_mm)}
+        singular = singular_feature(case, p.location_mm)
+        if est is not None:
+            block["error_estimate"] = est.as_dict()
+            if est.status == "singular" and singular is None:
+                singular = f"{block['feature']} (values do not converge under refinement)"
+        if singular is not None:
+            block["singular_feature"] = singular
+            if est is not None:
+                # Not a converged number, whatever the fit of a few meshes says.
+                block["error_estimate"].update(status="singular", extrapolated=None, band=None,
+                                               gci_fine=None, error_fine=None)
+        return block
+
+    ex, ap = hand.exact, hand.approximate
+    fe = {
+        "peak_MPa": fine.peak.value_MPa,
+        "peak_location_mm": list(fine.peak.location_mm),
+        "critical_peak_MPa": fine.critical.value_MPa,
+        "critical_location_mm": list(fine.critical.location_mm),
+        "peak": peak_block(fine.peak, est_peak),
+        "critical": peak_block(fine.critical, est_crit),
+        "dofs": fine.dofs, "cells": fine.cells, "order": case.order,
+        "model": case.model, "support": case.support, "solver": case.solver,
+        "iterations": fine.iterations, "residual_rel": fine.residual_rel,
+        "equilibrium_error_N": fine.equilibrium_error_N,
+        "constraint_reaction_N": fine.constraint_reaction_N,
+        "seat_force_N": fine.seat_force_N, "support_force_N": fine.support_force_N,
+        "model_load_share": 0.25 if case.model == "quarter" else 1.0,
+        "mesh_min_jacobian_ratio": fine.jacobian_ratio,
+        "safety_factor": case.allowable_MPa / fine.peak.value_MPa,
+        "critical_safety_factor": case.allowable_MPa / fine.critical.value_MPa,
+        "mpi_ranks": comm.size,
+        "refined_at_mm": [] if pl is None else [list(p) for p in pl.hotspots],
+        "pilot_mesh_factor": None if pl is None else pl.factor,
+        "pilot_fraction": PILOT_FRACTION,
+        "levels": [{"mesh_factor": lv.factor, "dofs": lv.dofs, "cells": lv.cells,
+                    "peak_MPa": lv.peak.value_MPa, "critical_peak_MPa": lv.critical.value_MPa,
+                    "iterations": lv.iterations, "time_s": sum(lv.timings.values())}
+                   for lv in levels],
+    }
+    return {
+        "units": {"length": "mm", "force": "N", "stress": "MPa"},
+        "case": case.as_dict(),
+        "analytic": {
+            "approximate_MPa": ap.sigma_MPa, "exact_MPa": ex.sigma_MPa,
+            "approximate_span_mm": ap.span_mm, "exact_span_mm": ex.span_mm,
+            "approximate_terms": {"lever_mm": ap.lever_mm, "Me_Nmm": ap.Me_Nmm},
+            "exact_terms": {"N1_N": ex.N1_N, "M1_Nmm": ex.M1_Nmm, "N2_N": ex.N2_N,
+                            "M2_Nmm": ex.M2_Nmm, "R_mm": ex.R_mm, "F_mm2": ex.F_mm2,
+                            "W_mm3": ex.W_mm3},
+            "consistent_span": {
+                "approximate_at_exact_span_MPa": hand.approximate_at_exact_span.sigma_MPa,
+                "exact_at_approximate_span_MPa": hand.exact_at_approximate_span.sigma_MPa},
+            "paper_MPa": {"approximate": 37.8, "exact": 43.75, "fe_catia": 42.10},
+        },
+        "fe": fe,
+        "comparison_pct": {
+            "critical_vs_exact": pct(fine.critical.value_MPa, ex.sigma_MPa),
+            "critical_vs_approximate": pct(fine.critical.value_MPa, ap.sigma_MPa),
+            "peak_vs_exact": pct(fine.peak.value_MPa, ex.sigma_MPa),
+            "peak_vs_approximate": pct(fine.peak.value_MPa, ap.sigma_MPa),
+        },
+        "timings_s": timings,
+    }
+
+
+def sum_timings(levels: list[Level], pl: Pilot | None = None) -> dict[str, float]:
+    """Per-stage times (s): the requested mesh's stages, the pilot's and the error-bar meshes' totals."""
+    stages = ("geometry", "mesh", "import", "assemble", "solve", "post")
+    out = {k: levels[0].timings.get(k, 0.0) for k in stages}
+    if pl is not None:
+        out["pilot"] = pl.time_s
+    out["error_bar_meshes"] = sum(sum(lv.timings.values()) for lv in levels[1:])
+    return out
