@@ -5,9 +5,7 @@
 SHELL := /bin/bash
 PY := .venv/bin/python
 SETUP := .venv/.setup-done
-# make run / make converge use every core: the error bar's meshes are made one per rank at
-# once, the requested mesh is solved by all ranks, the coarser ones side by side
-# (No. 05: 12.9 s on 2 ranks, median of 5; 16.0 s on 1, one run). RANKS=1 runs without MPI.
+# run and converge use every core (MPI ranks through pipeline.launch); RANKS=1 runs without MPI.
 RANKS ?= $(shell nproc 2>/dev/null || echo 1)
 RUN := $(if $(filter 1,$(RANKS)),$(PY) -m pipeline,$(PY) -m pipeline.launch $(RANKS))
 SIZES := $(shell awk -F, '!/^\#/ && $$1 != "size" && NF > 1 {print $$1}' geometry/sizes.csv)
@@ -23,13 +21,9 @@ test: $(SETUP)
 converge: $(SETUP)
 	$(RUN) converge --size 05 --out results/05-converge
 
-# Run time against error (P1/P2/P3 x mesh levels x pmg/gamg/hypre/mumps, CalculiX iterative and
-# spooles; on 2 cores: every solver on the finest P2 mesh, P2 pmg and CalculiX on every level),
-# on the pipeline's pilot-refined meshes; makes the convergence study first if
-# results/05-converge/results.json is missing. Errors are measured against the independent
-# P3 + MUMPS solution of tests/test_regression.py (global 113.79, critical 66.27 MPa);
-# the study's own extrapolation of the global peak carries ± 5.64 MPa (order 0.76; make converge, c763ad0).
-# 55 min on 2 cores (2026-11-22); add --pilot both for the plain graded meshes too (~1.5 h).
+# Run time against error: every order, solver and mesh level, and CalculiX, on the
+# pipeline's pilot-refined meshes; errors against --reference-values (docs/accuracy.md).
+# About an hour on 2 cores; figures and how to read them: docs/performance.md.
 BENCH_ARGS ?= --pilot on --factors 4.0,2.5,2.0,1.3,1.0 --p3-factors 3.0,2.5,2.0 --repeats 3 \
 	--ccx-solvers iterative,spooles --ranks-at targets --reference-values 113.79,66.27
 bench: $(SETUP)
