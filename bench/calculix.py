@@ -40,7 +40,7 @@ from petsc4py import PETSc
 from pipeline.loads import LoadCase
 from pipeline.errors import NumericalError
 from pipeline.elasticity import Material
-from pipeline.assembly import _dirichlet
+from pipeline.assembly import dirichlet_bc
 
 # Local node i of a C3D10 element is DOLFINx tetra10 node DOLFINX_TO_C3D10[i].
 # DOLFINx: vertices 0-3, then edges (2,3) (1,3) (1,2) (0,3) (0,2) (0,1).
@@ -119,7 +119,7 @@ def build_model(mesh, facet_tags, lc: LoadCase) -> CcxModel:
     for c in lc.constraints:
         if c.value != 0.0:
             raise NotImplementedError("only homogeneous constraints are written for CalculiX")
-        _, dofs = _dirichlet(V, facet_tags, c)
+        _, dofs = dirichlet_bc(V, facet_tags, c)
         comps = [0, 1, 2] if c.component is None else [c.component]
         for comp, d_ in zip(comps, dofs):
             # d_ indexes the unrolled vector space: block = d // 3, component = d % 3.

@@ -48,6 +48,7 @@ import subprocess  # noqa: E402
 import sys  # noqa: E402
 from pathlib import Path  # noqa: E402
 
+from pipeline.choices import SOLVERS  # noqa: E402
 from pipeline.jsonio import json_safe  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -55,7 +56,6 @@ DEFAULT_REFERENCE = Path("results/05-converge/results.json")
 FULL_FACTORS = (2.0, 1.5, 1.15, 0.9, 0.7)
 P3_FACTORS = (2.0, 1.5)
 QUICK_FACTORS = (2.0, 1.5)
-SOLVERS = ("pmg", "gamg", "hypre", "mumps")
 STAGES = ("pilot", "geometry", "mesh", "import", "loads", "assemble", "solve", "write", "ccx", "read",
           "post", "other")
 MARK = "BENCH_POINT "

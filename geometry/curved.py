@@ -11,12 +11,10 @@ import numpy as np
 from .part import GeometryError
 
 HO_TARGET = 0.3  # worst det J ratio accepted on a curved tet (see _relax_curved)
-
-
 RELAX_STEP = 0.5  # how far _relax_curved pulls a mid-edge node per pass (× its bow); see there
 
 
-def _ensure_curved_quality(order: int) -> float:
+def ensure_curved_quality(order: int) -> float:
     """Make sure the mesh really is of ``order``; then no curved tet below HO_TARGET.
     Returns the worst det J ratio.
 
@@ -188,8 +186,6 @@ def _relax_curved(target: float) -> float:
 
 _SAMPLE = [(0, 0, 0), (1, 0, 0), (0, 1, 0), (0, 0, 1), (.5, 0, 0), (0, .5, 0), (0, 0, .5),
            (.5, .5, 0), (0, .5, .5), (.5, 0, .5), (.25, .25, .25)]
-
-
 _TET10_GRAD = _tet10_shape_gradients()
 
 

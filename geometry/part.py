@@ -8,9 +8,7 @@ from dataclasses import dataclass
 
 import gmsh
 
-from .table import Dimensions
-
-MODELS = ("quarter", "full")
+from .table import MODELS, Dimensions
 
 
 class GeometryError(RuntimeError):
@@ -145,8 +143,8 @@ def build(d: Dimensions, model: str = "quarter") -> BuiltGeometry:
 
     groups = {"seat": seat_surfs, "journal_bearing": _bearing_surfaces(d)}
     if quarter:
-        groups["symmetry_x"] = _planar_surfaces(axis=0, value=0.0, tol=_tol(d))
-        groups["symmetry_y"] = _planar_surfaces(axis=1, value=0.0, tol=_tol(d))
+        groups["symmetry_x"] = _planar_surfaces(axis=0, value=0.0, tol=geometric_tolerance(d))
+        groups["symmetry_y"] = _planar_surfaces(axis=1, value=0.0, tol=geometric_tolerance(d))
     for name, tags in groups.items():
         if not tags:
             raise GeometryError(f"physical group {name!r} would be empty")
@@ -156,7 +154,7 @@ def build(d: Dimensions, model: str = "quarter") -> BuiltGeometry:
     return BuiltGeometry(model=model, volume=vol, constraint_points=cpts)
 
 
-def _tol(d: Dimensions) -> float:
+def geometric_tolerance(d: Dimensions) -> float:
     """Geometric matching tolerance, mm: relative to the part so any scale works."""
     return 1e-5 * d.b6
 
@@ -173,7 +171,7 @@ def _planar_surfaces(axis: int, value: float, tol: float) -> list[int]:
 
 def _bearing_surfaces(d: Dimensions) -> list[int]:
     """Lower-half journal bearing cylinders: from |x| = b1/2 + rf to the tip, below the axis."""
-    tol = 10 * _tol(d)
+    tol = 10 * geometric_tolerance(d)
     x0, x1, zc = d.b1 / 2 + d.rf, d.b6 / 2, d.h3 / 2
     tags = []
     for _, t in gmsh.model.getEntities(2):

@@ -3,57 +3,14 @@
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import gmsh
 
-from .curved import _ensure_curved_quality
-from .part import GeometryError, _tol
+from .curved import ensure_curved_quality
+from .meshspec import MeshSpec
+from .part import GeometryError, geometric_tolerance
 from .table import Dimensions
 
-HOTSPOT_SIZE = 0.4  # × the smaller of the feature and fillet sizes, at a pilot's stress peak
-
-
-HOTSPOT_RADIUS = 0.024  # × h3: how far that size holds around the peak (not scaled by factor)
-
-
 GRADE = 0.5  # largest growth of the element size per unit distance near the fillets
-
-
-@dataclass(frozen=True)
-class MeshSpec:
-    """Mesh size controls, mm. ``factor`` scales every size together (refinement studies).
-
-    size_body: size far from features; size_feature: size on the bore edges and the seat
-    band edges; size_fillet: size on the shoulder fillets (the journal-root stress peak
-    sits there); grading: distance over which sizes grow to size_body; order: geometric
-    order of the elements (1 or 2).
-    """
-
-    size_body: float
-    size_feature: float
-    size_fillet: float
-    grading: float
-    factor: float = 1.0
-    order: int = 2
-    # Stress peaks found on a pilot mesh (mm, any quadrant: mirrored into all four):
-    # size_hotspot within hotspot_radius of each, then growing like near the fillets.
-    hotspots: tuple[tuple[float, float, float], ...] = ()
-    size_hotspot: float = 0.0
-    hotspot_radius: float = 0.0
-
-    @staticmethod
-    def default_for(d: Dimensions, factor: float = 1.0, order: int = 2) -> "MeshSpec":
-        """Sizes proportional to the part so every row meshes alike.
-
-        The ratios were chosen for No. 05 by the convergence study (`make converge`).
-        """
-        fillet = 0.25 * d.rf if d.rf > 0 else 0.02 * d.h3
-        feature = 0.05 * d.h3
-        return MeshSpec(size_body=0.16 * d.h3, size_feature=feature, size_fillet=fillet,
-                        grading=0.4 * d.h3, factor=factor, order=order,
-                        size_hotspot=HOTSPOT_SIZE * min(feature, fillet),
-                        hotspot_radius=HOTSPOT_RADIUS * d.h3)
 
 
 def _balls(point: tuple[float, float, float], size: float, size_far: float, radius: float,
@@ -146,7 +103,7 @@ def mesh(d: Dimensions, spec: MeshSpec) -> float:
         gmsh.model.mesh.generate(3)
     except Exception as exc:
         raise GeometryError(f"gmsh could not mesh the part: {exc}") from None
-    quality = _ensure_curved_quality(spec.order) if spec.order >= 2 else 1.0
+    quality = ensure_curved_quality(spec.order) if spec.order >= 2 else 1.0
     # DOLFINx's importer needs contiguous node tags.
     gmsh.model.mesh.renumberNodes()
     gmsh.model.mesh.renumberElements()
@@ -163,19 +120,19 @@ def _feature_curves(d: Dimensions) -> tuple[list[int], list[int]]:
     """Curves where stress varies fast: (bore edges and seat circles, fillet edges)."""
     rb, rsi, rso = d.d2 / 2, d.seat_inner / 2, d.seat_outer / 2
     x_fillet = (d.b1 / 2, d.b1 / 2 + d.rf)
-    tol = 10 * _tol(d)
+    tol = 10 * geometric_tolerance(d)
     tags, fillet = [], []
     for _, t in gmsh.model.getEntities(1):
         xmin, ymin, zmin, xmax, ymax, zmax = gmsh.model.getBoundingBox(1, t)
         if gmsh.model.getType(1, t) not in ("Circle", "Ellipse", "BSpline", "TrimmedCurve"):
             continue
-        horizontal = abs(zmax - zmin) < _tol(d)
+        horizontal = abs(zmax - zmin) < geometric_tolerance(d)
         rmax = max(abs(xmin), abs(xmax), abs(ymin), abs(ymax))
         if horizontal and any(abs(rmax - r) < tol for r in (rb, rsi, rso)):
             tags.append(t)
             continue
         lo = min(abs(xmin), abs(xmax))
         hi = max(abs(xmin), abs(xmax))
-        if abs(hi - lo) < _tol(d) and any(abs(lo - xf) < tol for xf in x_fillet):
+        if abs(hi - lo) < geometric_tolerance(d) and any(abs(lo - xf) < tol for xf in x_fillet):
             fillet.append(t)
     return tags, fillet

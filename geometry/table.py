@@ -16,6 +16,7 @@ from dataclasses import dataclass, fields, replace
 from pathlib import Path
 
 TABLE_PATH = Path(__file__).with_name("sizes.csv")
+MODELS = ("quarter", "full")  # the part as built: a quarter with symmetry planes, or whole
 G_MS2 = 9.81  # m/s², the gravity the issue fixes for kg → N
 
 

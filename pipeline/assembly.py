@@ -16,20 +16,20 @@ from .elasticity import Constraint
 from .errors import NumericalError
 
 
-def _assemble_aij(a, bcs) -> PETSc.Mat:
+def assemble_aij(a, bcs) -> PETSc.Mat:
     """The matrix of bilinear form ``a`` with ``bcs`` applied, as an AIJ matrix (bs 3).
 
     Why through BAIJ: DOLFINx inserts each element matrix into a 3×3-block matrix faster
     than into AIJ, by enough to pay for the conversion (No. 05 x1, P2, one core: 1.18
     against 1.63 s, median of 5; 0.70 against 0.94 s on 2 ranks). GAMG and hypre need AIJ;
-    "pmg" converts to SBAIJ instead (:func:`_assemble_sbaij`).
+    "pmg" converts to SBAIJ instead (:func:`assemble_sbaij`).
     """
-    A = _assemble_baij(a, bcs)
+    A = assemble_baij(a, bcs)
     A.convert("aij")  # in place (petsc4py converts self when no target is given)
     return A
 
 
-def _assemble_baij(a, bcs) -> PETSc.Mat:
+def assemble_baij(a, bcs) -> PETSc.Mat:
     """The matrix of bilinear form ``a`` with ``bcs`` applied, as a BAIJ matrix (3×3 blocks)."""
     A = create_matrix(a, "baij")
     assemble_matrix(A, a, bcs=bcs)
@@ -37,7 +37,7 @@ def _assemble_baij(a, bcs) -> PETSc.Mat:
     return A
 
 
-def _assemble_sbaij(a, bcs) -> PETSc.Mat:
+def assemble_sbaij(a, bcs) -> PETSc.Mat:
     """The matrix of the symmetric bilinear form ``a`` with ``bcs`` applied (rows and columns
     zeroed: still symmetric), stored as its upper triangle in 3×3 blocks (SBAIJ).
 
@@ -47,8 +47,8 @@ def _assemble_sbaij(a, bcs) -> PETSc.Mat:
     -> 2.09 s at x1.3 (one rank), the same iterations and peaks to the printed 9 digits;
     on 2 ranks 1.40 -> 1.34 s at x1.3 and 2.81 / 2.83 s at x1.
     """
-    A = _assemble_baij(a, bcs)
-    A.convert("sbaij")  # in place, as in _assemble_aij
+    A = assemble_baij(a, bcs)
+    A.convert("sbaij")  # in place, as in assemble_aij
     return A
 
 
@@ -65,7 +65,7 @@ def _point_dofs(V, Vc, component: int, points: np.ndarray, tol: float) -> np.nda
     return fem.locate_dofs_geometrical((V.sub(component), Vc), marker)
 
 
-def _dirichlet(V, facet_tags, c: Constraint):
+def dirichlet_bc(V, facet_tags, c: Constraint):
     """A DirichletBC and the (V-numbered) DOFs it fixes, for one Constraint."""
     mesh = V.mesh
     fdim = mesh.topology.dim - 1

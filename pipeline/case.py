@@ -12,12 +12,10 @@ from dataclasses import asdict, dataclass, field, fields, replace
 from pathlib import Path
 from typing import Any, Sequence
 
-from geometry.part import MODELS
-from geometry.sizing import MeshSpec
+from geometry.meshspec import MeshSpec
 from geometry.table import Dimensions, InputError, lookup, validate
 
-from .loads import SUPPORTS
-from .solve import SOLVERS
+from .choices import MODELS, SOLVERS, SUPPORTS
 
 DIMENSION_KEYS = tuple(f.name for f in fields(Dimensions))
 
@@ -92,12 +90,25 @@ SCHEMA: dict[str, dict[str, tuple[str, tuple[type, ...]]]] = {
 }
 
 
+CASE_FILE_MAX_BYTES = 1 << 20  # a case file is a few hundred bytes; /dev/zero must not be read
+
+
 def read_case_file(path: Path) -> dict[str, Any]:
-    """Flatten a TOML case file into {Case field or 'dims.x': value}, checking keys and types."""
+    """Flatten a TOML case file into {Case field or 'dims.x': value}, checking keys and types.
+
+    Only regular files up to CASE_FILE_MAX_BYTES are read; a UTF-8 byte-order mark (as some
+    editors write) is accepted."""
+    path = Path(path)
     try:
-        text = Path(path).read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise InputError(f"case: file not found: {path}") from None
+        if not path.is_file():
+            raise InputError(f"case: cannot read {path}: not a regular file" if path.exists()
+                             else f"case: file not found: {path}")
+        with path.open("rb") as f:
+            raw = f.read(CASE_FILE_MAX_BYTES + 1)
+        if len(raw) > CASE_FILE_MAX_BYTES:
+            raise InputError(f"case: {path} is larger than {CASE_FILE_MAX_BYTES // 1024} KiB; "
+                             "a case file holds a few keys")
+        text = raw.decode("utf-8").removeprefix("\ufeff")
     except (OSError, UnicodeDecodeError) as exc:
         raise InputError(f"case: cannot read {path}: {exc}") from None
     try:
@@ -139,6 +150,9 @@ def resolve(size: str | None = None, case_file: Path | None = None,
     values: dict[str, Any] = {}
     if case_file is not None:
         values.update(read_case_file(case_file))
+        if size is not None and "size" in values and str(values["size"]) != str(size):
+            raise InputError(f"size: --size {size} conflicts with size = \"{values['size']}\" in "
+                             f"{case_file}; give one of them")
     values.update({k: v for k, v in (overrides or {}).items() if v is not None})
     if size is not None:
         values["size"] = size
@@ -167,12 +181,47 @@ def _finite_positive(name: str, v: Any, allow_zero: bool = False) -> None:
         raise InputError(f"{name}: must be > 0, got {v:g}")
 
 
+# Physical ranges (N, MPa). Outside them the numbers mean nothing or the numerics break: a
+# load below 1e-6 N or E below 1 MPa makes stresses and displacements that underflow the
+# solver's tolerances (E = 1e-300 stopped PETSc with error 77), and above these bounds no
+# crosshead of the table is loaded or made (the largest rated load is about 1e6 N).
+RANGES = {"load_N": (1e-6, 1e9), "E_MPa": (1.0, 1e7), "allowable_MPa": (1e-3, 1e5)}
+
+
+def _in_range(name: str, v: float) -> None:
+    lo, hi = RANGES[name]
+    if not lo <= v <= hi:
+        raise InputError(f"{name}: must lie in [{lo:g}, {hi:g}], got {v:g}")
+
+
+def check_spans(case: Case) -> None:
+    """The formulas' spans must give them a positive lever arm (docs/design.md §4).
+
+    Approximate method: the reaction's lever l/2 must exceed the bearing load's Dm/pi.
+    Exact method: the curved bar needs the reaction outside the ring, l/2 > R = (b1 + di)/4.
+    """
+    from .formulas import paper_spans
+    d = case.dims
+    approx, exact = paper_spans(d)
+    l_a = case.approximate_span_mm if case.approximate_span_mm is not None else approx
+    l_e = case.exact_span_mm if case.exact_span_mm is not None else exact
+    if l_a / 2 <= d.d14 / math.pi:
+        raise InputError(f"approximate_span_mm: l/2 = {l_a / 2:g} mm must exceed Dm/pi = "
+                         f"{d.d14 / math.pi:.4g} mm (the lever arm of the approximate formula)")
+    ring = (d.b1 + d.d2) / 4
+    if l_e / 2 <= ring:
+        raise InputError(f"exact_span_mm: l/2 = {l_e / 2:g} mm must exceed the ring radius "
+                         f"R = (b1 + di)/4 = {ring:.4g} mm (the reactions act outside the ring)")
+
+
 def check(case: Case) -> Case:
     """Return case if every field is usable, else raise InputError for the first bad one."""
     validate(case.dims)
     _finite_positive("load_N", case.load_N)
     _finite_positive("E_MPa", case.E_MPa)
     _finite_positive("allowable_MPa", case.allowable_MPa)
+    for k in RANGES:
+        _in_range(k, getattr(case, k))
     if isinstance(case.nu, bool) or not isinstance(case.nu, (int, float)) or not (-1 < case.nu < 0.5):
         raise InputError(f"nu: Poisson's ratio must lie in (-1, 0.5), got {case.nu!r}")
     if case.model not in MODELS:
@@ -194,6 +243,7 @@ def check(case: Case) -> Case:
         v = getattr(case, k)
         if v is not None:
             _finite_positive(k, v)
+    check_spans(case)
     spec = case.mesh_spec()
     for k, size, least in (("size_body_mm", spec.size_body, 1e-3), ("size_feature_mm", spec.size_feature, 2e-4),
                            ("size_fillet_mm", spec.size_fillet, 2e-4)):

@@ -6,6 +6,7 @@ failure (nothing written).
 from __future__ import annotations
 
 import argparse
+import math
 import os
 import sys
 import time
@@ -19,6 +20,7 @@ T_START = time.perf_counter()
 # that the picture process needs. Read when numpy loads, so set before any import of it.
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
+from pipeline.choices import MODELS, SOLVERS, SUPPORTS  # noqa: E402
 from pipeline.interrupts import install as install_interrupts, no_petsc_handlers  # noqa: E402
 
 no_petsc_handlers()  # before anything imports PETSc
@@ -67,6 +69,9 @@ def _loads(text: str) -> list[float]:
     parts = text.split(":")
     if len(parts) == 3:
         a, b = _positive_float(parts[0]), _positive_float(parts[1])
+        for end in (a, b):
+            if not math.isfinite(end):
+                raise argparse.ArgumentTypeError(f"load_N: range ends must be finite, got {end!r}")
         try:
             n = int(parts[2])
         except ValueError:
@@ -106,9 +111,9 @@ def add_case_options(p: argparse.ArgumentParser) -> None:
                         "5000:20000:4 is solved once and scaled (linear elasticity)")
     g.add_argument("--dim", type=_dim, action="append", default=[], metavar="NAME=MM",
                    help="override one dimension in mm (b1 b2 b6 d14 d2 h3 dj rf seat_inner seat_outer); repeatable")
-    g.add_argument("--support", choices=("bearing", "rigid"),
+    g.add_argument("--support", choices=SUPPORTS,
                    help="journal support: cosine bearing pressure (default) or rigid u_z = 0 (singular edges)")
-    g.add_argument("--model", choices=("quarter", "full"), help="quarter with symmetry planes (default) or full part")
+    g.add_argument("--model", choices=MODELS, help="quarter with symmetry planes (default) or full part")
     g.add_argument("--E", type=_positive_float, dest="E_MPa", metavar="MPA", help="Young's modulus, MPa (default 210000)")
     g.add_argument("--nu", type=_positive_float, metavar="NU", help="Poisson's ratio (default 0.3)")
     g.add_argument("--allowable", type=_positive_float, dest="allowable_MPa", metavar="MPA",
@@ -125,7 +130,7 @@ def add_case_options(p: argparse.ArgumentParser) -> None:
     m.add_argument("--size-feature", type=_positive_float, dest="size_feature_mm", metavar="MM", help="element size at bore and seat edges, mm")
     m.add_argument("--size-fillet", type=_positive_float, dest="size_fillet_mm", metavar="MM", help="element size on the shoulder fillets, mm")
     m.add_argument("--grading", type=_positive_float, dest="grading_mm", metavar="MM", help="distance over which sizes grow, mm")
-    m.add_argument("--solver", choices=("pmg", "gamg", "hypre", "mumps"),
+    m.add_argument("--solver", choices=SOLVERS,
                    help="CG + p-multigrid over P1 with GAMG (default), CG + GAMG, CG + BoomerAMG, or direct MUMPS")
     m.add_argument("--rtol", type=_positive_float, help="relative tolerance of the iterative solver on the true residual (default 1e-8)")
     p.add_argument("--out", type=Path, help="output folder (default results/<case name>)")
@@ -275,10 +280,13 @@ def _print(line: str) -> None:
 def _summary(res: dict, out: Path) -> None:
     from pipeline.report import error_bar_text
     fe = res["fe"]
-    print(f"global peak   {fe['peak']['value_MPa']:8.2f} MPa  {error_bar_text(fe['peak'])}  [{fe['peak']['feature']}]")
-    print(f"critical peak {fe['critical']['value_MPa']:8.2f} MPa  {error_bar_text(fe['critical'])}  [{fe['critical']['feature']}]")
+    _print(f"global peak   {fe['peak']['value_MPa']:8.2f} MPa  {error_bar_text(fe['peak'])}  [{fe['peak']['feature']}]")
+    _print(f"critical peak {fe['critical']['value_MPa']:8.2f} MPa  {error_bar_text(fe['critical'])}  [{fe['critical']['feature']}]")
     an = res["analytic"]
-    print(f"formulas: approximate {an['approximate_MPa']:.2f} MPa, exact {an['exact_MPa']:.2f} MPa; "
-          f"safety factor {fe['safety_factor']:.2f} (global), {fe['critical_safety_factor']:.2f} (critical)")
-    print(f"written to {out}/ (results.json, report.md, ...) in {res['timings_s']['total']:.1f} s")
+
+    def sf(key: str) -> str:
+        return "none (singular peak)" if fe[key] is None else f"{fe[key]:.2f}"
+    _print(f"formulas: approximate {an['approximate_MPa']:.2f} MPa, exact {an['exact_MPa']:.2f} MPa; "
+           f"safety factor {sf('safety_factor')} (global), {sf('critical_safety_factor')} (critical)")
+    _print(f"written to {out}/ (results.json, report.md, ...) in {res['timings_s']['total']:.1f} s")
 

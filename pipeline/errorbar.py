@@ -10,8 +10,6 @@ from typing import Sequence
 import numpy as np
 
 FS = 1.25          # Roache's safety factor for three or more meshes
-
-
 P_SINGULAR = 0.5   # observed order below this: the peak is not converging
 
 

@@ -18,11 +18,7 @@ from .peaks import Peak, peak, von_mises
 from .solve import solve
 
 Progress = Callable[[str], None]
-
-
 Hotspots = Sequence[tuple[float, float, float]]
-
-
 @dataclass
 class Level:
     """The result of one mesh: peaks (MPa, mm), sizes, solver data, times (s)."""

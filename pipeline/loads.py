@@ -17,10 +17,9 @@ from mpi4py import MPI
 
 from geometry.table import Dimensions
 
-from .meshing import ImportedMesh
+from .choices import SUPPORTS
 from .elasticity import Constraint, Traction
-
-SUPPORTS = ("bearing", "rigid")
+from .meshing import ImportedMesh
 
 
 @dataclass

@@ -20,7 +20,8 @@ from dolfinx.mesh import create_mesh, meshtags_from_entities
 from mpi4py import MPI
 
 from geometry.part import BuiltGeometry, build
-from geometry.sizing import MeshSpec, mesh
+from geometry.meshspec import MeshSpec
+from geometry.sizing import mesh
 from geometry.table import Dimensions
 
 

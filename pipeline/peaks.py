@@ -10,7 +10,6 @@ from typing import Callable
 
 import numpy as np
 from dolfinx import fem
-from mpi4py import MPI
 
 from .elasticity import Material, von_mises_expr
 

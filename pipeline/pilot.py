@@ -17,14 +17,8 @@ from .meshing import Mesher
 from .peaks import hot_spots
 
 PILOT_RATIO = 2.2  # the pilot mesh: every size of the case's mesh × this
-
-
 PILOT_FRACTION = 0.85  # pilot values this close to a peak (global or critical) are refined
-
-
 PILOT_SEPARATION = 0.04  # × h3 (mm): refined places closer than this are one place
-
-
 PILOT_LIMIT = 12  # refined places per peak, at most
 
 

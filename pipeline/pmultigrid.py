@@ -11,7 +11,7 @@ import ufl
 from dolfinx import fem
 from petsc4py import PETSc
 
-from .assembly import _assemble_aij, _dirichlet, rigid_body_nullspace
+from .assembly import assemble_aij, dirichlet_bc, rigid_body_nullspace
 from .elasticity import (
     Constraint,
     Material,
@@ -64,7 +64,7 @@ def p1_interpolation(V1, V) -> PETSc.Mat:
     return P
 
 
-def _p_multigrid(ksp: PETSc.KSP, V, mat: Material, facet_tags, constraints: Sequence[Constraint],
+def p_multigrid(ksp: PETSc.KSP, V, mat: Material, facet_tags, constraints: Sequence[Constraint],
                  measures: tuple[ufl.Measure, ufl.Measure]) -> tuple[PETSc.Mat, PETSc.Mat]:
     """Make ksp's preconditioner a two-level p-multigrid over P1 on V's mesh.
 
@@ -78,7 +78,7 @@ def _p_multigrid(ksp: PETSc.KSP, V, mat: Material, facet_tags, constraints: Sequ
     Why not the Galerkin product P^T A P (used up to commit c40a1a4): PETSc forms it only
     for AIJ, and the fine matrix in AIJ cost a BAIJ -> AIJ conversion (0.24 s at No. 05
     x1.3) and a slower product with a vector in every smoothing step (10.3 against 6.7 ms
-    in BAIJ, median of 30; see also :func:`_assemble_sbaij`). Measured at No. 05 P2 with the
+    in BAIJ, median of 30; see also :func:`assemble_sbaij`). Measured at No. 05 P2 with the
     fine matrix in BAIJ, interleaved in one process, medians of 3-5: assembly + solve 3.58
     -> 2.45 s at x1.3 (31 -> 30 iterations), 8.17 -> 5.50 s at x1 (35 both), 4.88 -> 3.07 s
     at x1 on 2 ranks; peaks changed by <= 1e-8 relative. Returns (P, coarse matrix), to be
@@ -87,8 +87,8 @@ def _p_multigrid(ksp: PETSc.KSP, V, mat: Material, facet_tags, constraints: Sequ
     mesh = V.mesh
     V1 = fem.VectorFunctionSpace(mesh, ("Lagrange", 1))
     u1, v1 = ufl.TrialFunction(V1), ufl.TestFunction(V1)
-    bcs1 = [bc for c in constraints for bc in _dirichlet(V1, facet_tags, c)[0]]
-    Ac = _assemble_aij(fem.form(volume_integral(ufl.inner(stress(u1, mat), strain(v1)),
+    bcs1 = [bc for c in constraints for bc in dirichlet_bc(V1, facet_tags, c)[0]]
+    Ac = assemble_aij(fem.form(volume_integral(ufl.inner(stress(u1, mat), strain(v1)),
                                                 volume_measures(mesh, 1, like=measures))), bcs1)
     Ac.setNearNullSpace(rigid_body_nullspace(V1))
     P = p1_interpolation(V1, V)

@@ -18,7 +18,8 @@ from dolfinx.fem.petsc import (
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from .assembly import _assemble_aij, _assemble_sbaij, _dirichlet, rigid_body_nullspace
+from .assembly import assemble_aij, assemble_sbaij, dirichlet_bc, rigid_body_nullspace
+from .choices import SOLVERS
 from .elasticity import (
     Constraint,
     Material,
@@ -29,9 +30,8 @@ from .elasticity import (
     volume_measures,
 )
 from .errors import NumericalError
-from .pmultigrid import _p_multigrid
+from .pmultigrid import p_multigrid
 
-SOLVERS = ("pmg", "gamg", "hypre", "mumps")
 
 
 @dataclass
@@ -59,14 +59,14 @@ _GAMG = {"pc_type": "gamg", "pc_gamg_type": "agg", "pc_gamg_agg_nsmooths": 1,
 
 
 def solver_options(name: str, rtol: float) -> dict[str, object]:
-    """PETSc options for the named solver ("pmg" also needs :func:`_p_multigrid`)."""
+    """PETSc options for the named solver ("pmg" also needs :func:`p_multigrid`)."""
     cg = {"ksp_type": "cg", "ksp_rtol": rtol, "ksp_max_it": 1000,
           "ksp_norm_type": "unpreconditioned"}
     if name == "pmg":
         # Why: GAMG on the P2 matrix spent half its time in set-up (Galerkin products of a
         # matrix with ~80 entries per row: 3.8 s of 6.2 s at No. 05 x1 on 2 ranks). The P1
         # matrix of the same mesh has 1/7 of the rows (it was then formed as the product
-        # with the interpolation P1 -> P2; now assembled, see _p_multigrid). Same mesh, same
+        # with the interpolation P1 -> P2; now assembled, see p_multigrid). Same mesh, same
         # rtol: 35 iterations in 3.0 s against GAMG's 52 in 6.2 s, peaks equal to 1e-9
         # (measured, 2 ranks; make bench of 0b7f5ac: 1.8 against 7.8 s of solve).
         return {**cg, "pc_type": "mg",
@@ -95,9 +95,6 @@ def solver_options(name: str, rtol: float) -> dict[str, object]:
     raise ValueError(f"solver must be one of {SOLVERS}, got {name!r}")
 
 
-_counter = [0]
-
-
 def solve(mesh, facet_tags, order: int, mat: Material, tractions: Sequence[Traction],
           constraints: Sequence[Constraint], solver: str = "pmg", rtol: float = 1e-10,
           progress: Callable[[str], None] | None = None) -> Solution:
@@ -122,14 +119,14 @@ def solve(mesh, facet_tags, order: int, mat: Material, tractions: Sequence[Tract
         L_form += ufl.inner(t.value, v) * ds(t.marker)
     bcs, bc_dofs = [], []
     for c in constraints:
-        b_, d_ = _dirichlet(V, facet_tags, c)
+        b_, d_ = dirichlet_bc(V, facet_tags, c)
         bcs += b_
         bc_dofs.append(np.concatenate(d_) if d_ else np.array([], dtype=np.int32))
     a = fem.form(a_form)
     L = fem.form(L_form)
-    # pmg multiplies with the fine matrix in SBAIJ (see _assemble_sbaij, _p_multigrid); the
+    # pmg multiplies with the fine matrix in SBAIJ (see assemble_sbaij, p_multigrid); the
     # others need AIJ.
-    A = _assemble_sbaij(a, bcs) if solver == "pmg" else _assemble_aij(a, bcs)
+    A = assemble_sbaij(a, bcs) if solver == "pmg" else assemble_aij(a, bcs)
     b = assemble_vector(L)
     apply_lifting(b, [a], bcs=[bcs])
     b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
@@ -140,14 +137,13 @@ def solve(mesh, facet_tags, order: int, mat: Material, tractions: Sequence[Tract
 
     t0 = time.perf_counter()
     ksp = PETSc.KSP().create(mesh.comm)
-    _counter[0] += 1
-    prefix = f"crosshead_{_counter[0]}_"
+    prefix = f"crosshead_{ksp.handle}_"  # unique while this KSP lives (its options are removed after set-up)
     ksp.setOptionsPrefix(prefix)
     opts = PETSc.Options()
     for k, val in solver_options(solver, rtol).items():
         opts[prefix + k] = val
     ksp.setOperators(A)
-    mg_parts = _p_multigrid(ksp, V, mat, facet_tags, constraints, dx_split) if solver == "pmg" else ()
+    mg_parts = p_multigrid(ksp, V, mat, facet_tags, constraints, dx_split) if solver == "pmg" else ()
     ksp.setFromOptions()
     # PCSetUp reads the multigrid levels' options (mg_levels_*): set up before deleting them.
     ksp.setUp()

@@ -27,7 +27,7 @@ from pipeline.meshing import make_mesh
 from pipeline.peaks import peak, von_mises
 from pipeline.features import critical_region
 from pipeline.elasticity import Material, strain, stress
-from pipeline.assembly import _dirichlet
+from pipeline.assembly import dirichlet_bc
 from pipeline.solve import solve
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -115,7 +115,7 @@ def test_same_discrete_problem_with_calculix_quadrature(coarse):
     ds = ufl.Measure("ds", domain=m.mesh, subdomain_data=m.facet_tags)
     a = ufl.inner(stress(u, mat), strain(v)) * ufl.dx(metadata={"quadrature_degree": 2})
     L = sum(ufl.inner(t.value, v) * ds(t.marker) for t in lc.tractions)
-    bcs = [bc for c in lc.constraints for bc in _dirichlet(V, m.facet_tags, c)[0]]
+    bcs = [bc for c in lc.constraints for bc in dirichlet_bc(V, m.facet_tags, c)[0]]
     u2 = LinearProblem(a, L, bcs=bcs, petsc_options={
         "ksp_type": "preonly", "pc_type": "lu", "pc_factor_mat_solver_type": "mumps"}).solve()
     ua, ub = u2.x.array.reshape(-1, 3), cx.u.x.array.reshape(-1, 3)

@@ -81,7 +81,8 @@ def test_unbuildable_rows_name_the_field(field, over):
 def test_mesh_quality_agrees_with_gmsh(gmsh_session, factor):
     """builder.mesh's worst det J ratio (numpy, from the node positions after the curved-tet
     repair) is gmsh's own (getJacobians at the same sample points)."""
-    from geometry.sizing import MeshSpec, mesh
+    from geometry.meshspec import MeshSpec
+    from geometry.sizing import mesh
     from geometry.curved import jacobian_ratio
     d = lookup("05").dims
     build(d, "quarter")
@@ -97,7 +98,7 @@ def test_mesher_meshes_like_a_new_session():
     1- and 2-rank runs make their meshes in different orders on different ranks."""
     import numpy as np
 
-    from geometry.sizing import MeshSpec
+    from geometry.meshspec import MeshSpec
     from pipeline.meshing import Mesher, generate
     d = lookup("05").dims
     places = ((0.0, 10.5, 0.0), (23.25, 8.0, 6.25))           # as a pilot finds them (mm)

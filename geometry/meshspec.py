@@ -1,0 +1,46 @@
+"""What a mesh should be: element sizes (mm), order and refined places. No gmsh here:
+case validation reads it without starting the mesher."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from .table import Dimensions
+
+HOTSPOT_SIZE = 0.4  # × the smaller of the feature and fillet sizes, at a pilot's stress peak
+HOTSPOT_RADIUS = 0.024  # × h3: how far that size holds around the peak (not scaled by factor)
+
+
+@dataclass(frozen=True)
+class MeshSpec:
+    """Mesh size controls, mm. ``factor`` scales every size together (refinement studies).
+
+    size_body: size far from features; size_feature: size on the bore edges and the seat
+    band edges; size_fillet: size on the shoulder fillets (the journal-root stress peak
+    sits there); grading: distance over which sizes grow to size_body; order: geometric
+    order of the elements (1 or 2).
+    """
+
+    size_body: float
+    size_feature: float
+    size_fillet: float
+    grading: float
+    factor: float = 1.0
+    order: int = 2
+    # Stress peaks found on a pilot mesh (mm, any quadrant: mirrored into all four):
+    # size_hotspot within hotspot_radius of each, then growing like near the fillets.
+    hotspots: tuple[tuple[float, float, float], ...] = ()
+    size_hotspot: float = 0.0
+    hotspot_radius: float = 0.0
+
+    @staticmethod
+    def default_for(d: Dimensions, factor: float = 1.0, order: int = 2) -> "MeshSpec":
+        """Sizes proportional to the part so every row meshes alike.
+
+        The ratios were chosen for No. 05 by the convergence study (`make converge`).
+        """
+        fillet = 0.25 * d.rf if d.rf > 0 else 0.02 * d.h3
+        feature = 0.05 * d.h3
+        return MeshSpec(size_body=0.16 * d.h3, size_feature=feature, size_fillet=fillet,
+                        grading=0.4 * d.h3, factor=factor, order=order,
+                        size_hotspot=HOTSPOT_SIZE * min(feature, fillet),
+                        hotspot_radius=HOTSPOT_RADIUS * d.h3)

@@ -1,0 +1,9 @@
+"""The choices a case offers, listed once: validation, the command line and the stages
+import them from here (no solver or mesher is loaded to check a case file)."""
+from geometry.table import MODELS
+
+SUPPORTS = ("bearing", "rigid")  # cosine bearing pressure, or u_z = 0 (singular edges)
+SOLVERS = ("pmg", "gamg", "hypre", "mumps")  # CG + p-multigrid, CG + GAMG, CG + BoomerAMG, direct
+ORDERS = (1, 2, 3)  # element order of the displacement
+
+__all__ = ["MODELS", "SUPPORTS", "SOLVERS", "ORDERS"]
