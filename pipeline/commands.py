@@ -101,8 +101,8 @@ def load_sweep(res: dict, case: Case, loads: list[float]) -> list[dict]:
         for key, name in (("peak", "peak_band_MPa"), ("critical", "critical_band_MPa")):
             band = (fe[key].get("error_estimate") or {}).get("band")
             row[name] = None if band is None else k * band
-        row["safety_factor"] = case.allowable_MPa / row["peak_MPa"]
-        row["critical_safety_factor"] = case.allowable_MPa / row["critical_peak_MPa"]
+        for key, peak in (("safety_factor", "peak_MPa"), ("critical_safety_factor", "critical_peak_MPa")):
+            row[key] = None if fe[key] is None else case.allowable_MPa / row[peak]
         rows.append(row)
     return rows
 

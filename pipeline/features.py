@@ -26,9 +26,10 @@ def describe_location(case: Case, xyz: tuple[float, float, float]) -> str:
     vertical = "bottom" if z < tol else "top" if z > d.h3 - tol else "mid-height"
     if abs(r_axis - d.d2 / 2) < tol:
         return f"bore edge ({vertical} face)" if vertical != "mid-height" else "bore wall"
-    if d.b1 / 2 - tol <= x <= d.b1 / 2 + d.rf + tol and x >= d.b1 / 2 - tol and \
-            math.hypot(y, z - d.h3 / 2) < d.dj / 2 + d.rf + tol and d.rf > 0:
-        return "journal shoulder fillet"
+    if d.b1 / 2 - tol <= x <= d.b1 / 2 + d.rf + tol and \
+            math.hypot(y, z - d.h3 / 2) < d.dj / 2 + d.rf + tol:
+        # Without a fillet the journal meets the end face in a sharp re-entrant circle.
+        return "journal shoulder fillet" if d.rf > 0 else "journal root (sharp corner, no fillet)"
     if x > d.b1 / 2 + tol:
         return "journal"
     if z > d.h3 - tol and min(abs(r_axis - d.seat_inner / 2), abs(r_axis - d.seat_outer / 2)) < tol:

@@ -88,7 +88,8 @@ def ownership_reason(out: Path) -> str | None:
         return f"it cannot be read ({exc.strerror or exc})"
     if not names or MARKER in names:
         return None
-    if "results.json" in names and names <= RUN_FILES:
+    field_parts = {n for n in names if n.startswith("displacement") and n.endswith((".vtu", ".pvtu"))}
+    if "results.json" in names and names - field_parts <= RUN_FILES:
         return None  # written by an earlier version of the tool (no marker yet)
     return (f"it holds files crosshead did not write (no {MARKER} marker); "
             "choose a new or empty folder")

@@ -53,6 +53,18 @@ def error_bar_text(block: dict) -> str:
     return f"NOT CONVERGED (status {st}, observed order {est['order_observed']:.2f})"
 
 
+def _sf(value: float | None) -> str:
+    return "none (singular)" if value is None else f"{value:.2f}"
+
+
+def safety_text(fe: dict, key: str) -> str:
+    """The safety factor in bold, or why there is none (a singular peak)."""
+    value = fe.get(key)
+    if value is None:
+        return f"**none** ({fe.get(key + '_note', 'no finite peak')})"
+    return f"**{value:.2f}**"
+
+
 def why_sentence(res: dict) -> str:
     """Plain explanation of why the FE peak differs from the nominal formula stress."""
     fe, an = res["fe"], res["analytic"]
@@ -97,10 +109,10 @@ def render_markdown(res: dict) -> str:
     if c["support"] == "rigid":
         add("> **Note:** `rigid` support fixes u_z on the lower journal halves; the edges of that "
             "patch are stress singularities, so peaks there are not finite.\n")
-    sf_peak = fe["safety_factor"]
     add(f"Safety factor against the allowable {_f(c['allowable_MPa'], 0)} MPa "
         "(paper: 80–120 MPa for St 42/St 50): "
-        f"**{sf_peak:.2f}** on the global peak, **{fe['critical_safety_factor']:.2f}** on the critical-region peak.\n")
+        f"{safety_text(fe, 'safety_factor')} on the global peak, "
+        f"{safety_text(fe, 'critical_safety_factor')} on the critical-region peak.\n")
     add("Difference of the FE peaks from the formulas: critical-region peak "
         f"{cmp_['critical_vs_exact']:+.1f} % vs exact, {cmp_['critical_vs_approximate']:+.1f} % vs approximate; "
         f"global peak {cmp_['peak_vs_exact']:+.1f} % vs exact, {cmp_['peak_vs_approximate']:+.1f} % vs approximate.\n")
@@ -183,7 +195,7 @@ def render_markdown(res: dict) -> str:
         add("|---|---|---|---|---|---|")
         for r in sweep:
             add(f"| {_f(r['load_N'], 0)} | {_f(r['peak_MPa'])} | {_f(r['critical_peak_MPa'])} | "
-                f"{_f(r['approximate_MPa'])} | {_f(r['exact_MPa'])} | {r['safety_factor']:.2f} / {r['critical_safety_factor']:.2f} |")
+                f"{_f(r['approximate_MPa'])} | {_f(r['exact_MPa'])} | {_sf(r['safety_factor'])} / {_sf(r['critical_safety_factor'])} |")
         add("")
     conv = res.get("convergence")
     if conv:

@@ -44,13 +44,14 @@ def build_results(case: Case, levels: list[Level], timings: dict[str, float],
         return block
 
     ex, ap = hand.exact, hand.approximate
+    peak_b, crit_b = peak_block(fine.peak, est_peak), peak_block(fine.critical, est_crit)
     fe = {
         "peak_MPa": fine.peak.value_MPa,
         "peak_location_mm": list(fine.peak.location_mm),
         "critical_peak_MPa": fine.critical.value_MPa,
         "critical_location_mm": list(fine.critical.location_mm),
-        "peak": peak_block(fine.peak, est_peak),
-        "critical": peak_block(fine.critical, est_crit),
+        "peak": peak_b,
+        "critical": crit_b,
         "dofs": fine.dofs, "cells": fine.cells, "order": case.order,
         "model": case.model, "support": case.support, "solver": case.solver,
         "iterations": fine.iterations, "residual_rel": fine.residual_rel,
@@ -59,8 +60,8 @@ def build_results(case: Case, levels: list[Level], timings: dict[str, float],
         "seat_force_N": fine.seat_force_N, "support_force_N": fine.support_force_N,
         "model_load_share": 0.25 if case.model == "quarter" else 1.0,
         "mesh_min_jacobian_ratio": fine.jacobian_ratio,
-        "safety_factor": case.allowable_MPa / fine.peak.value_MPa,
-        "critical_safety_factor": case.allowable_MPa / fine.critical.value_MPa,
+        **safety_factors(case.allowable_MPa, {"safety_factor": (fine.peak.value_MPa, peak_b),
+                                               "critical_safety_factor": (fine.critical.value_MPa, crit_b)}),
         "mpi_ranks": comm.size,
         "refined_at_mm": [] if pl is None else [list(p) for p in pl.hotspots],
         "pilot_mesh_factor": None if pl is None else pl.factor,
@@ -94,6 +95,18 @@ def build_results(case: Case, levels: list[Level], timings: dict[str, float],
         },
         "timings_s": timings,
     }
+
+
+def safety_factors(allowable_MPa: float, peaks: dict[str, tuple[float, dict]]) -> dict:
+    """{key: allowable / peak} for each (peak MPa, peak block); a peak at a singular feature
+    has no finite value, so its key is None and ``<key>_note`` says why (docs/design.md §5)."""
+    out: dict = {}
+    for key, (value, block) in peaks.items():
+        where = block.get("singular_feature")
+        out[key] = None if where else allowable_MPa / value
+        if where:
+            out[f"{key}_note"] = f"the peak sits at a singular feature ({where}) and has no finite value"
+    return out
 
 
 def sum_timings(levels: list[Level], pl: Pilot | None = None) -> dict[str, float]:

@@ -222,6 +222,18 @@ CORPUS = [
     ("unknown-command", ["solve", "--size", "05"], None, ("invalid choice",)),
     ("no-command", [], None, ("command",)),
     ("option-without-value", RUN + ["--load"], None, ("--load", "expected one argument")),
+    # physical ranges and consistency (docs/design.md §3, §4)
+    ("load-tiny", RUN + ["--load", "1e-300"], None, ("load_N", "must lie in")),
+    ("load-huge", RUN + ["--load", "1e12"], None, ("load_N", "must lie in")),
+    ("E-tiny", RUN + ["--E", "1e-300"], None, ("E_MPa", "must lie in")),
+    ("allowable-tiny", RUN + ["--allowable", "1e-300"], None, ("allowable_MPa", "must lie in")),
+    ("load-range-inf", RUN + ["--load", "1:inf:3"], None, ("load_N", "finite")),
+    ("span-approximate-no-lever", RUN + ["--span-approximate", "1"], None, ("approximate_span_mm", "Dm/pi")),
+    ("span-both-no-lever", RUN + ["--span-exact", "1", "--span-approximate", "1"], None, ("span_mm",)),
+    ("span-exact-inside-ring", RUN + ["--span-exact", "30"], None, ("exact_span_mm", "ring")),
+    ("size-conflicts-case-file", ["run", "--size", "10", "--case", "{case}"], 'size = "05"\n', ("size", "conflicts")),
+    ("case-not-regular", ["run", "--case", "/dev/zero"], None, ("case", "not a regular file")),
+    ("case-too-large", ["run", "--case", "{case}"], "#" * (2 << 20) + "\n", ("case", "larger than")),
 ]
 
 
@@ -558,3 +570,45 @@ def test_cli_random_arguments(monkeypatch, fuzz_dir, argv):
         else:  # -h/--help (or an abbreviation of it) among the garbage tokens
             assert "usage:" in stdout
     assert not (fuzz_dir / "o").exists()
+
+
+def test_byte_order_mark_is_accepted(tmp_path):
+    """Editors that write a UTF-8 byte-order mark still give a valid case file."""
+    f = tmp_path / "bom.toml"
+    f.write_bytes("\ufeff".encode() + VALID_TOML.encode())
+    assert resolve(None, f).size == "05"
+
+
+def test_singular_peak_has_no_safety_factor():
+    """results.safety_factors: a peak at a singular feature gets None and a note; others
+    allowable / peak (arithmetic checked by hand: 80 / 40 = 2)."""
+    from pipeline.report import safety_text
+    from pipeline.results import safety_factors
+    sf = safety_factors(80.0, {"safety_factor": (812.0, {"singular_feature": "edge of the rigid patch"}),
+                               "critical_safety_factor": (40.0, {})})
+    assert sf["safety_factor"] is None and "singular" in sf["safety_factor_note"]
+    assert sf["critical_safety_factor"] == 2.0 and "critical_safety_factor_note" not in sf
+    assert safety_text(sf, "safety_factor").startswith("**none**")
+    assert safety_text(sf, "critical_safety_factor") == "**2.00**"
+
+
+def test_rigid_support_run_gives_no_global_safety_factor(tmp_path):
+    """Through the CLI on coarse meshes: the rigid patch's edge is singular, so stdout,
+    results.json and report.md give no safety factor for that peak."""
+    out = tmp_path / "rigid"
+    p = subprocess.run([sys.executable, "-m", "pipeline", "run", "--size", "05", "--support", "rigid",
+                        "--mesh-factor", "3", "--out", str(out)], cwd=ROOT, capture_output=True, text=True,
+                       timeout=300)
+    assert p.returncode == 0, p.stderr
+    fe = json.loads((out / "results.json").read_text())["fe"]
+    assert fe["peak"].get("singular_feature") and fe["safety_factor"] is None
+    assert "none (singular peak) (global)" in p.stdout
+    assert "**none**" in (out / "report.md").read_text()
+
+
+def test_zero_fillet_peak_is_named_the_journal_root():
+    """rf = 0: a point on the journal root circle is named as the sharp corner it is."""
+    from pipeline.features import describe_location
+    case = resolve("05", None, {"dims.rf": 0.0})
+    d = case.dims
+    assert "journal root" in describe_location(case, (d.b1 / 2, 0.0, d.h3 / 2 - d.dj / 2))
