@@ -36,6 +36,10 @@ import time
 
 T_START = time.perf_counter()
 
+from pipeline.environment import configure  # noqa: E402
+
+configure()  # the pipeline's form cache and PETSc options in every bench process
+
 import argparse  # noqa: E402
 import csv  # noqa: E402
 import json  # noqa: E402

@@ -6,6 +6,7 @@ failure (nothing written).
 from __future__ import annotations
 
 import argparse
+import contextlib
 import math
 import os
 import sys
@@ -14,16 +15,12 @@ from pathlib import Path
 
 T_START = time.perf_counter()
 
-# One process, one core: the parallelism is MPI ranks. BLAS only does small dense work here
-# (GAMG, eigenvalue estimates), and OpenBLAS's idle threads spin: one process on 2 cores
-# (make run RANKS=1) used 9.5 s of system time instead of 1.0 s, same wall time, the core
-# that the picture process needs. Read when numpy loads, so set before any import of it.
-os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+from pipeline.environment import configure  # noqa: E402
+
+configure()  # before numpy, PETSc or DOLFINx load (pipeline/environment.py)
 
 from pipeline.choices import MODELS, SOLVERS, SUPPORTS  # noqa: E402
-from pipeline.interrupts import install as install_interrupts, no_petsc_handlers  # noqa: E402
-
-no_petsc_handlers()  # before anything imports PETSc
+from pipeline.interrupts import install as install_interrupts  # noqa: E402
 
 DESCRIPTION = """\
 Finite-element stress analysis of a DIN 15412 crane hook-block crosshead.
@@ -187,6 +184,7 @@ def _dispatch(args) -> int:
     from geometry.part import GeometryError
     from pipeline.errors import InputError, NumericalError
     rank0 = MPI.COMM_WORLD.rank == 0
+    stack = contextlib.ExitStack()  # clean-ups that last as long as this command
     try:
         from dataclasses import replace
 
@@ -215,8 +213,13 @@ def _dispatch(args) -> int:
                 raise InputError(f"levels: the finest mesh of this study (mesh factor {case.mesh_factor:g} / "
                                  f"{args.ratio:g}^{args.levels - 3} = {finest:.3g}) is not allowed: {exc}") from None
         if rank0:  # before any form is compiled; the other ranks wait for rank 0's compiles
-            from pipeline.formcache import jit_cache_dir, remove_interrupted
-            for stale in remove_interrupted(jit_cache_dir()):
+            from pipeline.formcache import claims_since, jit_cache_dir, remove_interrupted
+            from pipeline.interrupts import on_stop
+            cache, started = jit_cache_dir(), time.time()
+            # A compile cut short by Ctrl-C leaves its claim, and every later run needing
+            # that form would wait for it and time out: a stopped run removes its own.
+            stack.enter_context(on_stop(lambda: [c.unlink(missing_ok=True) for c in claims_since(cache, started)]))
+            for stale in remove_interrupted(cache):
                 _progress(f"removed {stale.name} from the form cache (an interrupted compile)")
         from pipeline.outdir import check_out, default_out
         out = args.out if args.out is not None else default_out(
@@ -257,6 +260,8 @@ def _dispatch(args) -> int:
             sys.stderr.write(f"failure: {type(exc).__name__}: {_one_line(exc)}; nothing written "
                              "(set CROSSHEAD_TRACEBACK=1 for the traceback)\n")
         return 3
+    finally:
+        stack.close()
 
 
 def _one_line(exc: Exception) -> str:

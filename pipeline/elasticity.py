@@ -8,7 +8,9 @@ from dataclasses import dataclass
 import basix
 import numpy as np
 import ufl
+from dolfinx import fem
 from dolfinx.mesh import CellType, meshtags
+from petsc4py import PETSc
 
 
 @dataclass(frozen=True)
@@ -55,8 +57,13 @@ def strain(u):
 
 
 def stress(u, mat: Material):
-    """Cauchy stress (MPa) of displacement u."""
-    mu, lam = mat.lame
+    """Cauchy stress (MPa) of displacement u.
+
+    The Lamé parameters enter as runtime constants, not literals: a form compiled once
+    serves every E and nu (a literal made each new material a new form, ~2 s to compile).
+    """
+    mesh = u.ufl_function_space().mesh
+    mu, lam = (fem.Constant(mesh, PETSc.ScalarType(v)) for v in mat.lame)
     return 2.0 * mu * strain(u) + lam * ufl.tr(strain(u)) * ufl.Identity(len(u))
 
 

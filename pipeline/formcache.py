@@ -1,4 +1,4 @@
-"""The form compiler's cache (.venv/jit-cache, see dolfinx_jit_parameters.json): clean-up.
+"""The form compiler's cache (.venv/cache/fenics, see pipeline/environment.py): clean-up.
 
 FFCx claims a form by creating ``<module>.c`` and marks it done with ``<module>.c.cached``.
 A run killed while compiling leaves the claim without the mark, and every later run that
@@ -35,7 +35,20 @@ def remove_interrupted(cache_dir: Path, stale_after_s: float = STALE_AFTER_S,
     return removed
 
 
+def claims_since(cache_dir: Path, since: float) -> list[Path]:
+    """Claims (``*.c`` without ``*.c.cached``) made at or after ``since`` (epoch s): the
+    compiles this process started, when it is stopped midway (pipeline.interrupts)."""
+    found = []
+    for c_file in Path(cache_dir).glob("*.c"):
+        try:
+            if not c_file.with_suffix(".c.cached").exists() and c_file.stat().st_mtime >= since:
+                found.append(c_file)
+        except FileNotFoundError:
+            continue
+    return found
+
+
 def jit_cache_dir() -> Path:
-    """The cache directory DOLFINx uses in this working directory."""
+    """The cache directory DOLFINx uses (pipeline/environment.py sets where)."""
     from dolfinx.jit import get_parameters
     return Path(get_parameters()["cache_dir"])

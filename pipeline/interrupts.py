@@ -11,7 +11,8 @@ writes one line (rank 0) and ends the process with ``os._exit``.
 
 gmsh's Python module resets SIGINT to the default action when imported, and PETSc
 installs handlers that abort the MPI job on SIGTERM and on a closed pipe (SIGPIPE, exit
-59). So PETSc is started without its handlers, gmsh is imported before ours are set.
+59). So PETSc is started without its handlers (pipeline/environment.py), and gmsh is
+imported before ours are set.
 """
 from __future__ import annotations
 
@@ -37,13 +38,6 @@ class _Watcher:
 
 
 _WATCHER = _Watcher()  # process-wide by nature: signals and their handlers are per process
-
-
-def no_petsc_handlers() -> None:
-    """Ask PETSc (read at its start) not to install signal handlers; call before importing it."""
-    opts = os.environ.get("PETSC_OPTIONS", "")
-    if "-no_signal_handler" not in opts.split():
-        os.environ["PETSC_OPTIONS"] = f"{opts} -no_signal_handler".strip()
 
 
 @contextlib.contextmanager

@@ -7,6 +7,10 @@ if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
 
+from pipeline.environment import configure  # noqa: E402
+
+configure()  # the same form cache, BLAS threads and PETSc options as the command line
+
 import gmsh  # noqa: E402
 import pytest  # noqa: E402
 

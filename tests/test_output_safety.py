@@ -107,7 +107,6 @@ def test_out_dot_in_a_scratch_copy_deletes_nothing(tmp_path):
     scratch.mkdir()
     for name in ("pipeline", "geometry", "cases"):
         fresh_copy(ROOT / name, scratch / name)
-    (scratch / "dolfinx_jit_parameters.json").write_text((ROOT / "dolfinx_jit_parameters.json").read_text())
     (scratch / "mywork.txt").write_text("precious")
     before = snapshot(scratch)
     env = dict(os.environ, PYTHONPATH=str(scratch))
