@@ -130,6 +130,8 @@ def add_case_options(p: argparse.ArgumentParser) -> None:
     m.add_argument("--solver", choices=SOLVERS,
                    help="CG + p-multigrid over P1 with GAMG (default), CG + GAMG, CG + BoomerAMG, or direct MUMPS")
     m.add_argument("--rtol", type=_positive_float, help="relative tolerance of the iterative solver on the true residual (default 1e-8)")
+    m.add_argument("--memory-limit", type=_positive_float, dest="memory_limit", metavar="GB",
+                   help="refuse a run estimated to need more memory than this, GiB (default: what the machine has free)")
     p.add_argument("--out", type=Path, help="output folder (default results/<case name>)")
     p.add_argument("--quiet", action="store_true", help="no progress lines")
 
@@ -221,6 +223,11 @@ def _dispatch(args) -> int:
             stack.enter_context(on_stop(lambda: [c.unlink(missing_ok=True) for c in claims_since(cache, started)]))
             for stale in remove_interrupted(cache):
                 _progress(f"removed {stale.name} from the form cache (an interrupted compile)")
+        from pipeline.resources import check_fits, factors_of
+        est = check_fits(case, factors_of(case, args.command, args.levels, args.ratio), args.memory_limit)
+        if est is not None and est.tets > 3e5 and rank0 and not args.quiet:
+            _progress(f"a large run: the finest mesh has about {est.tets:.1e} tets, {est.dofs:.1e} DOFs, "
+                      f"{est.bytes / 1024 ** 3:.1f} GiB; meshing alone may take minutes")
         from pipeline.outdir import check_out, default_out
         out = args.out if args.out is not None else default_out(
             case.name if args.command == "run" else f"{case.name}-converge")

@@ -1,0 +1,104 @@
+"""Will the run fit in memory? An estimate of elements, DOFs and bytes before any meshing.
+
+Element sizes scale with the mesh factor f, but the tet count grows more slowly than f^-3
+at practical factors because much of the mesh sits in graded layers along the features
+(measured on No. 05 with default sizes, no refined places: 1 927 / 5 954 / 23 204 / 50 255
+tets at f = 4 / 2 / 1 / 0.7, a local exponent of 1.6 → 2.0 → 2.2). So a cheap probe mesh
+at f = 2 is scaled by (2/f)^2.5: 45–65 % above the real count at f = 1 and 0.7, and
+approaching the f^-3 of the body at fine factors. The pilot's refined places add about 70 %
+(No. 05 ×1: 39 079 against 23 204 tets). Bytes per DOF come from `make bench`'s peak
+memory (docs/performance.md), with a margin of 1.5.
+"""
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass, replace
+from typing import Sequence
+
+from .case import Case
+from .errors import InputError
+
+PROBE_FACTOR = 2.0
+EXPONENT = 2.5
+REFINED_PLACES = 1.7  # the pilot's balls: tets with / without them at No. 05 ×1
+DOFS_PER_TET = {1: 0.6, 2: 4.7, 3: 15.3}  # vector DOFs per tet (No. 05 meshes)
+# Bytes per DOF of the whole solve (matrix, preconditioner, vectors), P2; P3 × 1.7.
+BYTES_PER_DOF = {"pmg": 1.2e3, "gamg": 2.1e3, "hypre": 6.0e3, "mumps": 7.6e3}
+MARGIN = 1.5
+BASE_BYTES = 250e6  # one process with DOLFINx, PETSc and gmsh loaded, no mesh
+
+
+@dataclass(frozen=True)
+class Estimate:
+    """What the finest mesh and the whole run need (tets, DOFs, bytes)."""
+
+    tets: int
+    dofs: int
+    bytes: float
+
+
+def available_bytes() -> float:
+    """Memory the machine can give now (MemAvailable of /proc/meminfo), bytes."""
+    try:
+        with open("/proc/meminfo") as f:
+            for line in f:
+                if line.startswith("MemAvailable:"):
+                    return float(line.split()[1]) * 1024
+    except OSError:
+        pass
+    return float(os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_AVPHYS_PAGES"))
+
+
+def needs_probe(case: Case, factors: Sequence[float]) -> bool:
+    """Whether the run could be large: finer than the default mesh, sizes set by hand, or
+    a fillet much smaller than the default (its elements are rf/4)."""
+    small_fillet = case.dims.rf < 0.03 * case.dims.h3  # half the default 0.06·h3
+    by_hand = any(getattr(case, k) is not None for k in
+                  ("size_body_mm", "size_feature_mm", "size_fillet_mm", "grading_mm"))
+    return min(factors) < 0.8 or by_hand or small_fillet
+
+
+def estimate(case: Case, factors: Sequence[float], probe_tets: int, probe_factor: float) -> Estimate:
+    """Elements, DOFs and bytes of a run solving meshes at ``factors`` (the finest is the
+    estimate's tets and DOFs; bytes add every mesh, since the error-bar meshes are solved
+    at the same time on other ranks), from a probe mesh of ``probe_tets`` at ``probe_factor``."""
+    per_dof = BYTES_PER_DOF[case.solver] * (1.7 if case.order == 3 else 1.0) * MARGIN
+
+    def tets(f: float) -> float:
+        return probe_tets * (probe_factor / f) ** EXPONENT * REFINED_PLACES
+    finest = min(factors)
+    dofs = [tets(f) * DOFS_PER_TET[case.order] for f in factors]
+    return Estimate(tets=int(tets(finest)), dofs=int(max(dofs)),
+                    bytes=BASE_BYTES + sum(d * per_dof for d in dofs))
+
+
+def probe(case: Case) -> tuple[int, float]:
+    """(tets, factor) of a quick first-order mesh at PROBE_FACTOR (no refined places)."""
+    from .meshing import Mesher
+    f = PROBE_FACTOR
+    with Mesher(case.dims, case.model) as m:
+        part = m.generate(replace(case.mesh_spec(f), order=1))
+    return len(part.cells), f
+
+
+def check_fits(case: Case, factors: Sequence[float], limit_gb: float | None) -> Estimate | None:
+    """Refuse (InputError, exit 2) a run whose estimate exceeds ``limit_gb`` (default: the
+    memory available now); None when the run is plainly small (no probe needed)."""
+    if not needs_probe(case, factors):
+        return None
+    est = estimate(case, factors, *probe(case))
+    limit = available_bytes() if limit_gb is None else limit_gb * 1024 ** 3
+    if est.bytes > limit:
+        finest = min(factors)
+        raise InputError(
+            f"mesh_factor: the finest mesh (factor {finest:g}) needs about {est.tets:.1e} tets, "
+            f"{est.dofs:.1e} DOFs and {est.bytes / 1024 ** 3:.1f} GiB in all; "
+            f"{limit / 1024 ** 3:.1f} GiB {'allowed' if limit_gb is not None else 'available'} "
+            f"(use a coarser --mesh-factor, or --memory-limit GB to override)")
+    return est
+
+
+def factors_of(case: Case, command: str, levels: int, ratio: float) -> list[float]:
+    """The mesh factors a command solves: run = the case's and coarser; converge = finer."""
+    top = case.mesh_factor / ratio ** max(levels - 3, 0) if command == "converge" else case.mesh_factor
+    return [top * ratio ** k for k in range(levels)]

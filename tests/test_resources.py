@@ -1,0 +1,54 @@
+"""The memory estimate made before meshing (pipeline/resources.py) against real meshes,
+and the refusal of runs that cannot fit (exit 2 before any meshing)."""
+from __future__ import annotations
+
+import subprocess
+import sys
+import time
+from dataclasses import replace
+from pathlib import Path
+
+import pytest
+
+from pipeline.case import resolve
+from pipeline.meshing import Mesher
+from pipeline.resources import REFINED_PLACES, estimate, needs_probe, probe
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+@pytest.mark.parametrize("size,factor", [("05", 0.7), ("1.6", 0.8)])
+def test_estimate_bounds_the_real_mesh(size, factor):
+    """The estimated tet count (without the refined-places allowance) lies between the real
+    count of the same mesh and twice it: conservative, never absurd. The real mesh is the
+    independent source."""
+    case = resolve(size)
+    est = estimate(case, [factor], *probe(case))
+    with Mesher(case.dims, case.model) as m:
+        real = len(m.generate(replace(case.mesh_spec(factor), order=1)).cells)
+    ratio = est.tets / REFINED_PLACES / real
+    assert 1.0 <= ratio <= 2.0, (est.tets, real, ratio)
+
+
+def test_default_runs_need_no_probe():
+    case = resolve("05")
+    assert not needs_probe(case, [1.0, 1.3, 1.69])
+    assert needs_probe(case, [0.5])
+    assert needs_probe(resolve("05", None, {"dims.rf": 0.5}), [1.0])
+
+
+def cli(*args: str) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "pipeline", "run", "--size", "05", "--no-fields", *args],
+                          cwd=ROOT, capture_output=True, text=True, timeout=300)
+
+
+@pytest.mark.parametrize("args", [["--mesh-factor", "0.05"], ["--order", "3", "--mesh-factor", "0.3"],
+                                  ["--mesh-factor", "0.7", "--memory-limit", "0.01"]])
+def test_runs_that_cannot_fit_are_refused_before_meshing(tmp_path, args):
+    t0 = time.perf_counter()
+    p = cli(*args, "--out", str(tmp_path / "out"))
+    assert time.perf_counter() - t0 < 20
+    assert p.returncode == 2, p.stderr
+    line, = p.stderr.strip().splitlines()
+    assert line.startswith("error: mesh_factor:") and "--memory-limit" in line and "GiB" in line
+    assert not (tmp_path / "out").exists() and list(tmp_path.iterdir()) == []
