@@ -1,0 +1,65 @@
+"""The case files in cases/ are worked examples: each one runs through the command line
+(on coarse meshes here) and gives what its comments promise.
+
+A case file says what to analyse; the test overrides only the mesh (coarse, one or three
+levels) so the suite stays fast. What each asserts comes from outside the run: the file's
+own inputs, statics (the loads balance), the singular feature the rigid support creates,
+and the quarter model's answer for the full one.
+"""
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+import tomllib
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+CASES = sorted((ROOT / "cases").glob("*.toml"))
+
+
+def run(case: Path, out: Path, *extra: str) -> dict:
+    p = subprocess.run([sys.executable, "-m", "pipeline", "run", "--case", str(case), "--out", str(out),
+                        "--no-fields", "--quiet", *extra], cwd=ROOT, capture_output=True, text=True,
+                       timeout=600)
+    assert p.returncode == 0, p.stderr
+    return json.loads((out / "results.json").read_text())
+
+
+def test_every_case_file_is_tested():
+    assert {c.name for c in CASES} == {"05.toml", "05-rigid.toml", "05-full.toml", "1.6-fillet.toml"}
+
+
+@pytest.mark.parametrize("case", CASES, ids=[c.stem for c in CASES])
+def test_case_runs_with_its_inputs(case, tmp_path):
+    """Every input the file sets is the one the run used; the loads balance (statics)."""
+    spec = tomllib.loads(case.read_text())
+    factor = max(spec.get("mesh", {}).get("factor", 1.0), 3.0)
+    res = run(case, tmp_path / "out", "--mesh-factor", str(factor), "--levels", "1")
+    c = res["case"]
+    assert c["name"] == spec["name"] and c["size"] == spec["size"]
+    for section in ("model", "material"):
+        for key, value in spec.get(section, {}).items():
+            assert c[key] == value, (key, c[key], value)
+    for key, value in spec.get("dimensions", {}).items():
+        assert c["dims"][key] == value and key not in c["assumed"]
+    fe = res["fe"]
+    assert abs(fe["equilibrium_error_N"]) <= 1e-6 * c["load_N"]
+
+
+def test_rigid_case_names_its_singular_edge(tmp_path):
+    res = run(ROOT / "cases" / "05-rigid.toml", tmp_path / "out", "--mesh-factor", "3")
+    fe = res["fe"]
+    assert "rigid" in fe["peak"]["singular_feature"] and fe["safety_factor"] is None
+
+
+def test_full_case_equals_the_quarter(tmp_path):
+    """The whole part and the quarter with symmetry planes give the same critical peak on
+    the same mesh sizes (the symmetry conditions are right), to 1 % on this coarse mesh."""
+    full = run(ROOT / "cases" / "05-full.toml", tmp_path / "full", "--mesh-factor", "3", "--levels", "1")
+    quarter = run(ROOT / "cases" / "05.toml", tmp_path / "quarter", "--mesh-factor", "3", "--levels", "1")
+    assert full["fe"]["model"] == "full" and quarter["fe"]["model"] == "quarter"
+    a, b = full["fe"]["critical_peak_MPa"], quarter["fe"]["critical_peak_MPa"]
+    assert abs(a - b) <= 0.01 * b, (a, b)
