@@ -173,3 +173,21 @@ def lookup(size: str, path: Path = TABLE_PATH) -> TableRow:
 def with_overrides(d: Dimensions, **over: float) -> Dimensions:
     """Dimensions with some fields replaced (case file or CLI overrides), mm."""
     return replace(d, **over)
+
+
+PUBLISHED_PATH = Path(__file__).with_name("published.csv")
+
+
+def published(size: str, load_N: float, approximate_span_mm: float, exact_span_mm: float,
+              path: Path = PUBLISHED_PATH) -> dict | None:
+    """The published results (MPa, N, N·mm) for this size, if a source gives them for the
+    same load and spans (else None: another size or other inputs have no reference)."""
+    with open(path, newline="", encoding="utf-8") as f:
+        rows = list(csv.DictReader(line for line in f if not line.startswith("#")))
+    for row in rows:
+        same = (row["size"] == size and math.isclose(float(row["load_N"]), load_N, rel_tol=1e-9)
+                and math.isclose(float(row["approximate_span_mm"]), approximate_span_mm, rel_tol=1e-9)
+                and math.isclose(float(row["exact_span_mm"]), exact_span_mm, rel_tol=1e-9))
+        if same:
+            return {k: (v if k == "source" else float(v)) for k, v in row.items() if k != "size"}
+    return None

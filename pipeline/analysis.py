@@ -50,7 +50,7 @@ def analyse(case: Case, levels: int = 3, ratio: float = 1.3, msh_path: Path | No
     if comm.size > 1 and levels > 1:
         say(f"meshes ×{', ×'.join(f'{f:.3g}' for f in factors)} made on {min(comm.size, levels)} ranks at once "
             f"({time.perf_counter() - t0:.2f} s)")
-    fine = solve_level(case, factors[0], keep_fields=True, comm=comm, progress=progress, load_mesh=loaders[0])
+    fine = solve_level(case, factors[0], keep_fields=True, with_sections=True, comm=comm, progress=progress, load_mesh=loaders[0])
     if on_requested is not None:
         on_requested(fine)
     mine: list[tuple[int, Level]] = []

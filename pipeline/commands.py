@@ -77,6 +77,11 @@ def execute_run(case: Case, out_dir: Path, levels: int = 3, ratio: float = 1.3,
         if write_fields:
             files["picture"] = "von_mises.png"
             files["report"] = "report.md"
+            sec = res["fe"].get("sections")
+            if sec and comm.rank == 0:
+                from .plots import sections_plot
+                if sections_plot(stage / "sections.png", sec, res["analytic"], case.dims.h3):
+                    files["sections_plot"] = "sections.png"
         res["files"] = files
         res["timings_s"]["output"] = t_output
         if picture is not None:

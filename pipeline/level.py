@@ -15,6 +15,7 @@ from .features import critical_region
 from .loads import crosshead_loads, equilibrium
 from .meshing import ImportedMesh, Mesher, make_mesh
 from .peaks import Peak, peak, von_mises
+from .sections import section_results
 from .solve import solve
 
 Progress = Callable[[str], None]
@@ -37,10 +38,11 @@ class Level:
     jacobian_ratio: float
     timings: dict[str, float]
     fields: tuple | None = None  # (u, von_mises) on the requested mesh only
+    sections: dict | None = None  # section results (pipeline/sections.py), requested mesh only
 
 
 def solve_level(case: Case, factor: float, msh_path: Path | None = None,
-                keep_fields: bool = False, comm=MPI.COMM_WORLD,
+                keep_fields: bool = False, with_sections: bool = False, comm=MPI.COMM_WORLD,
                 progress: Progress | None = None, hotspots: Hotspots = (),
                 load_mesh: Callable[[], ImportedMesh] | None = None,
                 mesher: Mesher | None = None) -> Level:
@@ -77,6 +79,13 @@ def solve_level(case: Case, factor: float, msh_path: Path | None = None,
     vm = von_mises(sol.u, mat)
     pk = peak(vm)
     crit = peak(vm, critical_region(case))
+    sections = None
+    if with_sections:
+        sym_x = m.facet_ids.get("symmetry_x")
+        sym_idx = next((i for i, c in enumerate(lc.constraints) if c.component == 0 and c.marker == sym_x
+                        and sym_x is not None), None)
+        sections = section_results(sol, mat, case.dims, case.load_N, 0.25 if case.model == "quarter" else 1.0,
+                                   sym_idx, pk.value_MPa)
     t_post = time.perf_counter() - t0
     timings = dict(m.timings, **sol.timings, post=t_post)
     say(f"solve ×{factor:.3g}: {sol.dofs} DOFs, {sol.iterations} iterations ({case.solver}), "
@@ -87,4 +96,4 @@ def solve_level(case: Case, factor: float, msh_path: Path | None = None,
                  residual_rel=sol.residual_rel, seat_force_N=lc.seat_force_z_N,
                  support_force_N=support, equilibrium_error_N=eq_err,
                  constraint_reaction_N=point_r, jacobian_ratio=m.jacobian_ratio,
-                 timings=timings, fields=(sol.u, vm) if keep_fields else None)
+                 timings=timings, fields=(sol.u, vm) if keep_fields else None, sections=sections)

@@ -33,3 +33,38 @@ def convergence_plot(path: Path, conv: dict, case) -> bool:
     fig.savefig(path, dpi=110)
     plt.close(fig)
     return True
+
+
+def sections_plot(path: Path, sections: dict, analytic: dict, h_mm: float) -> bool:
+    """σ_xx through the height at x = 0 (bore edge and mid-ligament): the FE profile, its
+    linearisation, and the approximate formula's linear distribution (±σ at the faces)."""
+    try:
+        import matplotlib
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+    except ImportError:
+        return False
+    import numpy as np
+    fig, ax = plt.subplots(figsize=(7, 4.5))
+    for key, label, colour in (("bore_edge_height", "bore edge", "tab:red"),
+                               ("mid_ligament_height", "mid-ligament", "tab:blue")):
+        line = sections["lines"][key]
+        z = np.array(line["position_mm"])
+        ax.plot(line["sigma_xx_MPa"], z, "-", color=colour, label=f"FE σ_xx, {label}")
+        m, b = line["membrane_MPa"], line["bending_MPa"]
+        ax.plot(m + b * (1 - 2 * z / z[-1]), z, "--", color=colour, label=f"linearised, {label}")
+    s = analytic["approximate_MPa"]
+    ax.plot([s, -s], [0, h_mm], ":", color="black", label=f"approximate formula (±{s:.1f} MPa)")
+    cs = sections.get("critical_section")
+    if cs:
+        ax.plot([cs["nominal_MPa"], -cs["nominal_MPa"]], [0, h_mm], "-.", color="grey",
+                label=f"FE nominal from N, M (±{cs['nominal_MPa']:.1f} MPa)")
+    ax.axvline(0, color="lightgrey", lw=0.8)
+    ax.set_xlabel("normal stress σ_xx on the section x = 0 (MPa)")
+    ax.set_ylabel("height z (mm)")
+    ax.set_title("Ligament beside the bore: FE against the beam formula")
+    ax.legend(fontsize=8, loc="upper right")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return True

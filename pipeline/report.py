@@ -84,6 +84,77 @@ def why_sentence(res: dict) -> str:
         "path, so its node-level peak is higher than the nominal value.")
 
 
+def comparison_section(res: dict) -> str:
+    """Like with like: per section, the formulas' nominal stress, the FE nominal stress from
+    the section's resultants and its linearisation, the FE peak, and Kt (docs/design.md §5)."""
+    fe, an = res["fe"], res["analytic"]
+    sec = fe.get("sections")
+    if not sec:
+        return ""
+    L = ["## Like with like: nominal stresses at the two sections\n",
+         "The hand formulas give a *nominal* stress; the FE field gives the same quantity from the "
+         "section's force and moment (reactions of the symmetry plane, exact for the FE solution) "
+         "and from the linearised stress through the section, plus the concentration on top of it.\n",
+         "| section | formula, nominal (MPa) | FE nominal: N/A + 6M/(w·h²) (MPa) | FE linearised σ_xx, m + b (MPa) | FE peak von Mises (MPa) | Kt = peak / nominal |",
+         "|---|---|---|---|---|---|"]
+    cs, lines, root = sec.get("critical_section"), sec["lines"], sec["journal_root"]
+    crit = fe["critical"]
+    if cs:
+        lin = lines["mid_ligament_height"]["membrane_plus_bending_MPa"]
+        edge = lines["bore_edge_height"]["membrane_plus_bending_MPa"]
+        L.append(f"| ligaments beside the bore, x = 0 (N = {_f(cs['N_N'], 1)} N, M = {_f(cs['M_Nmm'], 0)} N·mm) | "
+                 f"approximate {_f(an['approximate_MPa'])} (span {_f(an['approximate_span_mm'], 1)} mm); "
+                 f"exact {_f(an['exact_MPa'])} (span {_f(an['exact_span_mm'], 1)} mm) | "
+                 f"**{_f(cs['nominal_MPa'])}** | mid-ligament {_f(lin)}; bore edge {_f(edge)} | "
+                 f"{_f(crit['value_MPa'])} {error_bar_text(crit)} | {crit['value_MPa'] / cs['nominal_MPa']:.2f} |")
+    pk = fe["peak"]
+    kt_p = f"; Peterson's chart {root['Kt_peterson']:.2f}" if "Kt_peterson" in root else ""
+    L.append(f"| journal root, x = b1/2 (M = {_f(root['M_Nmm'], 0)} N·mm) | none (the formulas do not check the "
+             f"journal) | **{_f(root['nominal_MPa'])}** (32·M/(π·dj³)) | | {_f(pk['value_MPa'])} "
+             f"{error_bar_text(pk)} | {root['Kt']:.2f}{kt_p} |")
+    L.append("")
+    if cs:
+        L.append(f"The approximate formula is the beam-bending stress of this section, 6·Me/((b − di)·h²) with "
+                 f"Me = {_f(an['approximate_terms']['Me_Nmm'], 0)} N·mm; the FE section carries "
+                 f"|M| = {_f(abs(cs['M_Nmm']), 0)} N·mm (the loads' real centroids instead of the formula's "
+                 "points), hence the difference in the nominal stress. The exact formula models the ring "
+                 "around the bore as a curved bar bent in its own plane; its stress is not a stress of "
+                 "this section's bending over the height. The peak sits on top of the nominal stress at the "
+                 "bore edge (3-D concentration).\n")
+    if "peterson_note" in root:
+        L.append(f"Peterson's value is a plausibility check: {root['peterson_note']}.\n")
+    L.append("![normal stress along the ligament](sections.png)\n" if res.get("files", {}).get("sections_plot") else "")
+    return "\n".join(L)
+
+
+VERDICT_NAMES = {"global_peak": "global peak (whole part)", "critical_peak": "critical-region peak",
+                 "critical_section_nominal": "critical section, nominal (N, M)",
+                 "journal_root_nominal": "journal root, nominal bending"}
+
+
+def verdict_section(res: dict) -> str:
+    """Pass/fail against the allowable, margin, error bar, and the load capacity."""
+    v, c = res["fe"].get("verdict"), res["case"]
+    if not v:
+        return ""
+    L = [f"## Verdict against the allowable {_f(c['allowable_MPa'], 0)} MPa\n",
+         "| stress | value (MPa) | verdict | margin | capacity: hook load at the allowable (N) |",
+         "|---|---|---|---|---|"]
+    for key, row in v.items():
+        name = VERDICT_NAMES.get(key, key)
+        if row["verdict"] == "none":
+            L.append(f"| {name} | {_f(row['value_MPa'])} | **no verdict** | | {row['why']} |")
+            continue
+        band = f" ± {_f(row['band_MPa'])}" if row.get("band_MPa") else ""
+        rng = row.get("capacity_range_N")
+        cap = _f(row["capacity_N"], 0) + (f" ({_f(rng[0], 0)}–{_f(rng[1], 0)})" if rng and band else "")
+        L.append(f"| {name} | {_f(row['value_MPa'])}{band} | **{row['verdict']}** | {row['margin_pct']:+.1f} % | {cap} |")
+    L.append("\nCapacity scales the hook load linearly (linear elasticity, loads only): the load at which "
+             "that stress reaches the allowable; the range follows the error bar. \"undecided\": the "
+             "error bar straddles the allowable.\n")
+    return "\n".join(L)
+
+
 def render_markdown(res: dict) -> str:
     """The whole report as Markdown text."""
     c, an, fe, cmp_ = res["case"], res["analytic"], res["fe"], res["comparison_pct"]
@@ -97,9 +168,14 @@ def render_markdown(res: dict) -> str:
     add("|---|---|---|---|")
     add(f"| FE peak von Mises, whole part | **{_f(fe['peak']['value_MPa'])}** | {error_bar_text(fe['peak'])} | {fe['peak']['feature']} at {_loc(fe['peak']['location_mm'])} |")
     add(f"| FE peak von Mises, critical region (\\|x\\| ≤ di/2) | **{_f(fe['critical']['value_MPa'])}** | {error_bar_text(fe['critical'])} | {fe['critical']['feature']} at {_loc(fe['critical']['location_mm'])} |")
-    add(f"| approximate formula (span {_f(an['approximate_span_mm'], 1)} mm) | {_f(an['approximate_MPa'])} | paper 37.8 | nominal, ligament beside bore |")
-    add(f"| exact formula (span {_f(an['exact_span_mm'], 1)} mm) | {_f(an['exact_MPa'])} | paper 43.75 | nominal, ring ligament |")
+    pub = an.get("published")
+    add(f"| approximate formula (span {_f(an['approximate_span_mm'], 1)} mm) | {_f(an['approximate_MPa'])} | "
+        f"{'published ' + _f(pub['approximate_MPa']) if pub else ''} | nominal, ligament beside bore |")
+    add(f"| exact formula (span {_f(an['exact_span_mm'], 1)} mm) | {_f(an['exact_MPa'])} | "
+        f"{'published ' + _f(pub['exact_MPa']) if pub else ''} | nominal, ring ligament |")
     add("")
+    add(comparison_section(res))
+    add(verdict_section(res))
     for key in ("peak", "critical"):
         where = fe[key].get("singular_feature")
         if where:
@@ -149,23 +225,25 @@ def render_markdown(res: dict) -> str:
     at = an["approximate_terms"]
     add(f"Approximate: Me = Q/2·(l/2 − Dm/π) with l = {_f(an['approximate_span_mm'], 2)} mm: "
         f"lever {_f(at['lever_mm'], 3)} mm, Me = {_f(at['Me_Nmm'], 0)} N·mm, "
-        f"σ = 6·Me/((b − di)·h²) = **{_f(an['approximate_MPa'])} MPa** (paper 37.8).\n")
+        f"σ = 6·Me/((b − di)·h²) = **{_f(an['approximate_MPa'])} MPa**"
+        + (f" (published {_f(pub['approximate_MPa'])}).\n" if pub else ".\n"))
     et = an["exact_terms"]
     add(f"Exact (Rudenko curved bar), l = {_f(an['exact_span_mm'], 2)} mm, R = (b + di)/4 = {_f(et['R_mm'], 2)} mm:\n")
-    add("| term | value | paper |")
+    p_ = pub or {}
+    add("| term | value | published |")
     add("|---|---|---|")
-    add(f"| N1 (N) | {_f(et['N1_N'], 1)} | 7547.8 |")
-    add(f"| M1 (N·mm) | {_f(et['M1_Nmm'], 1)} | 4000 |")
-    add(f"| N2 (N) | {_f(et['N2_N'], 1)} | 4364.7 |")
-    add(f"| M2 (N·mm) | {_f(et['M2_Nmm'], 1)} | 17556 |")
+    add(f"| N1 (N) | {_f(et['N1_N'], 1)} | {_f(p_['N1_N'], 1) if pub else ''} |")
+    add(f"| M1 (N·mm) | {_f(et['M1_Nmm'], 1)} | {_f(p_['M1_Nmm'], 0) if pub else ''} |")
+    add(f"| N2 (N) | {_f(et['N2_N'], 1)} | {_f(p_['N2_N'], 1) if pub else ''} |")
+    add(f"| M2 (N·mm) | {_f(et['M2_Nmm'], 1)} | {_f(p_['M2_Nmm'], 0) if pub else ''} |")
     add(f"| F (mm²), W (mm³) | {_f(et['F_mm2'], 1)}, {_f(et['W_mm3'], 1)} | |")
-    add(f"| σ = M2/W + N2/F (MPa) | **{_f(an['exact_MPa'])}** | 43.75 |")
+    add(f"| σ = M2/W + N2/F (MPa) | **{_f(an['exact_MPa'])}** | {_f(p_['exact_MPa']) if pub else ''} |")
     add("")
     cs = an["consistent_span"]
     add("The paper uses different spans in the two methods. With one span for both: approximate at "
         f"l = {_f(an['exact_span_mm'], 1)} mm gives {_f(cs['approximate_at_exact_span_MPa'])} MPa; exact at "
-        f"l = {_f(an['approximate_span_mm'], 1)} mm gives {_f(cs['exact_at_approximate_span_MPa'])} MPa. "
-        "The paper's own FE result (CATIA, supports not fully described) is 42.10 MPa.\n")
+        f"l = {_f(an['approximate_span_mm'], 1)} mm gives {_f(cs['exact_at_approximate_span_MPa'])} MPa."
+        + (f" Published FE result: {_f(pub['fe_MPa'])} MPa ({pub['source']}).\n" if pub else "\n"))
 
     add("## Finite-element solution\n")
     add(f"{fe['cells']} tetrahedra, {fe['dofs']} DOFs, {fe['iterations']} solver iterations, true relative "

@@ -3,6 +3,8 @@ from __future__ import annotations
 
 from mpi4py import MPI
 
+from geometry.table import published
+
 from . import formulas
 from .analysis import estimate_levels
 from .case import Case
@@ -66,6 +68,13 @@ def build_results(case: Case, levels: list[Level], timings: dict[str, float],
         "refined_at_mm": [] if pl is None else [list(p) for p in pl.hotspots],
         "pilot_mesh_factor": None if pl is None else pl.factor,
         "pilot_fraction": PILOT_FRACTION,
+        "sections": fine.sections,
+        "verdict": verdict(case.allowable_MPa, case.load_N, {
+            "global_peak": (fine.peak.value_MPa, peak_b), "critical_peak": (fine.critical.value_MPa, crit_b),
+            **({"critical_section_nominal": (fine.sections["critical_section"]["nominal_MPa"], None)}
+               if fine.sections and "critical_section" in fine.sections else {}),
+            **({"journal_root_nominal": (fine.sections["journal_root"]["nominal_MPa"], None)}
+               if fine.sections else {})}),
         "levels": [{"mesh_factor": lv.factor, "dofs": lv.dofs, "cells": lv.cells,
                     "peak_MPa": lv.peak.value_MPa, "critical_peak_MPa": lv.critical.value_MPa,
                     "iterations": lv.iterations, "time_s": sum(lv.timings.values())}
@@ -84,7 +93,7 @@ def build_results(case: Case, levels: list[Level], timings: dict[str, float],
             "consistent_span": {
                 "approximate_at_exact_span_MPa": hand.approximate_at_exact_span.sigma_MPa,
                 "exact_at_approximate_span_MPa": hand.exact_at_approximate_span.sigma_MPa},
-            "paper_MPa": {"approximate": 37.8, "exact": 43.75, "fe_catia": 42.10},
+            "published": published(case.size, case.load_N, ap.span_mm, ex.span_mm),
         },
         "fe": fe,
         "comparison_pct": {
@@ -106,6 +115,28 @@ def safety_factors(allowable_MPa: float, peaks: dict[str, tuple[float, dict]]) -
         out[key] = None if where else allowable_MPa / value
         if where:
             out[f"{key}_note"] = f"the peak sits at a singular feature ({where}) and has no finite value"
+    return out
+
+
+def verdict(allowable_MPa: float, load_N: float, checks: dict[str, tuple[float, dict | None]]) -> dict:
+    """Pass or fail of each checked stress against the allowable (MPa), with its margin and
+    error bar, and the hook load (N) that would bring it to the allowable (linear scaling:
+    the part's capacity at that allowable). ``checks``: name -> (value MPa, peak block or
+    None for a nominal stress). A peak at a singular feature gets no verdict; a band that
+    straddles the allowable gives "undecided"."""
+    out = {}
+    for name, (value, block) in checks.items():
+        if block is not None and block.get("singular_feature"):
+            out[name] = {"value_MPa": value, "verdict": "none",
+                         "why": f"the peak sits at a singular feature ({block['singular_feature']}): no finite value"}
+            continue
+        band = ((block or {}).get("error_estimate") or {}).get("band") or 0.0
+        lo, hi = value - band, value + band
+        status = "pass" if hi <= allowable_MPa else "fail" if lo > allowable_MPa else "undecided"
+        out[name] = {"value_MPa": value, "band_MPa": band, "verdict": status,
+                     "margin_pct": 100 * (allowable_MPa / value - 1),
+                     "capacity_N": load_N * allowable_MPa / value,
+                     "capacity_range_N": [load_N * allowable_MPa / hi, load_N * allowable_MPa / lo] if lo > 0 else None}
     return out
 
 

@@ -46,6 +46,7 @@ class Solution:
     solver: str
     bc_dofs: list[np.ndarray]
     reactions: list[np.ndarray]  # per Constraint: reaction force vector (N), summed
+    reaction: np.ndarray | None = None  # R = K u - f at this rank's owned DOFs (N): section resultants
     timings: dict[str, float] = field(default_factory=dict)
 
 
@@ -188,5 +189,5 @@ def solve(mesh, facet_tags, order: int, mat: Material, tractions: Sequence[Tract
         obj.destroy()
     dofs = V.dofmap.index_map.size_global * V.dofmap.index_map_bs
     return Solution(u=uh, iterations=its, reason=reason, residual_rel=float(res_rel), dofs=dofs,
-                    solver=solver, bc_dofs=bc_dofs, reactions=reactions,
+                    solver=solver, bc_dofs=bc_dofs, reactions=reactions, reaction=Ra[:n_owned].copy(),
                     timings={"assemble": t_assemble, "solve": t_solve})
