@@ -148,6 +148,8 @@ def make_parser() -> argparse.ArgumentParser:
                      help="meshes solved for the error bar: the requested one and coarser ones (default 3; 1 = no error bar)")
     run.add_argument("--ratio", type=_positive_float, default=1.3, help="mesh-size ratio between those meshes (default 1.3)")
     run.add_argument("--no-fields", action="store_true", help="skip ParaView files, picture and report (benchmarks)")
+    run.add_argument("--quarter-fields", action="store_true",
+                     help="picture and von_mises.vtu of the quarter model only (default: mirrored to the whole part)")
     conv = sub.add_parser("converge", help="mesh convergence study: >= 4 meshes, extrapolation, GCI, plot",
                           description=DESCRIPTION, epilog=EPILOG,
                           formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -239,7 +241,8 @@ def _dispatch(args) -> int:
         if args.command == "run":
             from pipeline.commands import execute_run
             res = execute_run(case, out, levels=args.levels, ratio=args.ratio, progress=say,
-                              write_fields=not args.no_fields, loads=loads if len(loads) > 1 else None)
+                              write_fields=not args.no_fields, loads=loads if len(loads) > 1 else None,
+                              quarter_fields=args.quarter_fields)
         else:
             from pipeline.commands import execute_converge
             res = execute_converge(case, out, levels=args.levels, ratio=args.ratio, progress=say)

@@ -30,7 +30,7 @@ from .pilot import pilot
 
 def execute_run(case: Case, out_dir: Path, levels: int = 3, ratio: float = 1.3,
                 progress: Progress | None = None, write_fields: bool = True,
-                loads: list[float] | None = None, comm=MPI.COMM_WORLD) -> dict:
+                loads: list[float] | None = None, comm=MPI.COMM_WORLD, quarter_fields: bool = False) -> dict:
     """Analyse ``case`` and write results.json, report.md, mesh.msh, VTK fields and a PNG.
 
     ``loads`` (N): a load sweep. The case is solved once at case.load_N; since the model is
@@ -52,7 +52,8 @@ def execute_run(case: Case, out_dir: Path, levels: int = 3, ratio: float = 1.3,
             if not write_fields:
                 return
             t0 = time.perf_counter()
-            files.update(write_field_files(stage, *fine.fields))
+            files.update(write_field_files(stage, *fine.fields,
+                                           whole_part=case.model == "quarter" and not quarter_fields))
             # The picture process reads results.json: the requested mesh's peaks for now,
             # the full results (same peaks) replace it below.
             write_json(stage / "results.json", build_results(case, [fine], {}, comm, pl), comm)
@@ -77,6 +78,7 @@ def execute_run(case: Case, out_dir: Path, levels: int = 3, ratio: float = 1.3,
         if write_fields:
             files["picture"] = "von_mises.png"
             files["report"] = "report.md"
+            files["report_html"] = "report.html"
             sec = res["fe"].get("sections")
             if sec and comm.rank == 0:
                 from .plots import sections_plot
@@ -178,7 +180,8 @@ def execute_converge(case: Case, out_dir: Path, levels: int = 4, ratio: float = 
             if convergence_plot(stage / "convergence.png", conv, case):
                 conv["plot"] = "convergence.png"
         res["convergence"] = conv
-        res["files"] = {"results": "results.json", "report": "report.md", "mesh": "mesh.msh"}
+        res["files"] = {"results": "results.json", "report": "report.md", "report_html": "report.html",
+                        "mesh": "mesh.msh"}
         res["timings_s"]["total"] = time.perf_counter() - t_all
         write_json(stage / "results.json", res, comm)
         if comm.rank == 0:

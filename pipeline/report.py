@@ -229,15 +229,14 @@ def render_markdown(res: dict) -> str:
         + (f" (published {_f(pub['approximate_MPa'])}).\n" if pub else ".\n"))
     et = an["exact_terms"]
     add(f"Exact (Rudenko curved bar), l = {_f(an['exact_span_mm'], 2)} mm, R = (b + di)/4 = {_f(et['R_mm'], 2)} mm:\n")
-    p_ = pub or {}
-    add("| term | value | published |")
-    add("|---|---|---|")
-    add(f"| N1 (N) | {_f(et['N1_N'], 1)} | {_f(p_['N1_N'], 1) if pub else ''} |")
-    add(f"| M1 (N·mm) | {_f(et['M1_Nmm'], 1)} | {_f(p_['M1_Nmm'], 0) if pub else ''} |")
-    add(f"| N2 (N) | {_f(et['N2_N'], 1)} | {_f(p_['N2_N'], 1) if pub else ''} |")
-    add(f"| M2 (N·mm) | {_f(et['M2_Nmm'], 1)} | {_f(p_['M2_Nmm'], 0) if pub else ''} |")
-    add(f"| F (mm²), W (mm³) | {_f(et['F_mm2'], 1)}, {_f(et['W_mm3'], 1)} | |")
-    add(f"| σ = M2/W + N2/F (MPa) | **{_f(an['exact_MPa'])}** | {_f(p_['exact_MPa']) if pub else ''} |")
+    rows = [("N1 (N)", _f(et["N1_N"], 1), "N1_N", 1), ("M1 (N·mm)", _f(et["M1_Nmm"], 1), "M1_Nmm", 0),
+            ("N2 (N)", _f(et["N2_N"], 1), "N2_N", 1), ("M2 (N·mm)", _f(et["M2_Nmm"], 1), "M2_Nmm", 0),
+            ("F (mm²), W (mm³)", f"{_f(et['F_mm2'], 1)}, {_f(et['W_mm3'], 1)}", None, 0),
+            ("σ = M2/W + N2/F (MPa)", f"**{_f(an['exact_MPa'])}**", "exact_MPa", 2)]
+    add("| term | value |" + (" published |" if pub else ""))
+    add("|---|---|" + ("---|" if pub else ""))
+    for name, value, key, nd in rows:
+        add(f"| {name} | {value} |" + (f" {_f(pub[key], nd) if key else ''} |" if pub else ""))
     add("")
     cs = an["consistent_span"]
     add("The paper uses different spans in the two methods. With one span for both: approximate at "
@@ -311,11 +310,32 @@ def _loc(xyz) -> str:
     return "(" + ", ".join(f"{v:.2f}" for v in xyz) + ") mm"
 
 
+HTML_STYLE = """body{font-family:sans-serif;max-width:70em;margin:2em auto;line-height:1.45;color:#222}
+table{border-collapse:collapse;margin:1em 0}th,td{border:1px solid #bbb;padding:.3em .6em;vertical-align:top}
+th{background:#eee}img{max-width:100%}blockquote{border-left:4px solid #c60;margin:1em 0;padding:.2em 1em;background:#fff6ee}"""
+
+
+def html_document(markdown_text: str, folder: Path, title: str) -> str:
+    """report.md as one self-contained HTML page (Python-Markdown; pictures embedded)."""
+    import base64
+
+    import markdown
+    body = markdown.markdown(markdown_text, extensions=["tables"])
+    for png in sorted(Path(folder).glob("*.png")):
+        data = base64.b64encode(png.read_bytes()).decode("ascii")
+        body = body.replace(f'src="{png.name}"', f'src="data:image/png;base64,{data}"')
+    return (f"<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\"><title>{title}</title>"
+            f"<style>{HTML_STYLE}</style></head><body>\n{body}\n</body></html>\n")
+
+
 def write_report(folder: Path) -> Path:
-    """Read folder/results.json and write folder/report.md next to it."""
+    """Read folder/results.json and write folder/report.md and report.html next to it."""
     res = json.loads((Path(folder) / "results.json").read_text(encoding="utf-8"))
     out = Path(folder) / "report.md"
-    out.write_text(render_markdown(res), encoding="utf-8")
+    text = render_markdown(res)
+    out.write_text(text, encoding="utf-8")
+    title = f"Crosshead stress report: hook No. {res['case']['size']}"
+    (Path(folder) / "report.html").write_text(html_document(text, Path(folder), title), encoding="utf-8")
     return out
 
 

@@ -7,7 +7,7 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
-APT_PKGS="python3-dolfinx python3-gmsh python3-meshio python3-venv python3-pip libopenblas0-pthread calculix-ccx mpi-default-bin"
+APT_PKGS="python3-dolfinx python3-gmsh python3-meshio python3-markdown python3-venv python3-pip libopenblas0-pthread calculix-ccx mpi-default-bin"
 missing=""
 for p in $APT_PKGS; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing="$missing $p"

@@ -1,0 +1,93 @@
+"""What a person reads: report.md and the self-contained report.html, the whole-part
+fields, the sections plot (docs/design.md §7)."""
+from __future__ import annotations
+
+import json
+import re
+import subprocess
+import sys
+from html.parser import HTMLParser
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from pipeline.fields import mirror_quarter
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def test_mirror_makes_four_positive_tets_with_mirrored_displacement():
+    pts = np.array([[1.0, 1.0, 0.0], [2.0, 1.0, 0.0], [1.0, 2.0, 0.0], [1.0, 1.0, 1.0]])
+    cells = np.array([[0, 1, 2, 3]])
+    disp = np.array([[0.1, 0.2, 0.3]] * 4)
+    P, C, V, D = mirror_quarter(pts, cells, np.arange(4.0), disp)
+    assert P.shape == (16, 3) and C.shape == (4, 4) and len(V) == 16
+    vols = [np.linalg.det(np.array([P[c[1]] - P[c[0]], P[c[2]] - P[c[0]], P[c[3]] - P[c[0]]])) for c in C]
+    assert all(v > 0 for v in vols)  # orientation kept: the same sign as the original tet
+    assert np.allclose(D[4], [-0.1, 0.2, 0.3]) and np.allclose(D[8], [0.1, -0.2, 0.3])
+    assert np.allclose(P[12], [-1.0, -1.0, 0.0])
+
+
+class _Html(HTMLParser):
+    def __init__(self):
+        super().__init__()
+        self.headings, self.images, self._in_h = [], [], False
+
+    def handle_starttag(self, tag, attrs):
+        if tag in ("h1", "h2"):
+            self._in_h = True
+            self.headings.append("")
+        if tag == "img":
+            self.images.append(dict(attrs).get("src", ""))
+
+    def handle_endtag(self, tag):
+        if tag in ("h1", "h2"):
+            self._in_h = False
+
+    def handle_data(self, data):
+        if self._in_h:
+            self.headings[-1] += data
+
+
+@pytest.fixture(scope="module")
+def run_folder(tmp_path_factory):
+    out = tmp_path_factory.mktemp("report") / "05"
+    p = subprocess.run([sys.executable, "-m", "pipeline", "run", "--size", "05", "--mesh-factor", "3",
+                        "--out", str(out), "--quiet"], cwd=ROOT, capture_output=True, text=True, timeout=600)
+    assert p.returncode == 0, p.stderr
+    return out
+
+
+def test_html_report_has_every_section_and_embeds_every_picture(run_folder):
+    md = (run_folder / "report.md").read_text()
+    doc = _Html()
+    doc.feed((run_folder / "report.html").read_text())
+    sections = [ln.lstrip("# ").strip().replace("`", "") for ln in md.splitlines() if re.match(r"^#{1,2} ", ln)]
+    assert sections and [h.strip() for h in doc.headings] == sections
+    pictures = re.findall(r"!\[[^\]]*\]\(([^)]+)\)", md)
+    assert len(doc.images) == len(pictures) >= 2  # the von Mises picture and the sections plot
+    assert all(src.startswith("data:image/png;base64,") for src in doc.images)
+
+
+def test_fields_show_the_whole_part(run_folder):
+    """von_mises.vtu covers x and y of both signs: the quarter mirrored (bounds ± b6/2, ± b1/2)."""
+    import meshio
+    m = meshio.read(run_folder / "von_mises.vtu")
+    d = json.loads((run_folder / "results.json").read_text())["case"]["dims"]
+    assert m.points[:, 0].min() == pytest.approx(-d["b6"] / 2, rel=1e-6)
+    assert m.points[:, 1].min() == pytest.approx(-d["b1"] / 2, rel=1e-6)
+    assert m.points[:, 0].max() == pytest.approx(d["b6"] / 2, rel=1e-6)
+
+
+def test_published_values_only_for_their_row(run_folder, tmp_path):
+    """No. 05 at the paper's load and spans shows the published values; another load does not."""
+    res = json.loads((run_folder / "results.json").read_text())
+    assert res["analytic"]["published"]["exact_MPa"] == 43.75
+    out = tmp_path / "other"
+    p = subprocess.run([sys.executable, "-m", "pipeline", "run", "--size", "05", "--load", "12000",
+                        "--mesh-factor", "3", "--levels", "1", "--out", str(out), "--quiet"],
+                       cwd=ROOT, capture_output=True, text=True, timeout=600)
+    assert p.returncode == 0, p.stderr
+    assert json.loads((out / "results.json").read_text())["analytic"]["published"] is None
+    assert "published" not in (out / "report.md").read_text()
