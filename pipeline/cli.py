@@ -98,7 +98,18 @@ def _dim(text: str) -> tuple[str, float]:
         raise argparse.ArgumentTypeError(f"{k}: {exc}") from None
 
 
-def add_case_options(p: argparse.ArgumentParser) -> None:
+def _dim_spec(text: str) -> tuple[str, str]:
+    """--dim NAME=VALUES for a sweep: VALUES is START:STOP:COUNT or v1,v2,..."""
+    from geometry.table import Dimensions
+    names = list(Dimensions.__dataclass_fields__)
+    k, sep, v = text.partition("=")
+    if not sep or k not in names:
+        raise argparse.ArgumentTypeError(f"{text!r}: expected NAME=START:STOP:COUNT or NAME=v1,v2 with NAME one of "
+                                         f"{', '.join(names)}")
+    return k, v
+
+
+def add_case_options(p: argparse.ArgumentParser, dim_type=None) -> None:
     """Options shared by run and converge: what to analyse and how finely."""
     g = p.add_argument_group("what to analyse")
     g.add_argument("--size", help="hook number from geometry/sizes.csv, e.g. 05, 1.6, 10")
@@ -106,7 +117,7 @@ def add_case_options(p: argparse.ArgumentParser) -> None:
     g.add_argument("--load", type=_loads, dest="loads", metavar="N",
                    help="hook load Q in N (default: the size's rated load); a list 5000,10000 or a range "
                         "5000:20000:4 is solved once and scaled (linear elasticity)")
-    g.add_argument("--dim", type=_dim, action="append", default=[], metavar="NAME=MM",
+    g.add_argument("--dim", type=dim_type or _dim, action="append", default=[], metavar="NAME=MM",
                    help="override one dimension in mm (b1 b2 b6 d14 d2 h3 dj rf seat_inner seat_outer); repeatable")
     g.add_argument("--support", choices=SUPPORTS,
                    help="journal support: cosine bearing pressure (default) or rigid u_z = 0 (singular edges)")
@@ -139,7 +150,7 @@ def add_case_options(p: argparse.ArgumentParser) -> None:
 def make_parser() -> argparse.ArgumentParser:
     parser = OneLineParser(prog="python -m pipeline", description=DESCRIPTION, epilog=EPILOG,
                            formatter_class=argparse.RawDescriptionHelpFormatter)
-    sub = parser.add_subparsers(dest="command", metavar="{run,converge}", parser_class=OneLineParser)
+    sub = parser.add_subparsers(dest="command", metavar="{run,converge,sweep}", parser_class=OneLineParser)
     run = sub.add_parser("run", help="analyse one case and write results, report, fields, picture",
                          description=DESCRIPTION, epilog=EPILOG,
                          formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -157,7 +168,24 @@ def make_parser() -> argparse.ArgumentParser:
     conv.add_argument("--levels", type=int, default=4,
                       help="number of meshes (default 4, at least 4); the finest is the case's mesh / ratio^(levels-3)")
     conv.add_argument("--ratio", type=_positive_float, default=1.3, help="mesh-size ratio between meshes, >= 1.3 (default 1.3)")
+    sweep = sub.add_parser("sweep", help="design study: a grid of dimensions and loads, each variant with its error bar",
+                           description=DESCRIPTION, epilog=SWEEP_EPILOG,
+                           formatter_class=argparse.RawDescriptionHelpFormatter)
+    add_case_options(sweep, dim_type=_dim_spec)
+    sweep.add_argument("--study", type=Path, help="a study file (TOML with a [sweep] table), e.g. cases/sweep-rf.toml")
+    sweep.add_argument("--levels", type=int, default=3, help="meshes per variant for its error bar (default 3)")
+    sweep.add_argument("--ratio", type=_positive_float, default=1.3, help="mesh-size ratio between them (default 1.3)")
     return parser
+
+
+SWEEP_EPILOG = """\
+examples:
+  python -m pipeline sweep --size 05 --dim rf=0.5:2.5:5            the fillet radius from 0.5 to 2.5 mm
+  python -m pipeline sweep --size 05 --dim rf=1,2 --dim dj=16,18,20 a grid of six variants
+  python -m pipeline sweep --study cases/sweep-rf.toml
+  python -m pipeline.launch 2 sweep --size 05 --dim rf=1:2:3         variants spread over 2 ranks
+A re-run with the same --out skips the variants already finished.
+"""
 
 
 CASE_KEYS = ("support", "model", "E_MPa", "nu", "allowable_MPa", "approximate_span_mm",
@@ -190,6 +218,8 @@ def _dispatch(args) -> int:
     rank0 = MPI.COMM_WORLD.rank == 0
     stack = contextlib.ExitStack()  # clean-ups that last as long as this command
     try:
+        if args.command == "sweep":
+            return _sweep(args, rank0)
         from dataclasses import replace
 
         from pipeline.case import check, resolve
@@ -272,6 +302,39 @@ def _dispatch(args) -> int:
         return 3
     finally:
         stack.close()
+
+
+def _sweep(args, rank0: bool) -> int:
+    """The sweep command: a grid from --dim/--load (or a study file), then pipeline.sweep."""
+    from pipeline.errors import InputError
+    from pipeline.outdir import default_out
+    from pipeline.sweep import execute_sweep, parse_values, read_study
+    study = read_study(args.study) if args.study else {}
+    size = args.size or study.get("size")
+    case_file = args.case or (Path(study["case"]) if "case" in study else None)
+    if size is None and case_file is None:
+        raise InputError("size: give --size, --case or a study file with size = ...")
+    dims = dict(study.get("dims", {}))
+    dims.update(dict(args.dim))
+    axes = {f"dims.{k}": parse_values(str(v), f"dims.{k}") for k, v in dims.items()}
+    loads = args.loads or (parse_values(str(study["load"]), "load_N") if "load" in study else [])
+    base = {k: getattr(args, k) for k in CASE_KEYS if getattr(args, k) is not None}
+    if "mesh_factor" in study and "mesh_factor" not in base:
+        base["mesh_factor"] = float(study["mesh_factor"])
+    levels = int(study.get("levels", args.levels))
+    ratio = float(study.get("ratio", args.ratio))
+    if not 1 <= levels <= 8 or not 1.1 <= ratio <= 3:
+        raise InputError("levels/ratio: levels must lie in 1..8 and ratio in [1.1, 3]")
+    if not axes and len(loads) < 2:
+        raise InputError("dim: a sweep needs at least one --dim NAME=VALUES or several loads")
+    out = args.out or (Path(study["out"]) if "out" in study else default_out(f"sweep-{size or Path(case_file).stem}"))
+    say = (lambda s: None) if args.quiet else _progress
+    res = execute_sweep(size, case_file, base, axes, loads, out, levels, ratio, say)
+    if rank0 and res is not None and not args.quiet:
+        c = res["counts"]
+        _print(f"sweep: {c['done']} done, {c['invalid']} invalid, {c['failed']} failed; "
+               f"{len(res['crossings'])} crossing(s) of the allowable; written to {out}/ (sweep.csv, sweep.json, report.md)")
+    return 0
 
 
 def _one_line(exc: Exception) -> str:

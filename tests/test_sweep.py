@@ -1,0 +1,87 @@
+"""Design studies (pipeline/sweep.py): the grid, the CSV/JSON contract, invalid variants
+skipped, resuming, 1 against 2 ranks, and the crossing of the allowable."""
+from __future__ import annotations
+
+import csv
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from pipeline.errors import InputError
+from pipeline.sweep import COLUMNS, crossings, parse_values
+
+ROOT = Path(__file__).resolve().parents[1]
+GRID = ["--size", "05", "--dim", "rf=1.0,1.5,2.5", "--mesh-factor", "3", "--levels", "1"]
+
+
+def sweep(out: Path, *args: str, ranks: int = 1) -> subprocess.CompletedProcess:
+    cmd = [sys.executable, "-m", "pipeline"] if ranks == 1 else [sys.executable, "-m", "pipeline.launch", str(ranks)]
+    # env=dict(os.environ): this process's mpi4py put OMPI_* variables into the C environment,
+    # and a child mpirun that inherits them exits 1 (see tests/test_invariance.py).
+    p = subprocess.run(cmd + ["sweep", *args, "--out", str(out)], cwd=ROOT, capture_output=True, text=True,
+                       timeout=600, env=dict(os.environ))
+    assert p.returncode == 0, p.stderr
+    return p
+
+
+def test_parse_values():
+    assert parse_values("0.5:2.5:5", "rf") == pytest.approx([0.5, 1.0, 1.5, 2.0, 2.5])
+    assert parse_values("16,18,20", "dj") == [16.0, 18.0, 20.0]
+    for bad in ("1:2", "a,b", "1:2:1", "1:inf:3", ""):
+        with pytest.raises(InputError):
+            parse_values(bad, "rf")
+
+
+def test_crossing_is_interpolated_with_its_band():
+    """Peaks 120 and 80 MPa at rf = 1 and 2 cross 100 MPa at rf = 1.5; with bands of 10 MPa
+    on both the crossing moves to 1.25 (values + 10) and 1.75 (values - 10): hand computed."""
+    rows = [{"status": "done", "variant": "a", "dims.rf": 1.0, "load_N": 1.0, "peak_MPa": 120.0, "peak_band_MPa": 10.0,
+             "critical_peak_MPa": 50.0, "critical_band_MPa": None},
+            {"status": "done", "variant": "b", "dims.rf": 2.0, "load_N": 1.0, "peak_MPa": 80.0, "peak_band_MPa": 10.0,
+             "critical_peak_MPa": 60.0, "critical_band_MPa": None}]
+    found = crossings(rows, "dims.rf", 100.0)
+    assert len(found) == 1 and found[0]["peak"] == "global peak" and found[0]["falls_below"]
+    assert found[0]["at"] == pytest.approx(1.5) and found[0]["range"] == pytest.approx([1.25, 1.75])
+
+
+def test_small_sweep_contract_invalid_variant_and_resume(tmp_path):
+    out = tmp_path / "study"
+    first = sweep(out, *GRID)
+    assert "3 variants (2 valid, 1 invalid)" in first.stdout
+    with open(out / "sweep.csv", newline="") as f:
+        rows = list(csv.DictReader(f))
+    assert list(rows[0])[:len(COLUMNS)] == list(COLUMNS) and "dims.rf" in rows[0]
+    status = {float(r["dims.rf"]): r["status"] for r in rows}
+    assert status == {1.0: "done", 1.5: "done", 2.5: "invalid"}
+    bad = next(r for r in rows if r["status"] == "invalid")
+    assert "rf" in bad["note"] and bad["peak_MPa"] == ""
+    data = json.loads((out / "sweep.json").read_text())
+    assert data["units"]["stress"] == "MPa" and data["counts"]["done"] == 2
+    assert all(r["peak_MPa"] > r["critical_peak_MPa"] > 0 for r in data["rows"] if r["status"] == "done")
+    assert (out / "report.md").is_file() and (out / "peak_vs_rf.png").is_file()
+    again = sweep(out, *GRID)
+    assert "2 already done" in again.stdout
+    assert json.loads((out / "sweep.json").read_text())["rows"] == data["rows"]
+    changed = sweep(out, *GRID, "--E", "200000")  # another input: not mistaken for a finished variant
+    assert "0 already done" in changed.stdout
+
+
+def test_one_and_two_ranks_give_the_same_rows(tmp_path):
+    one = json.loads(sweep(tmp_path / "one", *GRID, "--quiet") and (tmp_path / "one" / "sweep.json").read_text())
+    two = json.loads(sweep(tmp_path / "two", *GRID, "--quiet", ranks=2) and (tmp_path / "two" / "sweep.json").read_text())
+    strip = lambda rows: [{k: v for k, v in r.items() if k != "time_s"} for r in rows]  # noqa: E731
+    assert strip(one["rows"]) == strip(two["rows"])
+
+
+def test_a_sweep_never_writes_into_a_user_folder(tmp_path):
+    user = tmp_path / "mine"
+    user.mkdir()
+    (user / "notes.txt").write_text("keep")
+    p = subprocess.run([sys.executable, "-m", "pipeline", "sweep", *GRID, "--out", str(user)], cwd=ROOT,
+                       capture_output=True, text=True, timeout=120)
+    assert p.returncode == 2 and "refusing" in p.stderr
+    assert [x.name for x in user.iterdir()] == ["notes.txt"]
