@@ -10,7 +10,7 @@ RANKS ?= $(shell nproc 2>/dev/null || echo 1)
 RUN := $(if $(filter 1,$(RANKS)),$(PY) -m pipeline,$(PY) -m pipeline.launch $(RANKS))
 SIZES := $(shell awk -F, '!/^\#/ && $$1 != "size" && NF > 1 {print $$1}' geometry/sizes.csv)
 
-.PHONY: run test converge bench sizes setup clean $(SIZES)
+.PHONY: run test converge bench sizes setup clean clean-cache $(SIZES)
 
 run: $(SETUP)
 	$(RUN) run --size 05 --out results/05
@@ -43,3 +43,7 @@ sizes: $(SIZES)
 
 clean:
 	rm -rf results
+
+# Meshes and pilot places kept for runs that change only load, E or the allowable.
+clean-cache:
+	rm -rf .venv/cache/runs

@@ -24,6 +24,8 @@ from geometry.meshspec import MeshSpec
 from geometry.sizing import mesh
 from geometry.table import Dimensions
 
+from . import runcache
+
 
 REFERENCE_H3_MM = 25.0  # No. 05's body height: every part is built and meshed at this size
 
@@ -162,9 +164,17 @@ class Mesher:
         """Mesh the part for ``spec`` → arrays (mm). If ``msh_path`` is given the gmsh mesh
         (with physical names) is written there too, in mm. gmsh works in units of
         :func:`meshing_scale`."""
+        t0 = time.perf_counter()
+        cache_key = runcache.key("mesh", dims=self.d, model=self.model, spec=spec)
+        hit = runcache.load(cache_key)
+        if hit is not None and (msh_path is None or hit[1] is not None):
+            part, msh_bytes = hit
+            if msh_path is not None:
+                Path(msh_path).write_bytes(msh_bytes)
+            part.timings = {"geometry": 0.0, "mesh": time.perf_counter() - t0}  # read from the cache
+            return part
         dn, spec_n = _normalised(self.d, spec, self.scale)
         timings: dict[str, float] = {}
-        t0 = time.perf_counter()
         if self._live():
             gmsh.model.mesh.clear()
         else:
@@ -188,12 +198,14 @@ class Mesher:
         timings["mesh"] = time.perf_counter() - t0
         if len(facet_types) != 1:
             raise RuntimeError(f"mesh: expected one kind of boundary triangle, got gmsh types {facet_types}")
-        return MeshedPart(x=x, cells=np.asarray(topo[cell_type]["topology"], dtype=np.int64),
+        part = MeshedPart(x=x, cells=np.asarray(topo[cell_type]["topology"], dtype=np.int64),
                           cell_values=np.asarray(topo[cell_type]["cell_data"], dtype=np.int32),
                           facets=np.asarray(topo[facet_types[0]]["topology"], dtype=np.int64),
                           facet_values=np.asarray(topo[facet_types[0]]["cell_data"], dtype=np.int32),
                           cell_type=int(cell_type), names=names, built=self.built, scale=self.scale,
                           quality=quality, timings=timings)
+        runcache.store(cache_key, (part, Path(msh_path).read_bytes() if msh_path is not None else None))
+        return part
 
 
 def given_or_new(mesher: Mesher | None, d: Dimensions, model: str) -> contextlib.AbstractContextManager[Mesher]:

@@ -10,6 +10,7 @@ from typing import Sequence
 
 from mpi4py import MPI
 
+from . import runcache
 from .case import Case
 from .features import critical_region
 from .level import Progress, solve_level
@@ -59,6 +60,15 @@ def pilot(case: Case, comm=MPI.COMM_WORLD, progress: Progress | None = None,
     """
     t0 = time.perf_counter()
     say = progress or (lambda s: None)
+    # What shapes the stress field, not its size: load, E and the allowable do not move the places.
+    cache_key = runcache.key("pilot", dims=case.dims, model=case.model, support=case.support, nu=case.nu,
+                             order=case.order, solver=case.solver, spec=case.mesh_spec(pilot_factor(case)))
+    known = runcache.load(cache_key) if comm.rank == 0 else None
+    known = comm.bcast(known, root=0)
+    if known is not None:
+        say(f"pilot skipped: the places found by an earlier run of this part and model are reused "
+            f"({len(known.hotspots)} places; load, E and the allowable do not move them)")
+        return Pilot(factor=known.factor, hotspots=known.hotspots, time_s=time.perf_counter() - t0)
     lv = solve_level(case, pilot_factor(case), comm=comm, keep_fields=True, mesher=mesher)
     vm = lv.fields[1]
     sep = PILOT_SEPARATION * case.dims.h3
@@ -75,7 +85,10 @@ def pilot(case: Case, comm=MPI.COMM_WORLD, progress: Progress | None = None,
     dt = time.perf_counter() - t0
     say(f"pilot ×{lv.factor:.3g}: {lv.dofs} DOFs; refining near {len(spots)} places within "
         f"{100 * (1 - PILOT_FRACTION):.0f} % of a peak: {', '.join(_fmt(q) for q in spots)} mm ({dt:.2f} s)")
-    return Pilot(factor=lv.factor, hotspots=tuple(spots), time_s=dt)
+    found = Pilot(factor=lv.factor, hotspots=tuple(spots), time_s=dt)
+    if comm.rank == 0:
+        runcache.store(cache_key, found)
+    return found
 
 
 def _fmt(p: Sequence[float]) -> str:

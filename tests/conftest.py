@@ -1,4 +1,5 @@
 """Shared test helpers. Tests run from the repository root with the .venv python."""
+import os
 import sys
 from pathlib import Path
 
@@ -10,6 +11,7 @@ if str(ROOT) not in sys.path:
 from pipeline.environment import configure  # noqa: E402
 
 configure()  # the same form cache, BLAS threads and PETSc options as the command line
+os.environ.setdefault("CROSSHEAD_NO_CACHE", "1")  # tests exercise the mesher and the pilot themselves
 
 import gmsh  # noqa: E402
 import pytest  # noqa: E402

@@ -1,0 +1,82 @@
+"""Work that a run can reuse from an earlier one: meshes, and the pilot's refined places.
+
+A mesh depends only on the part, the model and the mesh spec (sizes, factor, order,
+refined places) and on the meshing code; the pilot's places depend on those and on what
+shapes the stress field (support, Poisson's ratio, element order, solver), not on the
+load, Young's modulus or the allowable (linear elasticity, traction loads). So a run that
+changes only load, E or the allowable reuses both and starts from the solve.
+
+Entries live in .venv/cache/runs (pickles and JSON written by this tool only), each
+written to a temporary name and renamed, so concurrent runs never read half a file; at
+most MAX_ENTRIES are kept (the oldest used go first). The key includes a hash of the
+geometry and meshing source code, so a changed mesher never reuses an old mesh.
+``CROSSHEAD_NO_CACHE=1`` turns the cache off (the tests do: they test the mesher itself);
+``make clean-cache`` empties it.
+"""
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import json
+import os
+import pickle
+from pathlib import Path
+from typing import Any
+
+from .environment import CACHE_HOME
+
+ROOT = CACHE_HOME / "runs"
+MAX_ENTRIES = 60
+_CODE = ("geometry/part.py", "geometry/sizing.py", "geometry/curved.py", "geometry/meshspec.py",
+         "pipeline/meshing.py", "pipeline/pilot.py", "pipeline/peaks.py")
+
+
+def enabled() -> bool:
+    return os.environ.get("CROSSHEAD_NO_CACHE", "") in ("", "0")
+
+
+def _code_hash() -> str:
+    repo = Path(__file__).resolve().parents[1]
+    h = hashlib.sha1()
+    for rel in _CODE:
+        h.update((repo / rel).read_bytes())
+    return h.hexdigest()
+
+
+def key(kind: str, **parts: Any) -> str:
+    """A file-name key for ``kind`` from JSON-able parts (dataclasses become dicts)."""
+    def plain(v):
+        return dataclasses.asdict(v) if dataclasses.is_dataclass(v) else v
+    text = json.dumps({k: plain(v) for k, v in parts.items()}, sort_keys=True, default=str)
+    return f"{kind}-{hashlib.sha1((text + _code_hash()).encode()).hexdigest()[:20]}"
+
+
+def load(name: str) -> Any | None:
+    """The entry ``name`` if present (and marks it used), else None."""
+    if not enabled():
+        return None
+    path = ROOT / f"{name}.pickle"
+    try:
+        with open(path, "rb") as f:
+            value = pickle.load(f)
+        os.utime(path)
+        return value
+    except (OSError, EOFError, pickle.UnpicklingError, AttributeError, ImportError):
+        return None
+
+
+def store(name: str, value: Any) -> None:
+    """Keep ``value`` under ``name`` (atomic), then drop the oldest entries beyond MAX_ENTRIES."""
+    if not enabled():
+        return
+    try:
+        ROOT.mkdir(parents=True, exist_ok=True)
+        tmp = ROOT / f".{name}.{os.getpid()}.tmp"
+        with open(tmp, "wb") as f:
+            pickle.dump(value, f, protocol=pickle.HIGHEST_PROTOCOL)
+        os.replace(tmp, ROOT / f"{name}.pickle")
+        entries = sorted(ROOT.glob("*.pickle"), key=lambda p: p.stat().st_mtime)
+        for old in entries[:-MAX_ENTRIES]:
+            old.unlink(missing_ok=True)
+    except OSError:
+        pass  # a cache that cannot be written only costs time
