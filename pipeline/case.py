@@ -15,7 +15,7 @@ from typing import Any, Sequence
 from geometry.meshspec import MeshSpec
 from geometry.table import Dimensions, InputError, lookup, validate
 
-from .choices import MODELS, SOLVERS, SUPPORTS
+from .choices import MODELS, SOLVERS, SUPPORTS, WANTS
 
 DIMENSION_KEYS = tuple(f.name for f in fields(Dimensions))
 
@@ -44,6 +44,7 @@ class Case:
     grading_mm: float | None = None
     approximate_span_mm: float | None = None
     exact_span_mm: float | None = None
+    want: str = "both"
     assumed: tuple[str, ...] = field(default_factory=tuple)
 
     def mesh_spec(self, factor: float | None = None,
@@ -51,11 +52,13 @@ class Case:
         """The mesh sizes of this case (defaults scaled to the part), times ``factor``,
         refined around ``hotspots`` (mm; see pipeline.pilot.pilot)."""
         base = MeshSpec.default_for(self.dims, order=min(self.order, 2))
+        # Only the critical peak wanted: the fillet needs no more than the bore edges' size.
+        fillet = max(base.size_fillet, base.size_feature) if self.want == "critical" else base.size_fillet
         return replace(
             base,
             size_body=self.size_body_mm or base.size_body,
             size_feature=self.size_feature_mm or base.size_feature,
-            size_fillet=self.size_fillet_mm or base.size_fillet,
+            size_fillet=self.size_fillet_mm or fillet,
             grading=self.grading_mm or base.grading,
             factor=self.mesh_factor if factor is None else factor,
             hotspots=tuple(tuple(p) for p in hotspots),
@@ -80,7 +83,7 @@ SCHEMA: dict[str, dict[str, tuple[str, tuple[type, ...]]]] = {
     "load": {"load_N": ("load_N", _NUM)},
     "material": {"E_MPa": ("E_MPa", _NUM), "nu": ("nu", _NUM),
                  "allowable_MPa": ("allowable_MPa", _NUM)},
-    "model": {"model": ("model", (str,)), "support": ("support", (str,))},
+    "model": {"model": ("model", (str,)), "support": ("support", (str,)), "want": ("want", (str,))},
     "mesh": {"order": ("order", (int,)), "factor": ("mesh_factor", _NUM),
              "size_body_mm": ("size_body_mm", _NUM), "size_feature_mm": ("size_feature_mm", _NUM),
              "size_fillet_mm": ("size_fillet_mm", _NUM), "grading_mm": ("grading_mm", _NUM)},
@@ -228,6 +231,8 @@ def check(case: Case) -> Case:
         raise InputError(f"model: must be one of {', '.join(MODELS)}, got {case.model!r}")
     if case.support not in SUPPORTS:
         raise InputError(f"support: must be one of {', '.join(SUPPORTS)}, got {case.support!r}")
+    if case.want not in WANTS:
+        raise InputError(f"want: must be one of {', '.join(WANTS)}, got {case.want!r}")
     if case.solver not in SOLVERS:
         raise InputError(f"solver: must be one of {', '.join(SOLVERS)}, got {case.solver!r}")
     if isinstance(case.order, bool) or case.order not in (1, 2, 3):

@@ -5,5 +5,8 @@ from geometry.table import MODELS
 SUPPORTS = ("bearing", "rigid")  # cosine bearing pressure, or u_z = 0 (singular edges)
 SOLVERS = ("pmg", "gamg", "hypre", "mumps")  # CG + p-multigrid, CG + GAMG, CG + BoomerAMG, direct
 ORDERS = (1, 2, 3)  # element order of the displacement
+# What the run is asked for: both peaks, or only the critical (bore-ligament) or the
+# global (fillet) one; a run skips the refinement the other would need.
+WANTS = ("both", "critical", "global")
 
-__all__ = ["MODELS", "SUPPORTS", "SOLVERS", "ORDERS"]
+__all__ = ["MODELS", "SUPPORTS", "SOLVERS", "ORDERS", "WANTS"]

@@ -19,7 +19,7 @@ from pipeline.environment import configure  # noqa: E402
 
 configure()  # before numpy, PETSc or DOLFINx load (pipeline/environment.py)
 
-from pipeline.choices import MODELS, SOLVERS, SUPPORTS  # noqa: E402
+from pipeline.choices import MODELS, SOLVERS, SUPPORTS, WANTS  # noqa: E402
 from pipeline.interrupts import install as install_interrupts  # noqa: E402
 
 DESCRIPTION = """\
@@ -121,6 +121,9 @@ def add_case_options(p: argparse.ArgumentParser, dim_type=None) -> None:
                    help="override one dimension in mm (b1 b2 b6 d14 d2 h3 dj rf seat_inner seat_outer); repeatable")
     g.add_argument("--support", choices=SUPPORTS,
                    help="journal support: cosine bearing pressure (default) or rigid u_z = 0 (singular edges)")
+    g.add_argument("--want", choices=WANTS,
+                   help="the peaks wanted: both (default), critical (bore ligaments; the fillet is not refined) "
+                        "or global (fillet); a run skips the refinement the other needs")
     g.add_argument("--model", choices=MODELS, help="quarter with symmetry planes (default) or full part")
     g.add_argument("--E", type=_positive_float, dest="E_MPa", metavar="MPA", help="Young's modulus, MPa (default 210000)")
     g.add_argument("--nu", type=_positive_float, metavar="NU", help="Poisson's ratio (default 0.3)")
@@ -188,7 +191,7 @@ A re-run with the same --out skips the variants already finished.
 """
 
 
-CASE_KEYS = ("support", "model", "E_MPa", "nu", "allowable_MPa", "approximate_span_mm",
+CASE_KEYS = ("want", "support", "model", "E_MPa", "nu", "allowable_MPa", "approximate_span_mm",
              "exact_span_mm", "order", "mesh_factor", "size_body_mm", "size_feature_mm",
              "size_fillet_mm", "grading_mm", "solver", "rtol")
 
@@ -265,6 +268,12 @@ def _dispatch(args) -> int:
             case.name if args.command == "run" else f"{case.name}-converge")
         check_out(out)  # refused before any work; checked again under the lock
         say = (lambda s: None) if (args.quiet or not rank0) else _progress
+        if case.want != "both":
+            other = "global (fillet)" if case.want == "critical" else "critical (bore ligament)"
+            say(f"want = {case.want}: skipping the refinement for the {other} peak"
+                + (" (fillet elements at the bore edges' size; the pilot refines the ligaments only)"
+                   if case.want == "critical" else " (the pilot refines the fillet only)")
+                + "; that peak is shown without a verdict")
         _progress(f"imports {time.perf_counter() - T_START:.2f} s; case {case.name}: hook No. {case.size}, "
                   f"Q = {case.load_N:g} N, {case.model} model, {case.support} support, P{case.order}") \
             if not args.quiet and rank0 else None
@@ -363,7 +372,9 @@ def _summary(res: dict, out: Path) -> None:
     an = res["analytic"]
 
     def sf(key: str) -> str:
-        return "none (singular peak)" if fe[key] is None else f"{fe[key]:.2f}"
+        if fe[key] is not None:
+            return f"{fe[key]:.2f}"
+        return "none (not asked for)" if "want =" in fe.get(f"{key}_note", "") else "none (singular peak)"
     _print(f"formulas: approximate {an['approximate_MPa']:.2f} MPa, exact {an['exact_MPa']:.2f} MPa; "
            f"safety factor {sf('safety_factor')} (global), {sf('critical_safety_factor')} (critical)")
     _print(f"written to {out}/ (results.json, report.md, ...) in {res['timings_s']['total']:.1f} s")

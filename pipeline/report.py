@@ -23,6 +23,8 @@ def _f(x, nd=2) -> str:
 
 def error_bar_text(block: dict) -> str:
     """One line saying how sure we are of a peak, from its error_estimate."""
+    if block.get("not_wanted"):
+        return f"not resolved ({block['not_wanted']})"
     est = block.get("error_estimate")
     if est is None:
         return "no error estimate (fewer than three meshes)"

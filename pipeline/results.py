@@ -47,6 +47,10 @@ def build_results(case: Case, levels: list[Level], timings: dict[str, float],
 
     ex, ap = hand.exact, hand.approximate
     peak_b, crit_b = peak_block(fine.peak, est_peak), peak_block(fine.critical, est_crit)
+    unwanted = {"critical": (peak_b, "global"), "global": (crit_b, "critical")}.get(case.want)
+    if unwanted is not None:
+        unwanted[0]["not_wanted"] = (f"want = {case.want}: the run did not refine for the {unwanted[1]} peak; "
+                                     "shown for orientation only")
     fe = {
         "peak_MPa": fine.peak.value_MPa,
         "peak_location_mm": list(fine.peak.location_mm),
@@ -112,9 +116,11 @@ def safety_factors(allowable_MPa: float, peaks: dict[str, tuple[float, dict]]) -
     out: dict = {}
     for key, (value, block) in peaks.items():
         where = block.get("singular_feature")
-        out[key] = None if where else allowable_MPa / value
+        out[key] = None if where or block.get("not_wanted") else allowable_MPa / value
         if where:
             out[f"{key}_note"] = f"the peak sits at a singular feature ({where}) and has no finite value"
+        elif block.get("not_wanted"):
+            out[f"{key}_note"] = block["not_wanted"]
     return out
 
 
@@ -126,9 +132,10 @@ def verdict(allowable_MPa: float, load_N: float, checks: dict[str, tuple[float, 
     straddles the allowable gives "undecided"."""
     out = {}
     for name, (value, block) in checks.items():
-        if block is not None and block.get("singular_feature"):
-            out[name] = {"value_MPa": value, "verdict": "none",
-                         "why": f"the peak sits at a singular feature ({block['singular_feature']}): no finite value"}
+        if block is not None and (block.get("singular_feature") or block.get("not_wanted")):
+            why = (f"the peak sits at a singular feature ({block['singular_feature']}): no finite value"
+                   if block.get("singular_feature") else block["not_wanted"])
+            out[name] = {"value_MPa": value, "verdict": "none", "why": why}
             continue
         band = ((block or {}).get("error_estimate") or {}).get("band") or 0.0
         lo, hi = value - band, value + band

@@ -17,7 +17,8 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
-CASES = sorted((ROOT / "cases").glob("*.toml"))
+CASES = sorted(p for p in (ROOT / "cases").glob("*.toml") if not p.name.startswith("sweep-"))
+STUDIES = sorted((ROOT / "cases").glob("sweep-*.toml"))
 
 
 def run(case: Path, out: Path, *extra: str) -> dict:
@@ -63,3 +64,27 @@ def test_full_case_equals_the_quarter(tmp_path):
     assert full["fe"]["model"] == "full" and quarter["fe"]["model"] == "quarter"
     a, b = full["fe"]["critical_peak_MPa"], quarter["fe"]["critical_peak_MPa"]
     assert abs(a - b) <= 0.01 * b, (a, b)
+
+
+def test_want_critical_skips_the_fillet_and_keeps_the_critical_peak(tmp_path):
+    """--want critical: the fillet is not refined, the global peak gets no verdict, and the
+    critical peak agrees with the run that refines both (the independent reference here)
+    to 0.3 %, in less time."""
+    base = ["--mesh-factor", "2", "--levels", "1"]
+    both = run(ROOT / "cases" / "05.toml", tmp_path / "both", *base)
+    crit = run(ROOT / "cases" / "05.toml", tmp_path / "crit", *base, "--want", "critical")
+    fe = crit["fe"]
+    assert "want = critical" in fe["peak"]["not_wanted"] and fe["safety_factor"] is None
+    assert fe["verdict"]["global_peak"]["verdict"] == "none"
+    assert fe["critical_peak_MPa"] == pytest.approx(both["fe"]["critical_peak_MPa"], rel=5e-3)
+    assert fe["cells"] < both["fe"]["cells"]
+
+
+@pytest.mark.parametrize("study", STUDIES, ids=[s.stem for s in STUDIES])
+def test_study_files_plan_a_grid(study):
+    """A study file under cases/ names a valid base case and a grid with valid variants."""
+    from pipeline.sweep import parse_values, plan, read_study
+    s = read_study(study)
+    axes = {f"dims.{k}": parse_values(str(v), k) for k, v in s["dims"].items()}
+    tasks = plan(s.get("size"), None, {"mesh_factor": s.get("mesh_factor", 1.0)}, axes, [], 3, 1.3)
+    assert len(tasks) == len(next(iter(axes.values()))) and any(t.case is not None for t in tasks)
