@@ -40,7 +40,7 @@ def execute_run(case: Case, out_dir: Path, levels: int = 3, ratio: float = 1.3,
     """
     say = progress or (lambda s: None)
     t_all = time.perf_counter()
-    with staged_dir(out_dir, comm, say) as stage, Mesher(case.dims, case.model) as mesher, \
+    with staged_dir(out_dir, comm, say) as stage, Mesher(case.dims, case.model, say) as mesher, \
             contextlib.ExitStack() as stack:
         pl = pilot(case, comm=comm, progress=say, mesher=mesher)
         files = {"results": "results.json", "mesh": "mesh.msh"}
@@ -157,7 +157,7 @@ def execute_converge(case: Case, out_dir: Path, levels: int = 4, ratio: float = 
     finest = case.mesh_factor / ratio ** max(levels - 3, 0)
     from dataclasses import replace
     fine_case = replace(case, mesh_factor=finest)
-    with staged_dir(out_dir, comm, say) as stage, Mesher(case.dims, case.model) as mesher:
+    with staged_dir(out_dir, comm, say) as stage, Mesher(case.dims, case.model, say) as mesher:
         # The pilot of the case itself, so the case's own mesh is one of the study's levels.
         lv, pl = analyse(fine_case, levels=levels, ratio=ratio, msh_path=stage / "mesh.msh",
                          progress=say, comm=comm, pl=pilot(case, comm=comm, progress=say, mesher=mesher),

@@ -7,6 +7,7 @@ broadcast, so later stages ask for "seat", never for a number.
 from __future__ import annotations
 
 import contextlib
+import threading
 import time
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
@@ -108,6 +109,31 @@ class MeshedPart:
     timings: dict[str, float]
 
 
+HEARTBEAT_S = 10.0
+
+
+@contextlib.contextmanager
+def heartbeat(progress: Callable[[str], None] | None, what: str, every_s: float = HEARTBEAT_S):
+    """Say every ``every_s`` seconds that ``what`` is still running (gmsh's meshing call
+    gives no progress of its own, and releases the interpreter while it works)."""
+    if progress is None:
+        yield
+        return
+    stop = threading.Event()
+    t0 = time.perf_counter()
+
+    def beat() -> None:
+        while not stop.wait(every_s):
+            progress(f"{what}: still working ({time.perf_counter() - t0:.0f} s so far)")
+    thread = threading.Thread(target=beat, name="meshing-heartbeat", daemon=True)
+    thread.start()
+    try:
+        yield
+    finally:
+        stop.set()
+        thread.join()
+
+
 class Mesher:
     """Part d (``model``) built once in this process's gmsh session, then meshed for one
     spec after another: ``with Mesher(d, model) as m: part = m.generate(spec)``.
@@ -121,8 +147,9 @@ class Mesher:
     re-initialised it meanwhile, the part is built again.
     """
 
-    def __init__(self, d: Dimensions, model: str) -> None:
+    def __init__(self, d: Dimensions, model: str, progress: Callable[[str], None] | None = None) -> None:
         self.d, self.model = d, model
+        self.progress = progress  # told every HEARTBEAT_S while one mesh takes longer
         self.scale = meshing_scale(d)
         self.name = f"crosshead-{id(self)}"
         self.built: BuiltGeometry | None = None
@@ -182,7 +209,8 @@ class Mesher:
         timings["geometry"] = time.perf_counter() - t0
         t0 = time.perf_counter()
         # Every curved tet leaves the builder with a det J ratio >= HO_TARGET (0.3).
-        quality = mesh(dn, spec_n)
+        with heartbeat(self.progress, f"meshing ×{spec.factor:.3g}"):
+            quality = mesh(dn, spec_n)
         if msh_path is not None:
             gmsh.option.setNumber("Mesh.ScalingFactor", self.scale)  # write in mm
             gmsh.write(str(msh_path))

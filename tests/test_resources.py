@@ -52,3 +52,15 @@ def test_runs_that_cannot_fit_are_refused_before_meshing(tmp_path, args):
     line, = p.stderr.strip().splitlines()
     assert line.startswith("error: mesh_factor:") and "--memory-limit" in line and "GiB" in line
     assert not (tmp_path / "out").exists() and list(tmp_path.iterdir()) == []
+
+
+def test_meshing_heartbeat_says_it_is_still_working():
+    """gmsh gives no progress while it meshes: a heartbeat line every interval, none after."""
+    from pipeline.meshing import heartbeat
+    lines: list[str] = []
+    with heartbeat(lines.append, "meshing ×0.5", every_s=0.1):
+        time.sleep(0.35)
+    n = len(lines)
+    time.sleep(0.25)
+    assert 2 <= n <= 4 and len(lines) == n
+    assert all(line.startswith("meshing ×0.5: still working") for line in lines)
