@@ -68,37 +68,27 @@ def _relax_curved(target: float) -> float:
 
     The ratio is :func:`jacobian_ratio`'s, computed here in numpy from the node positions
     (tests/test_geometry.py checks the two agree): asking gmsh for every tet's Jacobians
-    cost 0.29 s at No. 05 x1, on the path of every run.
+    is slow, and this is on the path of every run.
 
-    Why: curving second-order tets onto the shoulder fillet inverts some (det J < 0 on
-    No. 05), and elements left near a ratio of 0.1 gave spurious peaks (138 MPa instead of
-    ~116 at No. 05 ×1.3). The bad tets are slivers with all four vertices on the fillet
+    Why: curving second-order tets onto the shoulder fillet inverts some, and elements left
+    near a ratio of 0.1 give spurious peaks (docs/decisions.md). The bad tets are slivers with all four vertices on the fillet
     near its tangent line with the body face: their boundary edges bow (follow the CAD
     surface) while their interior edge stays straight, which folds a tet thinner than the bow.
 
     1. The mid-edge nodes of each bad tet move by the mean bow of its curved edges, so the
        sliver bends with the surface; a move is kept only if no tet it touches ends worse
        and below target. Nodes on curves and on named surfaces (symmetry planes, seat,
-       bearing) stay. The others move: inside the volume, on a free plane (on No. 05 the
-       body face beside the fillet leaves its plane by at most 0.021 mm at ×2.5 and
-       0.0075 mm at ×1, measured) and on the free fillet itself, whose bowed nodes get the
-       mean bow on top of their own (moving only the straight ones, as a variant, gave
-       115.458 / 114.233 MPa at ×2.5 / ×1 below: not adopted, measured too late to re-bench).
+       bearing) stay. The others move: inside the volume, on a free plane (the body face
+       beside the fillet leaves its plane by hundredths of a mm) and on the free fillet
+       itself, whose bowed nodes get the mean bow on top of their own.
     2. What is still bad: mid-edge nodes are pulled towards their edge's midpoint,
        RELAX_STEP of their bow per pass (a straight tet has ratio 1, so this ends); the
-       boundary there becomes locally faceted. After both steps, fillet nodes lie off the
-       torus by at most 0.059 mm at ×2.5 and 0.014 mm at ×1 (No. 05, measured).
+       boundary there becomes locally faceted, and fillet nodes lie off the torus by
+       hundredths of a mm (docs/accuracy.md).
 
-    Against gmsh's high-order optimiser (HighOrderOptimize 1, same target) on the same
-    linear mesh, No. 05 P2, global / critical peak (MPa): 115.43 / 66.275 against 115.46 /
-    66.276 at ×2.5, 118.13 / 66.279 against 118.13 / 66.280 at ×2, 114.84 / 66.220 against
-    114.83 / 66.221 at ×1.3, 114.26 / 66.235 against 114.23 / 66.236 at ×1 (P3 at ×2.5:
-    114.47 against 114.51); at ×4 134.3 against 131.5 (both far from the converged ~114).
-    Meshing at ×1: 1.9 s instead of 15.3 s (this function 0.3 s). Without step 1 the
-    flattened tets reached into the fillet at ×2.5 (a spurious 119.6 MPa peak on the upper
-    fillet); with step 1 moving only nodes inside the volume, 118.9 MPa. Step 0.5, not
-    0.25: make run at mesh factors 0.95/1/1.05 (9 meshes, own pilots) had no global peak
-    above 117 MPa with 0.5, but 3 spurious ones (119.9-123.5) with 0.25 (without step 1).
+    It gives the peaks of gmsh's high-order optimiser on the same linear meshes to a few
+    hundredths of a percent, in a fraction of its time; why step 1 and why steps of half
+    the bow: docs/decisions.md.
     """
     _, conn = gmsh.model.mesh.getElementsByType(11)
     if len(conn) == 0:

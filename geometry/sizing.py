@@ -20,8 +20,7 @@ def _balls(point: tuple[float, float, float], size: float, size_far: float, radi
     growing linearly to size_far over ``thickness``.
 
     A Ball is the same size function as a Threshold on a MathEval distance, but gmsh
-    evaluates it natively: with ten refined places the MathEval version made the first-order
-    mesh 3x slower (No. 05 x2: 1.10 s against 0.34 s without places)."""
+    evaluates it natively, several times faster with ten refined places (docs/decisions.md)."""
     x, y, z = abs(point[0]), abs(point[1]), point[2]
     field = gmsh.model.mesh.field
     tags = []
@@ -95,8 +94,8 @@ def mesh(d: Dimensions, spec: MeshSpec) -> float:
     opt("Mesh.Algorithm", 6)
     opt("Mesh.Algorithm3D", 1)
     opt("Mesh.ElementOrder", spec.order)
-    # gmsh's own high-order optimiser is off: it spent 3/4 of the meshing time (10 s of
-    # 13.5 s at No. 05 x1) repairing ~400 curved tets; _relax_curved does it in < 1 s.
+    # gmsh's own high-order optimiser is off: it spent most of the meshing time repairing a
+    # few hundred curved tets; geometry/curved.py does it in a fraction (docs/decisions.md).
     opt("Mesh.HighOrderOptimize", 0)
     opt("General.NumThreads", 1)
     try:

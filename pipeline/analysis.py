@@ -93,9 +93,8 @@ def error_bar_ranks(factors: Sequence[float], ranks: int) -> list[int | None]:
     (cost factor⁻³), counting ranks from the last, so that rank 0, which also starts the
     picture, gets the least.
 
-    Why: 2 ranks solving the x1.3 and then the x1.69 mesh together, beside the picture
-    process, made make run (No. 05, 2 ranks) take 20.44 s (median of 5); one mesh per rank,
-    18.51 s (5 runs interleaved with those).
+    Why: a small mesh scales badly over ranks; one mesh per rank, side by side with the
+    picture process, finishes the error bar sooner (docs/decisions.md).
     """
     who = owners([f ** -3 for f in factors[1:]], ranks)
     return [None] + [ranks - 1 - r for r in who]

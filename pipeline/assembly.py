@@ -20,8 +20,7 @@ def assemble_aij(a, bcs) -> PETSc.Mat:
     """The matrix of bilinear form ``a`` with ``bcs`` applied, as an AIJ matrix (bs 3).
 
     Why through BAIJ: DOLFINx inserts each element matrix into a 3×3-block matrix faster
-    than into AIJ, by enough to pay for the conversion (No. 05 x1, P2, one core: 1.18
-    against 1.63 s, median of 5; 0.70 against 0.94 s on 2 ranks). GAMG and hypre need AIJ;
+    than into AIJ, by enough to pay for the conversion (docs/decisions.md). GAMG and hypre need AIJ;
     "pmg" converts to SBAIJ instead (:func:`assemble_sbaij`).
     """
     A = assemble_baij(a, bcs)
@@ -41,11 +40,8 @@ def assemble_sbaij(a, bcs) -> PETSc.Mat:
     """The matrix of the symmetric bilinear form ``a`` with ``bcs`` applied (rows and columns
     zeroed: still symmetric), stored as its upper triangle in 3×3 blocks (SBAIJ).
 
-    Why: the product with a vector, most of pmg's time, reads half the matrix: 5.5 against
-    6.7 ms with BAIJ and 10.3 ms with AIJ at No. 05 x1.3 (median of 30). The conversion from
-    BAIJ costs 0.04 s there. Interleaved in one process, medians of 7: assembly + solve 2.27
-    -> 2.09 s at x1.3 (one rank), the same iterations and peaks to the printed 9 digits;
-    on 2 ranks 1.40 -> 1.34 s at x1.3 and 2.81 / 2.83 s at x1.
+    Why: the product with a vector, most of pmg's time, reads half the matrix; the
+    conversion from BAIJ is cheap (docs/decisions.md).
     """
     A = assemble_baij(a, bcs)
     A.convert("sbaij")  # in place, as in assemble_aij

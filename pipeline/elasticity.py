@@ -115,12 +115,9 @@ def volume_measures(mesh, order: int, like: tuple[ufl.Measure, ufl.Measure] | No
 
     Why: on an affine tet the stiffness integrand of Pk is a polynomial of degree 2(k−1),
     which that degree integrates exactly; UFL picks degree 5 for P2 on the curved (P2
-    geometry) mesh, for every cell. On No. 05 x1, 77 % of the tets are straight (those
-    not touching the fillet, bore and journal surfaces). Measured there, P2, one core,
-    median of 5: assembly 1.68 s split against 2.12 s with degree 5 everywhere (x1.3: 0.93
-    against 1.19 s). Curved cells keep UFL's degree; the peaks changed by 1e-13.
-    ``like``: measures of this mesh made before, whose cell split is reused (it costs 0.03 s
-    at x1.3).
+    geometry) mesh, for every cell, while most tets (those not touching the fillet, bore
+    and journal surfaces) are straight. Curved cells keep UFL's degree (docs/decisions.md).
+    ``like``: measures of this mesh made before, whose cell split is reused.
     """
     if like is not None:
         tags = like[0].subdomain_data()

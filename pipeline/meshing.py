@@ -138,7 +138,7 @@ class Mesher:
     """Part d (``model``) built once in this process's gmsh session, then meshed for one
     spec after another: ``with Mesher(d, model) as m: part = m.generate(spec)``.
 
-    Why: building the part (OpenCASCADE booleans) took 0.05-0.09 s of every mesh, and a
+    Why: building the part (OpenCASCADE booleans) costs time in every mesh, and a
     run makes two or more meshes per process (the pilot's, then the requested or the
     error-bar ones). Each mesh starts from a cleared mesh and no size fields (the builder
     removes its own), so it is bit for bit the mesh a fresh session makes: the mesh
@@ -220,8 +220,8 @@ class Mesher:
         topo = gmshio.extract_topology_and_markers(gmsh.model)
         cell_type = max(topo, key=lambda t: gmsh.model.mesh.getElementProperties(t)[1])
         facet_types = [t for t in topo if gmsh.model.mesh.getElementProperties(t)[1] == 2]
-        # Free gmsh's copy now: with it kept until the next mesh, DOLFINx's import of this
-        # one took 0.23-0.27 s instead of 0.17-0.19 s (x1.3, medians of 4; fresh memory).
+        # Free gmsh's copy now: kept until the next mesh, it slows DOLFINx's import of this
+        # one (docs/decisions.md).
         gmsh.model.mesh.clear()
         timings["mesh"] = time.perf_counter() - t0
         if len(facet_types) != 1:

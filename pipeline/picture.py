@@ -6,8 +6,8 @@ peaks were taken from) and results.json (the peaks). A separate process because 
 wheel crashes (std::regex, bad_alloc) when DOLFINx's libraries are loaded first.
 
 Drawn with VTK's own classes, not pyvista's plotter: pyvista.plotting imports
-matplotlib.pyplot, and the imports took 1.6 s of the 2.6 s of CPU the picture cost
-(No. 05 x1), while it runs beside the error-bar solves on the same two cores.
+matplotlib.pyplot, most of the picture's CPU time, while it runs beside the error-bar
+solves on the same cores (docs/decisions.md).
 """
 from __future__ import annotations
 
@@ -33,8 +33,8 @@ def boundary_surface(xyz: np.ndarray, tets: np.ndarray) -> tuple[np.ndarray, np.
     ``xyz`` (n×3, mm) and ``tets`` (m×4 node indices). Returns the indices of the nodes
     the surface uses and its triangles numbered into that list, so every node keeps its
     own values (von Mises, displacement). Why: in such a grid every face of every tet is
-    a free face, and VTK drew all of them (156 k triangles at No. 05 x1, 2.6 s in software
-    rendering) to show the ~8 k on the part's boundary. A face is on the boundary when no
+    a free face, and VTK would draw all of them (twenty times those on the part's
+    boundary, docs/decisions.md). A face is on the boundary when no
     other tet has the same three corner positions.
     """
     # + 0.0 turns -0.0 into 0.0: equal positions must have equal bytes.

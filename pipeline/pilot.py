@@ -28,9 +28,8 @@ def pilot_factor(case: Case) -> float:
     which the fillet elements are as large as the fillet radius (4 with the default sizes),
     and never finer than the case's own mesh.
 
-    Why: the pilot must see the features it is to find. At mesh factor 4 an uncapped
-    pilot (×8.8) had fillet elements twice rf and missed the bore-edge place: critical
-    peak +2.05 % (make bench).
+    Why: the pilot must see the features it is to find; a much coarser pilot has fillet
+    elements larger than rf and misses the bore-edge place (docs/decisions.md).
     """
     f = case.mesh_factor * PILOT_RATIO
     if case.dims.rf > 0:

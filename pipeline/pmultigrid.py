@@ -75,14 +75,10 @@ def p_multigrid(ksp: PETSc.KSP, V, mat: Material, facet_tags, constraints: Seque
     moves a constrained DOF: the constrained rows of the P1 matrix are identity rows, and
     without the zeroing CG did not converge (1000 iterations at No. 05 x1.3).
 
-    Why not the Galerkin product P^T A P (used up to commit c40a1a4): PETSc forms it only
-    for AIJ, and the fine matrix in AIJ cost a BAIJ -> AIJ conversion (0.24 s at No. 05
-    x1.3) and a slower product with a vector in every smoothing step (10.3 against 6.7 ms
-    in BAIJ, median of 30; see also :func:`assemble_sbaij`). Measured at No. 05 P2 with the
-    fine matrix in BAIJ, interleaved in one process, medians of 3-5: assembly + solve 3.58
-    -> 2.45 s at x1.3 (31 -> 30 iterations), 8.17 -> 5.50 s at x1 (35 both), 4.88 -> 3.07 s
-    at x1 on 2 ranks; peaks changed by <= 1e-8 relative. Returns (P, coarse matrix), to be
-    destroyed after the solve.
+    Why not the Galerkin product P^T A P: PETSc forms it only for AIJ matrices, and keeping
+    the fine matrix in AIJ costs a conversion and a slower product with a vector in every
+    smoothing step (docs/decisions.md). Returns (P, coarse matrix), to be destroyed after
+    the solve.
     """
     mesh = V.mesh
     V1 = fem.VectorFunctionSpace(mesh, ("Lagrange", 1))

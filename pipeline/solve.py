@@ -64,12 +64,9 @@ def solver_options(name: str, rtol: float) -> dict[str, object]:
     cg = {"ksp_type": "cg", "ksp_rtol": rtol, "ksp_max_it": 1000,
           "ksp_norm_type": "unpreconditioned"}
     if name == "pmg":
-        # Why: GAMG on the P2 matrix spent half its time in set-up (Galerkin products of a
-        # matrix with ~80 entries per row: 3.8 s of 6.2 s at No. 05 x1 on 2 ranks). The P1
-        # matrix of the same mesh has 1/7 of the rows (it was then formed as the product
-        # with the interpolation P1 -> P2; now assembled, see p_multigrid). Same mesh, same
-        # rtol: 35 iterations in 3.0 s against GAMG's 52 in 6.2 s, peaks equal to 1e-9
-        # (measured, 2 ranks; make bench of 0b7f5ac: 1.8 against 7.8 s of solve).
+        # Why: GAMG on the P2 matrix spends half its time in set-up (Galerkin products of a
+        # matrix with ~80 entries per row); the P1 matrix of the same mesh has 1/7 of the
+        # rows, and the two-level cycle takes fewer iterations (docs/decisions.md).
         return {**cg, "pc_type": "mg",
                 "mg_levels_ksp_type": "chebyshev", "mg_levels_pc_type": "jacobi",
                 "mg_levels_ksp_chebyshev_esteig_steps": 20,
@@ -78,8 +75,8 @@ def solver_options(name: str, rtol: float) -> dict[str, object]:
     if name == "gamg":
         # Stop on the true (unpreconditioned) residual: the same norm solve() checks after.
         # Smoothed aggregation (nsmooths 1) keeps the iterations flat under refinement
-        # (tests/test_conditioning.py). Unsmoothed (0) solved the default No. 05 mesh (167 k
-        # DOFs) in 7.6 s instead of 16.0 s, but its iterations grew 1.4x over 3x the DOFs.
+        # (tests/test_conditioning.py); unsmoothed aggregation is faster per solve but its
+        # iterations grow with the mesh (docs/decisions.md).
         return {**cg, **_GAMG}
     if name == "hypre":
         return {**cg, "pc_type": "hypre", "pc_hypre_type": "boomeramg",
@@ -89,8 +86,7 @@ def solver_options(name: str, rtol: float) -> dict[str, object]:
                 "pc_hypre_boomeramg_agg_nl": 2}
     if name == "mumps":
         # Cholesky (LDL^T), not LU: the stiffness matrix stays symmetric with the boundary
-        # conditions applied (rows and columns zeroed). Half the factorisation work: P3 on
-        # No. 05 x2.5 (115 k DOFs) solved in 6.0 s instead of 8.6 s, peaks identical.
+        # conditions applied (rows and columns zeroed): half the factorisation work.
         return {"ksp_type": "preonly", "pc_type": "cholesky",
                 "pc_factor_mat_solver_type": "mumps"}
     raise ValueError(f"solver must be one of {SOLVERS}, got {name!r}")
