@@ -1,7 +1,8 @@
-"""Command line: python -m pipeline {run,converge} ... (units: mm, N, MPa).
+"""Command line: python -m pipeline {run,converge,sweep} ... (units: mm, N, MPa).
 
-Exit status: 0 done; 2 bad input (one line on stderr, nothing written); 3 numerical
-failure (nothing written).
+Exit status (docs/design.md §8): 0 done; 2 bad input or an output folder that cannot be
+used; 3 the computation failed; 130 / 143 stopped by Ctrl-C / SIGTERM. One line on stderr,
+nothing written, an earlier result left as it was.
 """
 from __future__ import annotations
 

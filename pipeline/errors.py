@@ -1,4 +1,4 @@
-"""The two failures the CLI turns into exit codes (docs/design.md §7).
+"""The two failures the CLI turns into exit codes (docs/design.md §8).
 
 InputError (exit 2): something the user gave cannot be used; one line naming the field.
 NumericalError (exit 3): the solve ran but its result cannot be trusted (no convergence,

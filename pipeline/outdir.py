@@ -4,7 +4,7 @@ A run writes into a hidden staging folder beside ``--out`` and renames it into p
 when complete, so a failed or interrupted run leaves the earlier result as it was. The
 tool replaces a folder only when it is empty or carries the marker file that the tool
 writes last into every results folder; any other folder belongs to the user and is
-refused before any work is done (docs/design.md, "Output folder").
+refused before any work is done (docs/design.md §8).
 """
 from __future__ import annotations
 

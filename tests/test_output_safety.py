@@ -1,4 +1,4 @@
-"""The tool never loses a user's files (docs/design.md, "Output folder" and "Exit status").
+"""The tool never loses a user's files (docs/design.md §8).
 
 - ``--out`` never replaces a folder the tool did not write: a user's folder, the working
   folder, the repository, ``/``, the home folder, mount points (symlinks judged by target);
