@@ -22,7 +22,8 @@ WINDOW = (2000, 950)  # pixels: two panels side by side
 # critical peak. Right: from below and outside, the journal root, its shoulder fillet and
 # the global peak. Each panel labels only the peak it shows.
 VIEWS = ((-0.9, -1.5, 0.9), (0.5, 1.6, -1.0))
-COLOURS = {"black": (0.0, 0.0, 0.0), "magenta": (0.8, 0.0, 0.8)}
+COLOURS = {"black": (0.0, 0.0, 0.0), "magenta": (0.8, 0.0, 0.8), "red": (0.85, 0.1, 0.1),
+           "green": (0.1, 0.6, 0.2)}
 
 _TET_FACES = np.array([(1, 2, 3), (0, 3, 2), (0, 1, 3), (0, 2, 1)])
 
@@ -122,6 +123,56 @@ def _text(text: str, size: int, colour: tuple[float, float, float], box: bool = 
     return actor
 
 
+def load_arrows(dims: dict, load_N: float, whole: bool) -> list[tuple[np.ndarray, np.ndarray, str]]:
+    """(tail, vector, colour) of arrows (mm) showing where the loads act: the hook load
+    pressing down on the seat annulus (red, 8 around it) and the side plates carrying the
+    journals from below (green, at the middle of each bearing surface). ``whole``: the
+    picture shows the whole part (else the quarter x >= 0, y >= 0)."""
+    h, dj, b1, b6, rf = (float(dims[k]) for k in ("h3", "dj", "b1", "b6", "rf"))
+    r_seat = 0.25 * (float(dims["seat_inner"]) + float(dims["seat_outer"]))
+    size = 0.22 * h
+    angles = np.arange(8) * np.pi / 4 + np.pi / 8
+    arrows = []
+    for a in angles:
+        x, y = r_seat * np.cos(a), r_seat * np.sin(a)
+        if whole or (x >= 0 and y >= 0):
+            arrows.append((np.array([x, y, h + size]), np.array([0.0, 0.0, -size]), "red"))
+    x_mid = 0.5 * (0.5 * b1 + rf + 0.5 * b6)
+    for sx in ((1, -1) if whole else (1,)):
+        tip = np.array([sx * x_mid, 0.0, 0.5 * h - 0.5 * dj])
+        arrows.append((tip - np.array([0.0, 0.0, size]), np.array([0.0, 0.0, size]), "green"))
+    return arrows
+
+
+def _arrow_actor(tail: np.ndarray, vec: np.ndarray, colour: tuple[float, float, float]):
+    from vtkmodules.vtkCommonTransforms import vtkTransform
+    from vtkmodules.vtkFiltersGeneral import vtkTransformFilter
+    from vtkmodules.vtkFiltersSources import vtkArrowSource
+    from vtkmodules.vtkRenderingCore import vtkActor, vtkPolyDataMapper
+    length = float(np.linalg.norm(vec))
+    x = vec / length
+    z = np.cross(x, [0.0, 1.0, 0.0] if abs(x[1]) < 0.9 else [1.0, 0.0, 0.0])
+    z /= np.linalg.norm(z)
+    y = np.cross(z, x)
+    t = vtkTransform()
+    t.Translate(*tail)
+    m = np.eye(4)
+    m[:3, 0], m[:3, 1], m[:3, 2] = x * length, y * length, z * length
+    t.Concatenate(m.ravel().tolist())
+    arrow = vtkArrowSource()
+    arrow.SetTipResolution(16)
+    arrow.SetShaftResolution(16)
+    f = vtkTransformFilter()
+    f.SetTransform(t)
+    f.SetInputConnection(arrow.GetOutputPort())
+    mapper = vtkPolyDataMapper()
+    mapper.SetInputConnection(f.GetOutputPort())
+    actor = vtkActor()
+    actor.SetMapper(mapper)
+    actor.GetProperty().SetColor(*colour)
+    return actor
+
+
 def render_folder(folder: Path, out_name: str = "von_mises.png") -> Path:
     """Draw folder/von_mises.vtu with the peaks of folder/results.json into a PNG."""
     import vtkmodules.vtkRenderingFreeType  # noqa: F401  (text)
@@ -148,6 +199,8 @@ def render_folder(folder: Path, out_name: str = "von_mises.png") -> Path:
     # that touches the surface at a vertex only, whose value there is drawn by no triangle.
     lut = _turbo(float(arrays["von_mises_MPa"].min()), float(arrays["von_mises_MPa"].max()))
     centre = 0.5 * (points.min(axis=0) + points.max(axis=0))
+    whole = bool(points0[:, 0].min() < -1e-6 * length)
+    arrows = load_arrows(res["case"]["dims"], res["case"]["load_N"], whole)
 
     window = vtkRenderWindow()
     window.SetOffScreenRendering(1)
@@ -160,6 +213,8 @@ def render_folder(folder: Path, out_name: str = "von_mises.png") -> Path:
         vtkLightKit().AddLightsToRenderer(ren)
         window.AddRenderer(ren)
         ren.AddActor(_surface_actor(points, tri, vm, lut))
+        for tail, vec, colour in arrows:
+            ren.AddActor(_arrow_actor(tail, vec, COLOURS[colour]))
         label, value, loc, colour = marks[1] if col == 0 else marks[0]
         p = points[int(np.argmin(np.linalg.norm(points0 - np.asarray(loc), axis=1)))]
         sphere = vtkSphereSource()
@@ -194,11 +249,13 @@ def render_folder(folder: Path, out_name: str = "von_mises.png") -> Path:
         axes_ren.ResetCameraClippingRange()
         window.AddRenderer(axes_ren)
         if col == 0:
-            title = _text(f"Crosshead No. {case['size']}, Q = {case['load_N']:g} N, {case['model']} model, "
+            shown = f"{case['model']} model" + (", shown mirrored" if whole and case["model"] == "quarter" else "")
+            title = _text(f"Crosshead No. {case['size']}, Q = {case['load_N']:g} N, {shown}, "
                           f"{case['support']} support\nvon Mises (MPa) on the deformed part, "
-                          f"displacement x{scale:.0f}", 22, (0.0, 0.0, 0.0))
+                          f"displacement x{scale:.0f}\nred: hook load on the seat, green: journal supports",
+                          22, (0.0, 0.0, 0.0))
             title.GetPositionCoordinate().SetCoordinateSystemToNormalizedViewport()
-            title.GetPositionCoordinate().SetValue(0.01, 0.9)
+            title.GetPositionCoordinate().SetValue(0.01, 0.87)
             ren.AddViewProp(title)
         else:
             bar = vtkScalarBarActor()

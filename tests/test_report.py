@@ -91,3 +91,22 @@ def test_published_values_only_for_their_row(run_folder, tmp_path):
     assert p.returncode == 0, p.stderr
     assert json.loads((out / "results.json").read_text())["analytic"]["published"] is None
     assert "published" not in (out / "report.md").read_text()
+
+
+def test_load_arrows_point_where_the_loads_act():
+    """Seat arrows point down onto the top face on the seat's mean radius; support arrows
+    point up at the journals' underside; the quarter shows its own share of them."""
+    from pipeline.case import resolve
+    from pipeline.picture import load_arrows
+    d = resolve("05").as_dict()["dims"]
+    whole, quarter = load_arrows(d, 10_000.0, True), load_arrows(d, 10_000.0, False)
+    assert [c for *_, c in whole].count("red") == 8 and [c for *_, c in whole].count("green") == 2
+    assert [c for *_, c in quarter].count("red") == 2 and [c for *_, c in quarter].count("green") == 1
+    for tail, vec, colour in whole:
+        tip = tail + vec
+        if colour == "red":
+            assert vec[2] < 0 and tip[2] == pytest.approx(d["h3"])
+            assert np.hypot(tip[0], tip[1]) == pytest.approx((d["seat_inner"] + d["seat_outer"]) / 4)
+        else:
+            assert vec[2] > 0 and tip[2] == pytest.approx(d["h3"] / 2 - d["dj"] / 2)
+            assert d["b1"] / 2 < abs(tip[0]) < d["b6"] / 2
