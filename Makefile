@@ -37,9 +37,11 @@ $(SETUP): tools/setup.sh requirements.txt constraints.txt
 $(SIZES): $(SETUP)
 	$(PY) -m pipeline run --size $@ --out results/$@
 
-# Every size (make -j2 sizes runs two at a time), then the batch summary in results/summary/.
-sizes: $(SIZES)
-	$(PY) -m pipeline.summary results --out results/summary
+# Every size as one sweep over the MPI ranks (dynamic: a slow size holds one rank; a re-run
+# skips finished sizes), then the batch summary in results/summary/.
+sizes: $(SETUP)
+	$(RUN) sweep --sizes all --out results/sizes
+	$(PY) -m pipeline.summary results/sizes/variants --all --out results/summary
 
 clean:
 	rm -rf results

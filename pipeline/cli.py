@@ -176,6 +176,8 @@ def make_parser() -> argparse.ArgumentParser:
                            description=DESCRIPTION, epilog=SWEEP_EPILOG,
                            formatter_class=argparse.RawDescriptionHelpFormatter)
     add_case_options(sweep, dim_type=_dim_spec)
+    sweep.add_argument("--sizes", metavar="LIST", help="hook numbers to sweep over, e.g. 05,1,2.5, or 'all' rows of "
+                       "geometry/sizes.csv (each at its own rated load unless --load is given)")
     sweep.add_argument("--study", type=Path, help="a study file (TOML with a [sweep] table), e.g. cases/sweep-rf.toml")
     sweep.add_argument("--levels", type=int, default=3, help="meshes per variant for its error bar (default 3)")
     sweep.add_argument("--ratio", type=_positive_float, default=1.3, help="mesh-size ratio between them (default 1.3)")
@@ -322,6 +324,16 @@ def _sweep(args, rank0: bool) -> int:
     study = read_study(args.study) if args.study else {}
     size = args.size or study.get("size")
     case_file = args.case or (Path(study["case"]) if "case" in study else None)
+    sizes = None
+    if args.sizes:
+        from geometry.table import load_table
+        table = list(load_table())
+        sizes = table if args.sizes == "all" else [s.strip() for s in args.sizes.split(",") if s.strip()]
+        unknown = [s for s in sizes if s not in table]
+        if unknown or not sizes:
+            raise InputError(f"sizes: unknown hook number(s) {', '.join(unknown) or '(none given)'}; "
+                             f"known: {', '.join(table)}")
+        size = size or sizes[0]
     if size is None and case_file is None:
         raise InputError("size: give --size, --case or a study file with size = ...")
     dims = dict(study.get("dims", {}))
@@ -335,11 +347,11 @@ def _sweep(args, rank0: bool) -> int:
     ratio = float(study.get("ratio", args.ratio))
     if not 1 <= levels <= 8 or not 1.1 <= ratio <= 3:
         raise InputError("levels/ratio: levels must lie in 1..8 and ratio in [1.1, 3]")
-    if not axes and len(loads) < 2:
-        raise InputError("dim: a sweep needs at least one --dim NAME=VALUES or several loads")
+    if not axes and len(loads) < 2 and not sizes:
+        raise InputError("dim: a sweep needs at least one --dim NAME=VALUES, several loads or --sizes")
     out = args.out or (Path(study["out"]) if "out" in study else default_out(f"sweep-{size or Path(case_file).stem}"))
     say = (lambda s: None) if args.quiet else _progress
-    res = execute_sweep(size, case_file, base, axes, loads, out, levels, ratio, say)
+    res = execute_sweep(size, case_file, base, axes, loads, out, levels, ratio, say, sizes=sizes)
     if rank0 and res is not None and not args.quiet:
         c = res["counts"]
         _print(f"sweep: {c['done']} done, {c['invalid']} invalid, {c['failed']} failed; "

@@ -68,14 +68,15 @@ class Task:
 
 
 def plan(size: str | None, case_file: Path | None, base: dict, axes: dict[str, list[float]],
-         loads: list[float], levels: int, ratio: float) -> list[Task]:
+         loads: list[float], levels: int, ratio: float, sizes: list[str] | None = None) -> list[Task]:
     """The grid's tasks: the product of ``axes`` (``dims.<name>`` or case fields, values),
-    each at every load of ``loads`` (or the case's own load)."""
+    each at every load of ``loads`` (or the case's own load); with ``sizes``, that grid for
+    every hook number (each at its own rated load unless loads are given)."""
     names = list(axes)
     tasks = []
-    for combo in itertools.product(*(axes[n] for n in names)):
-        params = dict(zip(names, combo))
-        over = dict(base, **params)
+    for size, combo in itertools.product(sizes or [size], itertools.product(*(axes[n] for n in names))):
+        params = dict(zip(names, combo), **({"size": size} if sizes else {}))
+        over = dict(base, **{k: v for k, v in params.items() if k != "size"})
         try:
             case = resolve(size, case_file, over)
             qs = tuple(loads) or (case.load_N,)
@@ -143,8 +144,9 @@ def rows_of(tasks: list[Task], out: Path) -> list[dict]:
     """One row per variant and load: inputs, peaks with bands, safety factors, status."""
     rows = []
     for t in tasks:
-        base = {"variant": t.key, "size": None if t.case is None else t.case.size,
-                "parameters": json.dumps(t.params, sort_keys=True), **{k: v for k, v in t.params.items()}}
+        base = {"variant": t.key, "parameters": json.dumps(t.params, sort_keys=True),
+                **{k: v for k, v in t.params.items()},
+                "size": t.params.get("size") or (None if t.case is None else t.case.size)}
         if t.case is None:
             rows += [dict(base, status="invalid", load_N=q, note=t.note) for q in (t.loads or (None,))]
             continue
@@ -213,7 +215,7 @@ def write_outputs(tasks: list[Task], out: Path, axes: dict[str, list[float]], al
         w.writeheader()
         w.writerows(rows)
     os.replace(out / ".sweep.csv.tmp", out / "sweep.csv")
-    swept = [n for n in names if len(axes[n]) > 1]
+    swept = [n for n in names if len(axes[n]) > 1 and n != "size"]  # numeric axes only
     cross = [c for n in swept for c in crossings(rows, n, allowable)]
     summary = {"units": {"length": "mm", "force": "N", "stress": "MPa"}, "allowable_MPa": allowable,
                "axes": axes, "rows": rows, "crossings": cross,
@@ -300,10 +302,10 @@ def read_study(path: Path) -> dict:
 
 def execute_sweep(size: str | None, case_file: Path | None, base: dict, axes: dict[str, list[float]],
                   loads: list[float], out: Path, levels: int, ratio: float, say: Progress,
-                  comm=MPI.COMM_WORLD) -> dict | None:
+                  comm=MPI.COMM_WORLD, sizes: list[str] | None = None) -> dict | None:
     """Plan, check the output folder, work on every rank, summarise on rank 0."""
     from .outdir import MARKER, acquire_lock, check_out
-    tasks = plan(size, case_file, base, axes, loads, levels, ratio)
+    tasks = plan(size, case_file, base, axes, loads, levels, ratio, sizes)
     lock = None
     error = None
     if comm.rank == 0:

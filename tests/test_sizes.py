@@ -123,20 +123,21 @@ def test_formula_stresses_move_only_by_the_rounding(size):
         assert abs(dev) <= 1.2 * bound + 1e-12
 
 
-def test_makefile_has_a_target_per_row_and_sizes_runs_the_summary():
+def test_makefile_has_a_target_per_row_and_sizes_sweeps_then_summarises():
     if shutil.which("make") is None:
         pytest.skip("make not installed")
     # Run as a top-level make even under `make test`: the parent's MAKEFLAGS/MAKELEVEL
     # would add "make[1]: Entering/Leaving directory" lines.
     env = {k: v for k, v in os.environ.items() if not k.startswith("MAKE")}
-    out = [ln for ln in subprocess.run(["make", "--no-print-directory", "-n", "-B", "-j2", "sizes"],
-                                       cwd=ROOT, capture_output=True, text=True, check=True,
-                                       env=env).stdout.splitlines()
-           if not ln.startswith("make")]
-    runs = [ln for ln in out if "-m pipeline run" in ln]
+    def dry(target: str) -> list[str]:
+        return [ln for ln in subprocess.run(["make", "--no-print-directory", "-n", "-B", target], cwd=ROOT,
+                                            capture_output=True, text=True, check=True, env=env).stdout.splitlines()
+                if not ln.startswith("make") and "setup" not in ln]
     for size in TABLE:
-        assert any(f"--size {size} --out results/{size}" in ln for ln in runs), size
-    assert "-m pipeline.summary results --out results/summary" in out[-1]
+        assert any(f"-m pipeline run --size {size} --out results/{size}" in ln for ln in dry(size)), size
+    out = dry("sizes")
+    assert "sweep --sizes all --out results/sizes" in out[-2]
+    assert "-m pipeline.summary results/sizes/variants --all --out results/summary" in out[-1]
 
 
 # ---------------------------------------------------------------- batch summary (no FE)

@@ -85,3 +85,13 @@ def test_a_sweep_never_writes_into_a_user_folder(tmp_path):
                        capture_output=True, text=True, timeout=120)
     assert p.returncode == 2 and "refusing" in p.stderr
     assert [x.name for x in user.iterdir()] == ["notes.txt"]
+
+
+def test_sweep_over_sizes_uses_each_rated_load(tmp_path):
+    """--sizes: one variant per hook number, each at its table load (independent: sizes.csv)."""
+    from geometry.table import lookup
+    out = tmp_path / "sizes"
+    sweep(out, "--sizes", "05,1", "--mesh-factor", "3", "--levels", "1", "--quiet")
+    rows = json.loads((out / "sweep.json").read_text())["rows"]
+    assert {r["size"]: r["load_N"] for r in rows} == {s: lookup(s).load_N for s in ("05", "1")}
+    assert all(r["status"] == "done" for r in rows)
