@@ -64,16 +64,28 @@ def linearise(s: np.ndarray, t: np.ndarray) -> tuple[float, float]:
     return integral(s) / L, 6.0 / L ** 2 * integral(s * (L / 2 - tt))
 
 
-def sigma_xx_at(u: fem.Function, mat: Material, points: np.ndarray) -> np.ndarray:
-    """σ_xx (MPa) of displacement u at ``points`` (n × 3, mm), element values interpolated
-    into the discontinuous space of the peaks. Collective; every rank gets all values."""
+@dataclass
+class SigmaXX:
+    """σ_xx (MPa) of a solution in the discontinuous space of the peaks, with the search
+    tree to evaluate it at points: made once for all the lines of a section."""
+
+    field: fem.Function
+    tree: object
+
+
+def sigma_xx_field(u: fem.Function, mat: Material) -> SigmaXX:
     mesh = u.function_space.mesh
     order = u.function_space.ufl_element().degree()
     W = fem.FunctionSpace(mesh, ("DG", max(order - 1, 0)))
     sxx = fem.Function(W)
     sxx.interpolate(fem.Expression(stress(u, mat)[0, 0], W.element.interpolation_points()))
-    tree = geometry.BoundingBoxTree(mesh, mesh.topology.dim)
-    cells = geometry.compute_colliding_cells(mesh, geometry.compute_collisions(tree, points), points)
+    return SigmaXX(sxx, geometry.BoundingBoxTree(mesh, mesh.topology.dim))
+
+
+def sigma_xx_at(s: SigmaXX, points: np.ndarray) -> np.ndarray:
+    """σ_xx (MPa) at ``points`` (n × 3, mm). Collective; every rank gets all values."""
+    sxx, mesh = s.field, s.field.function_space.mesh
+    cells = geometry.compute_colliding_cells(mesh, geometry.compute_collisions(s.tree, points), points)
     local = np.full(len(points), np.nan)
     for i in range(len(points)):
         links = cells.links(i)
@@ -86,10 +98,11 @@ def sigma_xx_at(u: fem.Function, mat: Material, points: np.ndarray) -> np.ndarra
     return values
 
 
-def linearised_line(u: fem.Function, mat: Material, start: np.ndarray, end: np.ndarray) -> Linearised:
+def linearised_line(sxx: SigmaXX, start: np.ndarray, end: np.ndarray) -> Linearised:
+    """σ_xx sampled from ``start`` to ``end`` (mm) and linearised (:func:`linearise`)."""
     t = np.linspace(0.0, float(np.linalg.norm(end - start)), LINE_POINTS)
     pts = start + np.outer(t / t[-1], end - start)
-    s = sigma_xx_at(u, mat, pts)
+    s = sigma_xx_at(sxx, pts)
     m, b = linearise(s, t)
     return Linearised(membrane_MPa=m, bending_MPa=b, membrane_plus_bending_MPa=m + b,
                       peak_on_line_MPa=float(np.max(np.abs(s))),
@@ -158,11 +171,12 @@ def section_results(sol: Solution, mat: Material, d: Dimensions, load_N: float, 
     w, h = d.b1 - d.d2, d.h3  # both ligaments' width, and the height
     eps = 1e-7 * d.b6  # start lines just inside the part
     lig_mid = (d.d2 / 2 + d.b1 / 2) / 2
+    sxx = sigma_xx_field(u, mat)
     lines = {
-        "bore_edge_height": linearised_line(u, mat, np.array([eps, d.d2 / 2 + eps, eps]),
+        "bore_edge_height": linearised_line(sxx, np.array([eps, d.d2 / 2 + eps, eps]),
                                   np.array([eps, d.d2 / 2 + eps, h - eps])),
-        "mid_ligament_height": linearised_line(u, mat, np.array([eps, lig_mid, eps]), np.array([eps, lig_mid, h - eps])),
-        "ligament_width_mid_height": linearised_line(u, mat, np.array([eps, d.d2 / 2 + eps, h / 2]),
+        "mid_ligament_height": linearised_line(sxx, np.array([eps, lig_mid, eps]), np.array([eps, lig_mid, h - eps])),
+        "ligament_width_mid_height": linearised_line(sxx, np.array([eps, d.d2 / 2 + eps, h / 2]),
                                            np.array([eps, d.b1 / 2 - eps, h / 2])),
     }
     out: dict = {"lines": {k: asdict(v) for k, v in lines.items()}}
