@@ -79,15 +79,12 @@ def execute_run(case: Case, out_dir: Path, levels: int = 3, ratio: float = 1.3,
             files["picture"] = "von_mises.png"
             files["report"] = "report.md"
             files["report_html"] = "report.html"
-            sec = res["fe"].get("sections")
-            if sec and comm.rank == 0:
-                from .plots import sections_plot
-                if sections_plot(stage / "sections.png", sec, res["analytic"], case.dims.h3):
-                    files["sections_plot"] = "sections.png"
         res["files"] = files
         res["timings_s"]["output"] = t_output
         if picture is not None:
             res["timings_s"]["picture"] = finish_picture(picture, stage)
+            if (stage / "sections.png").exists():  # drawn by the picture process too
+                files["sections_plot"] = "sections.png"
         res["timings_s"]["total"] = time.perf_counter() - t_all
         write_json(stage / "results.json", res, comm)
         if write_fields and comm.rank == 0:

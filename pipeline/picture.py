@@ -288,5 +288,16 @@ def render_folder(folder: Path, out_name: str = "von_mises.png") -> Path:
     return out
 
 
+def draw_folder(folder: Path) -> None:
+    """Everything drawn for a run, in this process beside the error-bar solves: the picture
+    and, when the results carry section stresses, sections.png (pipeline/plots.py)."""
+    render_folder(folder)
+    res = json.loads((Path(folder) / "results.json").read_text(encoding="utf-8"))
+    sections = res["fe"].get("sections")
+    if sections:
+        from .plots import sections_plot
+        sections_plot(Path(folder) / "sections.png", sections, res["analytic"], float(res["case"]["dims"]["h3"]))
+
+
 if __name__ == "__main__":
-    render_folder(Path(sys.argv[1]))
+    draw_folder(Path(sys.argv[1]))

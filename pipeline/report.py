@@ -69,7 +69,7 @@ def safety_text(fe: dict, key: str) -> str:
 
 def why_sentence(res: dict) -> str:
     """Plain explanation of why the FE peak differs from the nominal formula stress."""
-    fe, an = res["fe"], res["analytic"]
+    fe = res["fe"]
     crit = fe["critical"]["feature"]
     return (
         "The hand formulas give a nominal bending stress averaged over the ligament beside the "

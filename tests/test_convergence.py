@@ -1,5 +1,4 @@
 """Richardson/GCI on closed-form sequences, and singularity detection on the real part."""
-import math
 
 import pytest
 

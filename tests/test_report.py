@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from pipeline.fields import mirror_quarter
+from pipeline.mirror import mirror_quarter
 
 ROOT = Path(__file__).resolve().parents[1]
 
