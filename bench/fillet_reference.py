@@ -1,0 +1,382 @@
+"""Verification study: the global (fillet) peak of No. 05 by a route independent of the
+default path (docs/fillet-reference.md). Units: mm, N, MPa.
+
+The default path takes the largest element-node value of von Mises over the whole part on
+three pilot-refined P2 meshes. This study instead
+
+- refines only a ball around the fillet's hot spot, in a geometric sequence of element
+  sizes (the rest of the part keeps one fixed mesh: the journal's bending moment at its
+  root is fixed by statics, so the far field only has to carry it);
+- solves P2, P3 and (on the coarser balls) P4 displacements on the same meshes;
+- takes the peak as the maximum of the FE von Mises stress over the exact fillet surface
+  (a torus), sampled densely and refined around the best sample, so the answer does not
+  depend on where the mesh happens to have a node;
+- checks that the fillet surface inside the ball is the torus (the distance of every
+  geometry node there from the torus's centre circle minus rf: a mid-edge node pulled
+  straight by geometry/curved.py shows as a negative distance);
+- extrapolates each order's sequence (Richardson, order fitted from three levels) and
+  compares the limits of the orders with each other.
+
+Run: ``python -m bench.fillet_reference --out results/fillet-reference`` (make reference),
+or one point: ``... --point ORDER H_BALL`` (used by the study itself, one process per
+point so that memory is returned between points).
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import subprocess
+import sys
+import time
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+from pipeline.environment import configure  # noqa: E402
+
+configure()  # before numpy, PETSc or DOLFINx load (pipeline/environment.py)
+
+import numpy as np  # noqa: E402
+
+ROOT = Path(__file__).resolve().parents[1]
+OUTER_FACTOR = 1.3          # the fixed mesh outside the ball: default sizes × this
+OUTER_CHECKS = (1.0, 0.77)  # the middle P3 level again with finer outer meshes: the far field's share
+BALL_RADIUS_MM = 2.5        # the refined ball around the hot spot
+# Element sizes in the ball, ratio 4/3. A finer level (0.096 mm) did not finish meshing in
+# five minutes (gmsh 4.8). P4 runs on the three coarsest only: it checks P3's limit with
+# another order, and its DOFs grow like P3's times 2.
+H_BALLS_MM = (0.4, 0.3, 0.225, 0.17, 0.128)
+ORDERS_AT = {2: H_BALLS_MM, 3: H_BALLS_MM, 4: H_BALLS_MM[:3]}
+
+
+@dataclass(frozen=True)
+class Torus:
+    """The fillet of the +x journal root: a torus about the journal axis (x axis through
+    y = 0, z = zc), centre circle at x = xc of radius R, tube radius r (mm)."""
+
+    xc: float
+    zc: float
+    R: float
+    r: float
+
+    def point(self, theta: np.ndarray, phi: np.ndarray) -> np.ndarray:
+        """Surface points: theta from 0 (tangent to the body face x = b1/2) to π/2 (tangent
+        to the journal), phi from 0 (straight down) towards +y."""
+        x = self.xc - self.r * np.cos(theta)
+        ra = self.R - self.r * np.sin(theta)
+        return np.column_stack([x, ra * np.sin(phi), self.zc - ra * np.cos(phi)])
+
+    def gap(self, p: np.ndarray) -> np.ndarray:
+        """Distance of points from the centre circle minus r (mm): 0 on the torus, < 0
+        inside the tube (outside the material)."""
+        ra = np.hypot(p[:, 1], p[:, 2] - self.zc)
+        return np.hypot(p[:, 0] - self.xc, ra - self.R) - self.r
+
+
+def fillet_torus(d) -> Torus:
+    """The fillet of part d as a torus (mm)."""
+    return Torus(xc=d.b1 / 2 + d.rf, zc=d.h3 / 2, R=d.dj / 2 + d.rf, r=d.rf)
+
+
+def von_mises_tensor_field(u, mat):
+    """The stress tensor (MPa) in DG(order−1): the space the pipeline's peaks come from."""
+    from dolfinx import fem
+
+    from pipeline.elasticity import stress
+    mesh = u.function_space.mesh
+    order = u.function_space.ufl_element().degree()
+    T = fem.TensorFunctionSpace(mesh, ("DG", order - 1))
+    s = fem.Function(T)
+    s.interpolate(fem.Expression(stress(u, mat), T.element.interpolation_points()))
+    return s
+
+
+def von_mises_at(s, tree, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Von Mises (MPa) of the DG stress field s at points (n × 3, mm), evaluated in every
+    cell that holds the point: (largest, mean) over those cells; NaN where no cell holds
+    it. The stress jumps between cells; their mean is a simple recovered value, the
+    largest is what a peak over element nodes sees. Collective: every rank gets all."""
+    from dolfinx import geometry
+    from mpi4py import MPI
+    mesh = s.function_space.mesh
+    n_owned = mesh.topology.index_map(3).size_local
+    cells = geometry.compute_colliding_cells(mesh, geometry.compute_collisions(tree, points), points)
+    idx = np.repeat(np.arange(len(points)), np.diff(cells.offsets))
+    cell = cells.array
+    keep = cell < n_owned  # each cell once over the ranks
+    idx, cell = idx[keep], cell[keep]
+    hi = np.full(len(points), -np.inf)
+    total = np.zeros(len(points))
+    count = np.zeros(len(points))
+    if len(idx):
+        t = s.eval(points[idx], cell.astype(np.int32)).reshape(-1, 3, 3)
+        dev = t - np.trace(t, axis1=1, axis2=2)[:, None, None] / 3 * np.eye(3)
+        vm = np.sqrt(1.5 * np.einsum("nij,nij->n", dev, dev))
+        np.maximum.at(hi, idx, vm)
+        np.add.at(total, idx, vm)
+        np.add.at(count, idx, 1)
+    for arr, op in ((hi, MPI.MAX), (total, MPI.SUM), (count, MPI.SUM)):
+        mesh.comm.Allreduce(MPI.IN_PLACE, arr, op=op)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        mean = np.where(count > 0, total / count, np.nan)
+    return np.where(count > 0, hi, np.nan), mean
+
+
+def surface_max(s, tree, torus: Torus, which: int) -> tuple[float, float, float, int]:
+    """Largest von Mises (MPa) over the fillet surface of the quarter (phi 0..π), of the
+    cells' largest (which = 0) or mean (which = 1) value at each point: a 1° grid, then
+    three finer grids around the best point. Returns (value, theta, phi, grid points found
+    in no cell)."""
+    th = np.radians(np.arange(0.0, 90.01, 1.0))
+    ph = np.radians(np.arange(0.0, 180.01, 1.0))
+    T, P = np.meshgrid(th, ph)
+    vals = von_mises_at(s, tree, torus.point(T.ravel(), P.ravel()))[which]
+    missing = int(np.isnan(vals).sum())
+    i = int(np.nanargmax(vals))
+    best = (float(vals[i]), float(T.ravel()[i]), float(P.ravel()[i]))
+    step = math.radians(1.0)
+    for _ in range(3):
+        th = np.clip(best[1] + step * np.linspace(-1, 1, 21), 0, math.pi / 2)
+        ph = np.clip(best[2] + step * np.linspace(-1, 1, 21), 0, math.pi)
+        T, P = np.meshgrid(th, ph)
+        vals = von_mises_at(s, tree, torus.point(T.ravel(), P.ravel()))[which]
+        i = int(np.nanargmax(vals))
+        if vals[i] > best[0]:
+            best = (float(vals[i]), float(T.ravel()[i]), float(P.ravel()[i]))
+        step /= 10
+    return best[0], best[1], best[2], missing
+
+
+def ball_centre(torus: Torus, theta: float, phi: float) -> tuple[float, float, float]:
+    """The surface point (mm) at (theta, phi)."""
+    p = torus.point(np.array([theta]), np.array([phi]))[0]
+    return (float(p[0]), float(p[1]), float(p[2]))
+
+
+def fillet_gap(mesh, torus: Torus, d, centre, radius: float) -> tuple[float, float]:
+    """(min, max) over the boundary geometry nodes on the fillet within ``radius`` of
+    ``centre`` of their distance from the torus (mm): 0 where gmsh put them on the CAD
+    surface; a mid-edge node pulled towards its chord lies inside the tube (< 0)."""
+    from dolfinx import cpp
+    from dolfinx.mesh import exterior_facet_indices
+    from mpi4py import MPI
+    mesh.topology.create_connectivity(2, 3)
+    facets = exterior_facet_indices(mesh.topology)
+    nodes = np.unique(cpp.mesh.entities_to_geometry(mesh._mesh, 2, facets, False).ravel())
+    x = mesh.geometry.x[nodes]
+    ra = np.hypot(x[:, 1], x[:, 2] - torus.zc)
+    tol = 1e-3 * d.rf
+    on = ((x[:, 0] > d.b1 / 2 + tol) & (x[:, 0] < d.b1 / 2 + d.rf - tol) & (ra > d.dj / 2 + tol)
+          & (ra < d.dj / 2 + d.rf - tol) & (np.linalg.norm(x - np.array(centre), axis=1) < radius))
+    gap = torus.gap(x[on])
+    lo = mesh.comm.allreduce(float(gap.min()) if len(gap) else np.inf, op=MPI.MIN)
+    hi = mesh.comm.allreduce(float(gap.max()) if len(gap) else -np.inf, op=MPI.MAX)
+    return lo, hi
+
+
+def run_point(order: int, h_ball: float, centre: tuple[float, float, float], outer: float,
+              radius: float) -> dict:
+    """Mesh with a ball of size h_ball (mm) at centre, solve Pk, measure the fillet peak."""
+    from dolfinx import geometry
+    from mpi4py import MPI
+
+    from pipeline.case import resolve
+    from pipeline.elasticity import Material
+    from pipeline.loads import crosshead_loads
+    from pipeline.meshing import make_mesh
+    from pipeline.peaks import peak, von_mises
+    from pipeline.solve import solve
+    comm = MPI.COMM_WORLD
+    case = resolve(size="05")
+    d = case.dims
+    torus = fillet_torus(d)
+    base = case.mesh_spec(outer)
+    # Sizes inside the mesher are multiplied by the factor: the ball's size is given per factor.
+    spec = replace(base, hotspots=(centre,), size_hotspot=h_ball / outer, hotspot_radius=radius)
+    t0 = time.perf_counter()
+    m = make_mesh(d, case.model, spec, comm=comm)
+    t_mesh = time.perf_counter() - t0
+    gap_min, gap_max = fillet_gap(m.mesh, torus, d, centre, radius)
+    mat = Material(E=case.E_MPa, nu=case.nu)
+    lc = crosshead_loads(m, d, case.load_N, case.support)
+    t0 = time.perf_counter()
+    sol = solve(m.mesh, m.facet_tags, order, mat, lc.tractions, lc.constraints, solver="pmg", rtol=1e-10)
+    t_solve = time.perf_counter() - t0
+    vm = von_mises(sol.u, mat)
+    in_fillet = lambda p: (p[:, 0] > d.b1 / 2 - 0.5) & (p[:, 0] < d.b1 / 2 + d.rf + 0.5)  # noqa: E731
+    nodal = peak(vm, in_fillet)
+    s = von_mises_tensor_field(sol.u, mat)
+    tree = geometry.BoundingBoxTree(m.mesh, m.mesh.topology.dim)
+    value, theta, phi, missing = surface_max(s, tree, torus, which=1)
+    value_hi, theta_hi, phi_hi, _ = surface_max(s, tree, torus, which=0)
+    where = ball_centre(torus, theta, phi)
+    return {"order": order, "h_ball_mm": h_ball, "outer_factor": outer, "ball_radius_mm": radius,
+            "ball_centre_mm": list(centre), "dofs": sol.dofs, "cells": m.mesh.topology.index_map(3).size_global,
+            "iterations": sol.iterations, "surface_peak_MPa": value, "surface_peak_cellmax_MPa": value_hi,
+            "cellmax_theta_deg": math.degrees(theta_hi), "cellmax_phi_deg": math.degrees(phi_hi), "theta_deg": math.degrees(theta),
+            "phi_deg": math.degrees(phi), "surface_peak_at_mm": list(where),
+            "peak_from_centre_mm": float(np.linalg.norm(np.array(where) - np.array(centre))),
+            "nodal_peak_MPa": nodal.value_MPa, "nodal_peak_at_mm": list(nodal.location_mm),
+            "samples_outside_mesh": missing, "torus_gap_min_mm": gap_min, "torus_gap_max_mm": gap_max,
+            "jacobian_ratio": m.jacobian_ratio, "time_mesh_s": t_mesh, "time_solve_s": t_solve,
+            "ranks": comm.size}
+
+
+def richardson(h: list[float], f: list[float]) -> dict:
+    """Limit of f(h) = f0 + C h^p from the last three levels of a sequence with a constant
+    ratio: p = ln((f1−f2)/(f2−f3)) / ln(ratio); NaN when the differences change sign
+    (not monotone: no order can be fitted)."""
+    f1, f2, f3 = f[-3:]
+    ratio = h[-3] / h[-2]
+    e12, e23 = f1 - f2, f2 - f3
+    if e12 == 0 or e23 == 0 or e12 * e23 < 0:
+        return {"order": float("nan"), "limit_MPa": float("nan"), "levels": 3}
+    p = math.log(e12 / e23) / math.log(ratio)
+    limit = f3 - e23 / (ratio ** p - 1)
+    return {"order": p, "limit_MPa": limit, "levels": 3}
+
+
+def sequence_summary(seq: list[dict]) -> dict:
+    """One order's sequence (coarsest first): its values, their range, the mean and spread
+    of the finest three, and Richardson's limit where the last three are monotone."""
+    h = [r["h_ball_mm"] for r in seq]
+    f = [r["surface_peak_MPa"] for r in seq]
+    fine = f[-3:]
+    return {"h_mm": h, "surface_peak_MPa": f, "nodal_peak_MPa": [r["nodal_peak_MPa"] for r in seq],
+            "dofs": [r["dofs"] for r in seq], "min_MPa": min(f), "max_MPa": max(f),
+            "finest_three_mean_MPa": sum(fine) / 3, "finest_three_spread_MPa": max(fine) - min(fine),
+            "richardson": richardson(h, f)}
+
+
+def reference_value(fits: dict[int, dict], far_field: list[float] = ()) -> dict | None:
+    """The reference (MPa): the mean of P3's finest three levels and of the far-field
+    checks (the same ball on finer outer meshes); its band covers every P3 value, P4's mean
+    (another order on the same meshes) and P3's Richardson limit when there is one. None
+    without a P3 sequence."""
+    if 3 not in fits:
+        return None
+    p3 = fits[3]
+    core = p3["surface_peak_MPa"][-3:] + list(far_field)
+    value = sum(core) / len(core)
+    covered = p3["surface_peak_MPa"] + list(far_field)
+    how = "mean of P3's finest three ball sizes"
+    if far_field:
+        how += " and of the finer far-field meshes"
+    how += "; band covers every P3 value"
+    if 4 in fits:
+        covered.append(fits[4]["finest_three_mean_MPa"])
+        how += " and P4's mean"
+    lim = p3["richardson"]["limit_MPa"]
+    if math.isfinite(lim):
+        covered.append(lim)
+        how += " and P3's Richardson limit"
+    band = max(abs(v - value) for v in covered)
+    return {"value_MPa": value, "band_MPa": band, "how": how}
+
+
+def spawn(args: list[str], ranks: int) -> dict:
+    """One point in its own process (on ``ranks`` MPI ranks); its JSON line back."""
+    cmd = [sys.executable, "-m", "bench.fillet_reference", *args]
+    if ranks > 1:
+        cmd = ["mpirun", "--allow-run-as-root", "--oversubscribe", "-n", str(ranks), *cmd]
+    out = subprocess.run(cmd, cwd=ROOT, env=dict(os.environ), capture_output=True, text=True)
+    if out.returncode != 0:
+        raise RuntimeError(f"point {args} failed:\n{out.stderr[-2000:]}")
+    line = [ln for ln in out.stdout.splitlines() if ln.startswith("POINT ")][-1]
+    return json.loads(line[len("POINT "):])
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(prog="python -m bench.fillet_reference", description=__doc__.split("\n\n")[0])
+    p.add_argument("--out", type=Path, default=Path("results/fillet-reference"))
+    p.add_argument("--ranks", type=int, default=2)
+    p.add_argument("--radius", type=float, default=BALL_RADIUS_MM)
+    p.add_argument("--outer", type=float, default=OUTER_FACTOR)
+    p.add_argument("--orders", default="2,3,4")
+    p.add_argument("--point", nargs=2, metavar=("ORDER", "H_BALL"))
+    p.add_argument("--centre", help="x,y,z of the ball (mm); default: found by a P3 probe")
+    a = p.parse_args(argv)
+    if a.point:
+        centre = tuple(float(c) for c in a.centre.split(","))
+        r = run_point(int(a.point[0]), float(a.point[1]), centre, a.outer, a.radius)
+        from mpi4py import MPI
+        if MPI.COMM_WORLD.rank == 0:
+            print("POINT " + json.dumps(r), flush=True)
+        return 0
+    out = a.out
+    out.mkdir(parents=True, exist_ok=True)
+    log = out / "points.jsonl"
+    done = [json.loads(ln) for ln in log.read_text().splitlines()] if log.exists() else []
+    t_all = time.perf_counter()
+
+    def say(msg: str) -> None:
+        print(f"[{time.perf_counter() - t_all:8.1f} s] {msg}", flush=True)
+
+    if a.centre:
+        centre = tuple(float(c) for c in a.centre.split(","))
+    else:
+        # Where the ball goes: the surface maximum of a P3 solution on the unrefined mesh
+        # (a ball of the fillet's own size at a point of the fillet changes nothing there).
+        from pipeline.case import resolve
+        d = resolve(size="05").dims
+        torus = fillet_torus(d)
+        probe_centre = ball_centre(torus, math.radians(45), math.radians(40))
+        h0 = resolve(size="05").mesh_spec(a.outer).size_fillet * a.outer
+        probe = spawn(["--point", "3", f"{h0}", "--centre", ",".join(map(str, probe_centre)),
+                       "--outer", str(a.outer), "--radius", str(a.radius)], a.ranks)
+        centre = tuple(probe["surface_peak_at_mm"])
+        say(f"probe P3: surface peak {probe['surface_peak_MPa']:.2f} MPa at theta {probe['theta_deg']:.1f}°, "
+            f"phi {probe['phi_deg']:.1f}° → ball centre ({centre[0]:.3f}, {centre[1]:.3f}, {centre[2]:.3f}) mm")
+    rows = [r for r in done if tuple(r["ball_centre_mm"]) == centre and r["outer_factor"] == a.outer
+            and r["ball_radius_mm"] == a.radius]
+    orders = [int(o) for o in a.orders.split(",")]
+    for order in orders:
+        for h in ORDERS_AT[order]:
+            if any(r["order"] == order and r["h_ball_mm"] == h for r in rows):
+                continue
+            r = spawn(["--point", str(order), str(h), "--centre", ",".join(map(str, centre)),
+                       "--outer", str(a.outer), "--radius", str(a.radius)], a.ranks)
+            rows.append(r)
+            with log.open("a") as f:
+                f.write(json.dumps(r) + "\n")
+            say(f"P{order} h {h:.3f} mm: {r['dofs']} DOFs, surface peak {r['surface_peak_MPa']:.3f} MPa "
+                f"(cell max {r['surface_peak_cellmax_MPa']:.3f}) "
+                f"(θ {r['theta_deg']:.1f}°, φ {r['phi_deg']:.1f}°), nodal {r['nodal_peak_MPa']:.3f} MPa, "
+                f"torus gap {r['torus_gap_min_mm']:.1e}..{r['torus_gap_max_mm']:.1e} mm, "
+                f"mesh {r['time_mesh_s']:.1f} s, solve {r['time_solve_s']:.1f} s")
+    # The far field: the middle P3 level again with finer meshes outside the ball.
+    h_mid = H_BALLS_MM[2]
+    far_field = []
+    for outer in (OUTER_CHECKS if 3 in orders else ()):
+        hit = [r for r in done + far_field if tuple(r["ball_centre_mm"]) == centre and r["outer_factor"] == outer
+               and r["order"] == 3 and r["h_ball_mm"] == h_mid and r["ball_radius_mm"] == a.radius]
+        if hit:
+            far_field.append(hit[0])
+            continue
+        r = spawn(["--point", "3", str(h_mid), "--centre", ",".join(map(str, centre)),
+                   "--outer", str(outer), "--radius", str(a.radius)], a.ranks)
+        far_field.append(r)
+        with log.open("a") as f:
+            f.write(json.dumps(r) + "\n")
+        say(f"far field: P3 h {h_mid} mm with the outer mesh ×{outer}: {r['dofs']} DOFs, "
+            f"surface peak {r['surface_peak_MPa']:.3f} MPa, solve {r['time_solve_s']:.1f} s")
+    fits = {order: sequence_summary(sorted((r for r in rows if r["order"] == order), key=lambda r: -r["h_ball_mm"]))
+            for order in orders if sum(r["order"] == order for r in rows) >= 3}
+    ref = reference_value(fits, [r["surface_peak_MPa"] for r in far_field])
+    (out / "reference.json").write_text(json.dumps({"centre_mm": centre, "outer_factor": a.outer,
+                                                    "ball_radius_mm": a.radius, "reference": ref,
+                                                    "far_field": [{k: r[k] for k in ("outer_factor", "h_ball_mm", "dofs", "surface_peak_MPa")}
+                                                                  for r in far_field],
+                                                    "sequences": fits, "points": rows}, indent=1) + "\n")
+    for order, fit in fits.items():
+        say(f"P{order}: finest three {fit['finest_three_mean_MPa']:.3f} MPa (spread {fit['finest_three_spread_MPa']:.3f}), "
+            f"all levels {fit['min_MPa']:.3f}..{fit['max_MPa']:.3f} MPa; Richardson {fit['richardson']}")
+    if ref:
+        say(f"reference: {ref['value_MPa']:.2f} ± {ref['band_MPa']:.2f} MPa ({100 * ref['band_MPa'] / ref['value_MPa']:.2f} %), "
+            f"{ref['how']}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
