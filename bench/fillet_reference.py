@@ -43,9 +43,9 @@ ROOT = Path(__file__).resolve().parents[1]
 OUTER_FACTOR = 1.3          # the fixed mesh outside the ball: default sizes × this
 OUTER_CHECKS = (1.0, 0.77)  # the middle P3 level again with finer outer meshes: the far field's share
 BALL_RADIUS_MM = 2.5        # the refined ball around the hot spot
-# Element sizes in the ball, ratio 4/3. A finer level (0.096 mm) did not finish meshing in
-# five minutes (gmsh 4.8). P4 runs on the three coarsest only: it checks P3's limit with
-# another order, and its DOFs grow like P3's times 2.
+# Element sizes in the ball, ratio 4/3; why the sequence stops at 0.128 mm: docs/fillet-reference.md.
+# P4 runs on the three coarsest only: it checks P3's limit with another order at about twice
+# P3's DOFs.
 H_BALLS_MM = (0.4, 0.3, 0.225, 0.17, 0.128)
 ORDERS_AT = {2: H_BALLS_MM, 3: H_BALLS_MM, 4: H_BALLS_MM[:3]}
 
@@ -66,6 +66,10 @@ class Torus:
         x = self.xc - self.r * np.cos(theta)
         ra = self.R - self.r * np.sin(theta)
         return np.column_stack([x, ra * np.sin(phi), self.zc - ra * np.cos(phi)])
+
+    def at(self, theta: float, phi: float) -> tuple[float, float, float]:
+        """The one surface point (mm) at (theta, phi)."""
+        return tuple(float(c) for c in self.point(np.array([theta]), np.array([phi]))[0])
 
     def gap(self, p: np.ndarray) -> np.ndarray:
         """Distance of points from the centre circle minus r (mm): 0 on the torus, < 0
@@ -123,35 +127,29 @@ def von_mises_at(s, tree, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return np.where(count > 0, hi, np.nan), mean
 
 
-def surface_max(s, tree, torus: Torus, which: int) -> tuple[float, float, float, int]:
+def surface_maxima(s, tree, torus: Torus) -> tuple[tuple[float, float, float], ...]:
     """Largest von Mises (MPa) over the fillet surface of the quarter (phi 0..π), of the
-    cells' largest (which = 0) or mean (which = 1) value at each point: a 1° grid, then
-    three finer grids around the best point. Returns (value, theta, phi, grid points found
-    in no cell)."""
-    th = np.radians(np.arange(0.0, 90.01, 1.0))
-    ph = np.radians(np.arange(0.0, 180.01, 1.0))
-    T, P = np.meshgrid(th, ph)
-    vals = von_mises_at(s, tree, torus.point(T.ravel(), P.ravel()))[which]
-    missing = int(np.isnan(vals).sum())
-    i = int(np.nanargmax(vals))
-    best = (float(vals[i]), float(T.ravel()[i]), float(P.ravel()[i]))
-    step = math.radians(1.0)
-    for _ in range(3):
-        th = np.clip(best[1] + step * np.linspace(-1, 1, 21), 0, math.pi / 2)
-        ph = np.clip(best[2] + step * np.linspace(-1, 1, 21), 0, math.pi)
-        T, P = np.meshgrid(th, ph)
-        vals = von_mises_at(s, tree, torus.point(T.ravel(), P.ravel()))[which]
+    cells' mean and of their largest value at each point: one 1° grid for both, then three
+    finer grids around each one's best point. Returns ((mean, theta, phi), (largest, theta,
+    phi), (grid points found in no cell,))."""
+    th, ph = np.meshgrid(np.radians(np.arange(0.0, 90.01, 1.0)), np.radians(np.arange(0.0, 180.01, 1.0)))
+    th, ph = th.ravel(), ph.ravel()
+    largest, mean = von_mises_at(s, tree, torus.point(th, ph))
+    out = []
+    for which, vals in ((1, mean), (0, largest)):
         i = int(np.nanargmax(vals))
-        if vals[i] > best[0]:
-            best = (float(vals[i]), float(T.ravel()[i]), float(P.ravel()[i]))
-        step /= 10
-    return best[0], best[1], best[2], missing
-
-
-def ball_centre(torus: Torus, theta: float, phi: float) -> tuple[float, float, float]:
-    """The surface point (mm) at (theta, phi)."""
-    p = torus.point(np.array([theta]), np.array([phi]))[0]
-    return (float(p[0]), float(p[1]), float(p[2]))
+        best = (float(vals[i]), float(th[i]), float(ph[i]))
+        step = math.radians(1.0)
+        for _ in range(3):
+            T, P = np.meshgrid(np.clip(best[1] + step * np.linspace(-1, 1, 21), 0, math.pi / 2),
+                               np.clip(best[2] + step * np.linspace(-1, 1, 21), 0, math.pi))
+            fine = von_mises_at(s, tree, torus.point(T.ravel(), P.ravel()))[which]
+            k = int(np.nanargmax(fine))
+            if fine[k] > best[0]:
+                best = (float(fine[k]), float(T.ravel()[k]), float(P.ravel()[k]))
+            step /= 10
+        out.append(best)
+    return out[0], out[1], (int(np.isnan(mean).sum()),)
 
 
 def fillet_gap(mesh, torus: Torus, d, centre, radius: float) -> tuple[float, float]:
@@ -183,44 +181,38 @@ def run_point(order: int, h_ball: float, centre: tuple[float, float, float], out
 
     from pipeline.case import resolve
     from pipeline.elasticity import Material
-    from pipeline.loads import crosshead_loads
+    from pipeline.level import solve_level
     from pipeline.meshing import make_mesh
-    from pipeline.peaks import peak, von_mises
-    from pipeline.solve import solve
+    from pipeline.peaks import peak
     comm = MPI.COMM_WORLD
-    case = resolve(size="05")
+    # P4 is beyond the orders a case offers (the check refuses it); the study sets it directly.
+    case = replace(resolve(size="05"), order=order, solver="pmg", rtol=1e-10)
     d = case.dims
     torus = fillet_torus(d)
-    base = case.mesh_spec(outer)
     # Sizes inside the mesher are multiplied by the factor: the ball's size is given per factor.
-    spec = replace(base, hotspots=(centre,), size_hotspot=h_ball / outer, hotspot_radius=radius)
+    spec = replace(case.mesh_spec(outer), hotspots=(centre,), size_hotspot=h_ball / outer, hotspot_radius=radius)
     t0 = time.perf_counter()
     m = make_mesh(d, case.model, spec, comm=comm)
     t_mesh = time.perf_counter() - t0
     gap_min, gap_max = fillet_gap(m.mesh, torus, d, centre, radius)
-    mat = Material(E=case.E_MPa, nu=case.nu)
-    lc = crosshead_loads(m, d, case.load_N, case.support)
-    t0 = time.perf_counter()
-    sol = solve(m.mesh, m.facet_tags, order, mat, lc.tractions, lc.constraints, solver="pmg", rtol=1e-10)
-    t_solve = time.perf_counter() - t0
-    vm = von_mises(sol.u, mat)
+    lv = solve_level(case, outer, keep_fields=True, comm=comm, load_mesh=lambda: m)
+    u, vm = lv.fields
     in_fillet = lambda p: (p[:, 0] > d.b1 / 2 - 0.5) & (p[:, 0] < d.b1 / 2 + d.rf + 0.5)  # noqa: E731
     nodal = peak(vm, in_fillet)
-    s = von_mises_tensor_field(sol.u, mat)
+    s = von_mises_tensor_field(u, Material(E=case.E_MPa, nu=case.nu))
     tree = geometry.BoundingBoxTree(m.mesh, m.mesh.topology.dim)
-    value, theta, phi, missing = surface_max(s, tree, torus, which=1)
-    value_hi, theta_hi, phi_hi, _ = surface_max(s, tree, torus, which=0)
-    where = ball_centre(torus, theta, phi)
+    (value, theta, phi), (value_hi, theta_hi, phi_hi), (missing,) = surface_maxima(s, tree, torus)
+    where = torus.at(theta, phi)
     return {"order": order, "h_ball_mm": h_ball, "outer_factor": outer, "ball_radius_mm": radius,
-            "ball_centre_mm": list(centre), "dofs": sol.dofs, "cells": m.mesh.topology.index_map(3).size_global,
-            "iterations": sol.iterations, "surface_peak_MPa": value, "surface_peak_cellmax_MPa": value_hi,
+            "ball_centre_mm": list(centre), "dofs": lv.dofs, "cells": lv.cells,
+            "iterations": lv.iterations, "surface_peak_MPa": value, "surface_peak_cellmax_MPa": value_hi,
             "cellmax_theta_deg": math.degrees(theta_hi), "cellmax_phi_deg": math.degrees(phi_hi), "theta_deg": math.degrees(theta),
             "phi_deg": math.degrees(phi), "surface_peak_at_mm": list(where),
             "peak_from_centre_mm": float(np.linalg.norm(np.array(where) - np.array(centre))),
             "nodal_peak_MPa": nodal.value_MPa, "nodal_peak_at_mm": list(nodal.location_mm),
             "samples_outside_mesh": missing, "torus_gap_min_mm": gap_min, "torus_gap_max_mm": gap_max,
-            "jacobian_ratio": m.jacobian_ratio, "time_mesh_s": t_mesh, "time_solve_s": t_solve,
-            "ranks": comm.size}
+            "jacobian_ratio": m.jacobian_ratio, "time_mesh_s": t_mesh,
+            "time_solve_s": lv.timings["assemble"] + lv.timings["solve"], "ranks": comm.size}
 
 
 def richardson(h: list[float], f: list[float]) -> dict:
@@ -277,9 +269,8 @@ def reference_value(fits: dict[int, dict], far_field: list[float] = ()) -> dict 
 
 def spawn(args: list[str], ranks: int) -> dict:
     """One point in its own process (on ``ranks`` MPI ranks); its JSON line back."""
-    cmd = [sys.executable, "-m", "bench.fillet_reference", *args]
-    if ranks > 1:
-        cmd = ["mpirun", "--allow-run-as-root", "--oversubscribe", "-n", str(ranks), *cmd]
+    from bench.run import mpirun_prefix
+    cmd = [*mpirun_prefix(ranks), sys.executable, "-m", "bench.fillet_reference", *args]
     out = subprocess.run(cmd, cwd=ROOT, env=dict(os.environ), capture_output=True, text=True)
     if out.returncode != 0:
         raise RuntimeError(f"point {args} failed:\n{out.stderr[-2000:]}")
@@ -313,54 +304,56 @@ def main(argv: list[str] | None = None) -> int:
     def say(msg: str) -> None:
         print(f"[{time.perf_counter() - t_all:8.1f} s] {msg}", flush=True)
 
+    def point(order: int, h: float, outer: float, centre: tuple[float, ...]) -> tuple[dict, bool]:
+        """The point's row: from points.jsonl when an earlier run made it, else solved now
+        (in its own process) and appended there. Second: whether it was solved now."""
+        for r in done:
+            if (r["order"], r["h_ball_mm"], r["outer_factor"], r["ball_radius_mm"], tuple(r["ball_centre_mm"])) \
+                    == (order, h, outer, a.radius, centre):
+                return r, False
+        r = spawn(["--point", str(order), str(h), "--centre", ",".join(map(str, centre)),
+                   "--outer", str(outer), "--radius", str(a.radius)], a.ranks)
+        done.append(r)
+        with log.open("a") as f:
+            f.write(json.dumps(r) + "\n")
+        return r, True
+
     if a.centre:
         centre = tuple(float(c) for c in a.centre.split(","))
     else:
         # Where the ball goes: the surface maximum of a P3 solution on the unrefined mesh
         # (a ball of the fillet's own size at a point of the fillet changes nothing there).
+        # Not kept in points.jsonl: its centre is a guess, and it is cheap.
         from pipeline.case import resolve
-        d = resolve(size="05").dims
-        torus = fillet_torus(d)
-        probe_centre = ball_centre(torus, math.radians(45), math.radians(40))
-        h0 = resolve(size="05").mesh_spec(a.outer).size_fillet * a.outer
+        case = resolve(size="05")
+        probe_centre = fillet_torus(case.dims).at(math.radians(45), math.radians(40))
+        h0 = case.mesh_spec(a.outer).size_fillet * a.outer
         probe = spawn(["--point", "3", f"{h0}", "--centre", ",".join(map(str, probe_centre)),
                        "--outer", str(a.outer), "--radius", str(a.radius)], a.ranks)
         centre = tuple(probe["surface_peak_at_mm"])
         say(f"probe P3: surface peak {probe['surface_peak_MPa']:.2f} MPa at theta {probe['theta_deg']:.1f}°, "
             f"phi {probe['phi_deg']:.1f}° → ball centre ({centre[0]:.3f}, {centre[1]:.3f}, {centre[2]:.3f}) mm")
-    rows = [r for r in done if tuple(r["ball_centre_mm"]) == centre and r["outer_factor"] == a.outer
-            and r["ball_radius_mm"] == a.radius]
     orders = [int(o) for o in a.orders.split(",")]
+    rows = []
     for order in orders:
         for h in ORDERS_AT[order]:
-            if any(r["order"] == order and r["h_ball_mm"] == h for r in rows):
-                continue
-            r = spawn(["--point", str(order), str(h), "--centre", ",".join(map(str, centre)),
-                       "--outer", str(a.outer), "--radius", str(a.radius)], a.ranks)
+            r, new = point(order, h, a.outer, centre)
             rows.append(r)
-            with log.open("a") as f:
-                f.write(json.dumps(r) + "\n")
-            say(f"P{order} h {h:.3f} mm: {r['dofs']} DOFs, surface peak {r['surface_peak_MPa']:.3f} MPa "
-                f"(cell max {r['surface_peak_cellmax_MPa']:.3f}) "
-                f"(θ {r['theta_deg']:.1f}°, φ {r['phi_deg']:.1f}°), nodal {r['nodal_peak_MPa']:.3f} MPa, "
-                f"torus gap {r['torus_gap_min_mm']:.1e}..{r['torus_gap_max_mm']:.1e} mm, "
-                f"mesh {r['time_mesh_s']:.1f} s, solve {r['time_solve_s']:.1f} s")
+            if new:
+                say(f"P{order} h {h:.3f} mm: {r['dofs']} DOFs, surface peak {r['surface_peak_MPa']:.3f} MPa "
+                    f"(cell max {r['surface_peak_cellmax_MPa']:.3f}) "
+                    f"(θ {r['theta_deg']:.1f}°, φ {r['phi_deg']:.1f}°), nodal {r['nodal_peak_MPa']:.3f} MPa, "
+                    f"torus gap {r['torus_gap_min_mm']:.1e}..{r['torus_gap_max_mm']:.1e} mm, "
+                    f"mesh {r['time_mesh_s']:.1f} s, solve {r['time_solve_s']:.1f} s")
     # The far field: the middle P3 level again with finer meshes outside the ball.
     h_mid = H_BALLS_MM[2]
     far_field = []
     for outer in (OUTER_CHECKS if 3 in orders else ()):
-        hit = [r for r in done + far_field if tuple(r["ball_centre_mm"]) == centre and r["outer_factor"] == outer
-               and r["order"] == 3 and r["h_ball_mm"] == h_mid and r["ball_radius_mm"] == a.radius]
-        if hit:
-            far_field.append(hit[0])
-            continue
-        r = spawn(["--point", "3", str(h_mid), "--centre", ",".join(map(str, centre)),
-                   "--outer", str(outer), "--radius", str(a.radius)], a.ranks)
+        r, new = point(3, h_mid, outer, centre)
         far_field.append(r)
-        with log.open("a") as f:
-            f.write(json.dumps(r) + "\n")
-        say(f"far field: P3 h {h_mid} mm with the outer mesh ×{outer}: {r['dofs']} DOFs, "
-            f"surface peak {r['surface_peak_MPa']:.3f} MPa, solve {r['time_solve_s']:.1f} s")
+        if new:
+            say(f"far field: P3 h {h_mid} mm with the outer mesh ×{outer}: {r['dofs']} DOFs, "
+                f"surface peak {r['surface_peak_MPa']:.3f} MPa, solve {r['time_solve_s']:.1f} s")
     fits = {order: sequence_summary(sorted((r for r in rows if r["order"] == order), key=lambda r: -r["h_ball_mm"]))
             for order in orders if sum(r["order"] == order for r in rows) >= 3}
     ref = reference_value(fits, [r["surface_peak_MPa"] for r in far_field])

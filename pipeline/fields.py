@@ -24,7 +24,7 @@ def write_fields(folder: Path, u, vm, whole_part: bool = False) -> dict[str, str
     displacement.pvd: the P2 displacement of the model (DOLFINx VTKFile). von_mises.vtu:
     the element-node von Mises values the peaks were taken from and the displacement at
     the same nodes (use Warp By Vector), mirrored to the whole part when ``whole_part``.
-    Uncompressed: zlib on the whole part's four copies cost about a second of every run.
+    Uncompressed: zlib on the whole part's four copies is slow (docs/performance.md).
     VTK, not XDMF: DOLFINx 0.5.2's XDMF writer drops P2 mid-edge values and cannot place
     DG values on this curved mesh.
     """

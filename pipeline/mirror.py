@@ -2,13 +2,14 @@
 symmetric about x = 0 and y = 0; docs/design.md §3). numpy only."""
 from __future__ import annotations
 
+import numpy as np
+
 
 def mirror_quarter(points, cells, vals, disp):
     """The whole part from the quarter x >= 0, y >= 0: four copies reflected in x = 0 and
     y = 0. A reflection flips the mirrored displacement component (u_x in x = 0); von
     Mises is a scalar and keeps its value; a singly reflected tet swaps two nodes to keep
     its orientation."""
-    import numpy as np
     P, C, V, D = [], [], [], []
     for k, (sx, sy) in enumerate(((1, 1), (-1, 1), (1, -1), (-1, -1))):
         s = np.array([sx, sy, 1.0])
