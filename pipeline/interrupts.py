@@ -9,6 +9,12 @@ writes the signal number to a wake-up pipe even while the main thread is blocked
 watcher reads it, runs the clean-ups registered with :func:`on_stop` (newest first),
 writes one line (rank 0) and ends the process with ``os._exit``.
 
+Under mpirun every rank gets the signal, and mpirun kills the remaining ranks as soon as
+one of them ends. A rank other than 0 has nothing to say and little to clean up, so it
+would end first and rank 0 could be killed before its clean-up and its line. So the
+silent ranks wait (at most QUIET_RANK_WAIT_S) after their clean-ups: rank 0 ends first,
+and mpirun then ends them.
+
 gmsh's Python module resets SIGINT to the default action when imported, and PETSc
 installs handlers that abort the MPI job on SIGTERM and on a closed pipe (SIGPIPE, exit
 59). So PETSc is started without its handlers (pipeline/environment.py), and gmsh is
@@ -21,9 +27,11 @@ import os
 import signal
 import sys
 import threading
+import time
 from typing import Callable, Iterator
 
 EXIT_FOR = {signal.SIGINT: 130, signal.SIGTERM: 143}
+QUIET_RANK_WAIT_S = 10.0  # how long a silent rank lets rank 0 finish its stop (see module doc)
 STOP_LINE = {signal.SIGINT: "interrupted (Ctrl-C): nothing written, the output folder is as it was",
              signal.SIGTERM: "terminated (SIGTERM): nothing written, the output folder is as it was"}
 
@@ -72,6 +80,8 @@ def _stop(signum: int) -> None:
             os.write(2, (STOP_LINE[signum] + "\n").encode())
         except OSError:
             pass
+    else:
+        time.sleep(QUIET_RANK_WAIT_S)
     os._exit(EXIT_FOR[signum])
 
 
