@@ -10,17 +10,21 @@ from typing import Callable, Sequence
 from mpi4py import MPI
 
 from .case import Case
-from .errorbar import Estimate, estimate, representative_size
+from .errorbar import Estimate, estimate, representative_size, with_bracket
 from .level import Level, Progress, solve_level
 from .meshing import Mesher, given_or_new, make_meshes, owners
+from .peaks import MIDPOINT
 from .pilot import Pilot, pilot
 
 
 def estimate_levels(levels: list[Level], case: Case, attr: str) -> Estimate:
-    """Error estimate of one peak ("peak" or "critical") over levels given finest first."""
+    """Error estimate of one peak ("peak" or "critical") over levels given finest first: the
+    trend of its values over the meshes; a midpoint's band is at least its own half-width."""
     values = [getattr(lv, attr).value_MPa for lv in levels]
     h = [representative_size(lv.dofs) for lv in levels]
-    return estimate(values, h, p_formal=float(case.order))
+    est = estimate(values, h, p_formal=float(case.order))
+    fine = getattr(levels[0], attr)
+    return with_bracket(est, fine.half_width_MPa) if fine.rule == MIDPOINT else est
 
 
 def analyse(case: Case, levels: int = 3, ratio: float = 1.3, msh_path: Path | None = None,

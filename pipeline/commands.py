@@ -82,9 +82,11 @@ def execute_run(case: Case, out_dir: Path, levels: int = 3, ratio: float = 1.3,
         res["files"] = files
         res["timings_s"]["output"] = t_output
         if picture is not None:
+            write_json(stage / "results.json", res, comm)  # every mesh's peaks, for peaks.png
             res["timings_s"]["picture"] = finish_picture(picture, stage)
-            if (stage / "sections.png").exists():  # drawn by the picture process too
-                files["sections_plot"] = "sections.png"
+            for key, name in (("sections_plot", "sections.png"), ("peaks_plot", "peaks.png")):
+                if (stage / name).exists():  # drawn by the picture process too
+                    files[key] = name
         res["timings_s"]["total"] = time.perf_counter() - t_all
         write_json(stage / "results.json", res, comm)
         if write_fields and comm.rank == 0:

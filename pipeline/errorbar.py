@@ -4,7 +4,7 @@ extrapolation, grid convergence index (GCI), and the statuses when values do not
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 from typing import Sequence
 
 import numpy as np
@@ -40,6 +40,8 @@ class Estimate:
     gci_fine: float | None          # relative
     band: float | None              # absolute, MPa: |f1 - extrapolated| bound
     error_fine: float | None        # relative error of the finest value vs extrapolated
+    bracket: float | None = None    # MPa: half the gap of the finest mesh's two nodal values
+    band_trend: float | None = None  # MPa: the band from the meshes' trend alone
 
     def as_dict(self) -> dict:
         return asdict(self)
@@ -47,6 +49,17 @@ class Estimate:
     @property
     def trustworthy(self) -> bool:
         return self.status in ("converged", "exact", "settled", "oscillatory", "scattered", "unsettled")
+
+
+def with_bracket(est: Estimate, half_width_MPa: float) -> Estimate:
+    """The estimate with its band at least half_width_MPa: the finest mesh's own bracket
+    (peaks.NodalPeak, rule MIDPOINT) is an error bound of its midpoint that the meshes' trend may
+    not show. A singular peak keeps no band."""
+    if est.band is None:
+        return replace(est, bracket=half_width_MPa)
+    band = max(est.band, half_width_MPa)
+    scale = max(abs(est.values[0]), 1e-300)
+    return replace(est, band=band, gci_fine=band / scale, bracket=half_width_MPa, band_trend=est.band)
 
 
 def observed_order(f: Sequence[float], h: Sequence[float]) -> float | None:

@@ -17,6 +17,21 @@ def critical_region(case: Case) -> Callable[[np.ndarray], np.ndarray]:
     return lambda xyz: np.abs(xyz[:, 0]) <= half
 
 
+def fillet_region(case: Case) -> Callable[[np.ndarray], np.ndarray] | None:
+    """The journal's shoulder fillet and a margin of 0.02·h3 around it (the points that
+    :func:`describe_location` names "journal shoulder fillet"); None without a fillet."""
+    d = case.dims
+    if d.rf <= 0:
+        return None
+    tol = 0.02 * d.h3
+
+    def inside(xyz: np.ndarray) -> np.ndarray:
+        x = np.abs(xyz[:, 0])
+        r = np.hypot(np.abs(xyz[:, 1]), xyz[:, 2] - d.h3 / 2)
+        return (x >= d.b1 / 2 - tol) & (x <= d.b1 / 2 + d.rf + tol) & (r < d.dj / 2 + d.rf + tol)
+    return inside
+
+
 def describe_location(case: Case, xyz: tuple[float, float, float]) -> str:
     """Plain-words name of the feature at point xyz (mm), for the report."""
     d = case.dims

@@ -15,7 +15,7 @@ from .case import Case
 from .features import critical_region
 from .level import Progress, solve_level
 from .meshing import Mesher
-from .peaks import hot_spots
+from .peaks import hot_spots, peak
 
 PILOT_RATIO = 2.2  # the pilot mesh: every size of the case's mesh × this
 PILOT_FRACTION = 0.85  # pilot values this close to a peak (global or critical) are refined
@@ -75,9 +75,9 @@ def pilot(case: Case, comm=MPI.COMM_WORLD, progress: Progress | None = None,
     vm = lv.fields[1]
     sep = PILOT_SEPARATION * case.dims.h3
     # Only the places of the peaks the run is asked for (case.want).
-    spots = hot_spots(vm, PILOT_FRACTION * lv.peak.value_MPa, sep, PILOT_LIMIT) if case.want != "critical" else []
+    spots = hot_spots(vm, PILOT_FRACTION * peak(vm).value_MPa, sep, PILOT_LIMIT) if case.want != "critical" else []
     if case.want != "global":
-        spots += [q for q in hot_spots(vm, PILOT_FRACTION * lv.critical.value_MPa, sep, PILOT_LIMIT,
+        spots += [q for q in hot_spots(vm, PILOT_FRACTION * peak(vm, critical_region(case)).value_MPa, sep, PILOT_LIMIT,
                                        critical_region(case))
                   if all(math.dist(q, s) >= sep for s in spots)]
     # The pilot's peaks differ in the last digits between runs on 1 and 2 ranks (and

@@ -68,3 +68,43 @@ def sections_plot(path: Path, sections: dict, analytic: dict, h_mm: float) -> bo
     fig.savefig(path, dpi=110)
     plt.close(fig)
     return True
+
+
+def peaks_plot(path: Path, res: dict) -> bool:
+    """Each peak (MPa) against the DOFs of the run's meshes: both nodal readings, the value
+    reported, and the error bar of the requested (finest) mesh."""
+    levels = res["fe"]["levels"]
+    if len(levels) < 2:
+        return False
+    try:
+        import matplotlib
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+    except ImportError:
+        return False
+    dofs = [lv["dofs"] for lv in levels]
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4.2))
+    for ax, key, prefix, value_key, label in ((axes[0], "peak", "peak", "peak_MPa", "global peak"),
+                                              (axes[1], "critical", "critical", "critical_peak_MPa",
+                                               "critical-region peak")):
+        block = res["fe"][key]
+        ax.plot(dofs, [lv[f"{prefix}_unaveraged_MPa"] for lv in levels], "v:", color="C3",
+                label="unaveraged (largest element-node value)")
+        ax.plot(dofs, [lv[f"{prefix}_averaged_MPa"] for lv in levels], "^:", color="C0",
+                label="averaged (nodal-averaged stress)")
+        ax.plot(dofs, [lv[value_key] for lv in levels], "o-",
+                color="k", label="reported value")
+        est = block.get("error_estimate") or {}
+        if est.get("band") is not None:
+            ax.errorbar([dofs[0]], [block["value_MPa"]], yerr=[est["band"]], fmt="none", ecolor="C1",
+                        elinewidth=3, capsize=6, label=f"error bar ±{est['band']:.3g} MPa")
+        ax.set_xscale("log")
+        ax.set_xlabel("degrees of freedom")
+        ax.set_ylabel("von Mises (MPa)")
+        ax.set_title(f"No. {res['case']['size']}: {label} [{est.get('status', 'no estimate')}]")
+        ax.grid(alpha=0.3, which="both")
+        ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return True

@@ -11,8 +11,25 @@ from .case import Case
 from .errorbar import Estimate
 from .features import describe_location, singular_feature
 from .level import Level
-from .peaks import Peak
+from .peaks import MIDPOINT, UNAVERAGED, NodalPeak
 from .pilot import PILOT_FRACTION, Pilot
+
+
+DEFINITION = {
+    MIDPOINT: "a peak at the shoulder fillet: the midpoint of two nodal readings over the fillet, the largest "
+              "element-node von Mises value without averaging (unaveraged_MPa; above the true peak there, measured) and "
+              "the largest von Mises value of the nodal-averaged stress (averaged_MPa; mostly below it). The global "
+              "peak is the larger of this and the largest unaveraged value elsewhere",
+    UNAVERAGED: "the largest element-node von Mises value without averaging (unaveraged_MPa); the largest "
+                "value of the nodal-averaged stress over the same region is shown beside it (averaged_MPa)",
+}
+ERROR_BAR_METHOD = {
+    MIDPOINT: "the larger of the trend of the values over the requested mesh and the coarser ones "
+              "(Richardson/GCI, docs/design.md §6) and half the gap between the unaveraged and averaged "
+              "readings on the requested mesh",
+    UNAVERAGED: "the trend of the values over the requested mesh and the coarser ones "
+                "(Richardson/GCI, docs/design.md §6)",
+}
 
 
 def pct(a: float, b: float) -> float:
@@ -29,9 +46,12 @@ def build_results(case: Case, levels: list[Level], timings: dict[str, float],
     est_peak = estimate_levels(levels, case, "peak") if len(levels) >= 3 else None
     est_crit = estimate_levels(levels, case, "critical") if len(levels) >= 3 else None
 
-    def peak_block(p: Peak, est: Estimate | None) -> dict:
+    def peak_block(p: NodalPeak, est: Estimate | None) -> dict:
         block = {"value_MPa": p.value_MPa, "location_mm": list(p.location_mm),
-                 "feature": describe_location(case, p.location_mm)}
+                 "feature": describe_location(case, p.location_mm),
+                 "definition": DEFINITION[p.rule], "error_bar_method": ERROR_BAR_METHOD[p.rule],
+                 "unaveraged_MPa": p.unaveraged.value_MPa, "averaged_MPa": p.averaged.value_MPa,
+                 "averaged_location_mm": list(p.averaged.location_mm)}
         singular = singular_feature(case, p.location_mm)
         if est is not None:
             block["error_estimate"] = est.as_dict()
@@ -81,6 +101,10 @@ def build_results(case: Case, levels: list[Level], timings: dict[str, float],
                if fine.sections else {})}),
         "levels": [{"mesh_factor": lv.factor, "dofs": lv.dofs, "cells": lv.cells,
                     "peak_MPa": lv.peak.value_MPa, "critical_peak_MPa": lv.critical.value_MPa,
+                    "peak_unaveraged_MPa": lv.peak.unaveraged.value_MPa,
+                    "peak_averaged_MPa": lv.peak.averaged.value_MPa,
+                    "critical_unaveraged_MPa": lv.critical.unaveraged.value_MPa,
+                    "critical_averaged_MPa": lv.critical.averaged.value_MPa,
                     "iterations": lv.iterations, "time_s": sum(lv.timings.values())}
                    for lv in levels],
     }
