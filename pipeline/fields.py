@@ -23,29 +23,59 @@ def write_json(path: Path, data: dict, comm=MPI.COMM_WORLD) -> None:
 
 
 def write_fields(folder: Path, u, vm, whole_part: bool = False) -> dict[str, str]:
-    """Fields for ParaView: displacement (full P2, mm) and von Mises (DG, MPa).
+    """Fields for ParaView, mirrored to the whole part when ``whole_part``: displacement
+    (continuous, mm) and von Mises (element-node values, MPa).
 
-    displacement.pvd: the P2 displacement of the model (DOLFINx VTKFile). von_mises.vtu:
-    the element-node von Mises values the peaks were taken from and the displacement at
-    the same nodes (use Warp By Vector), mirrored to the whole part when ``whole_part``.
-    Uncompressed: zlib on the whole part's four copies is slow (docs/performance.md).
-    VTK, not XDMF: DOLFINx 0.5.2's XDMF writer drops P2 mid-edge values and cannot place
-    DG values on this curved mesh.
+    displacement.vtu: the displacement at the nodes of 10-node curved tets (P2 exactly;
+    a P1 or P3 solution interpolated into P2). von_mises.vtu: the element-node von Mises
+    values the peaks were taken from and the displacement at the same nodes (use Warp By
+    Vector). Uncompressed: zlib on the whole part's four copies is slow
+    (docs/performance.md). VTK, not XDMF: DOLFINx 0.5.2's XDMF writer drops P2 mid-edge
+    values and cannot place DG values on this curved mesh.
     """
-    from dolfinx import io
     comm = u.function_space.mesh.comm
-    files = {"displacement": "displacement.pvd", "von_mises": "von_mises.vtu"}
-    with io.VTKFile(comm, str(Path(folder) / files["displacement"]), "w") as f:
-        f.write_function(u)
-    grid = _gather_dg_grid(vm, u)
+    files = {"displacement": "displacement.vtu", "von_mises": "von_mises.vtu"}
+    grids = {"displacement": _gather_p2_grid(u), "von_mises": _gather_dg_grid(vm, u)}
     if comm.rank == 0:
         import meshio
-        points, cells, vals, disp = mirror_quarter(*grid) if whole_part else grid
-        meshio.write(Path(folder) / files["von_mises"],
-                     meshio.Mesh(points, [("tetra", cells)],
-                                 point_data={"von_mises_MPa": vals, "displacement_mm": disp}),
-                     binary=True, compression=None)
+        for key, kind in (("displacement", "tetra10"), ("von_mises", "tetra")):
+            points, cells, vals, disp = mirror_quarter(*grids[key]) if whole_part else grids[key]
+            data = {"displacement_mm": disp} if vals is None else {"von_mises_MPa": vals, "displacement_mm": disp}
+            meshio.write(Path(folder) / files[key], meshio.Mesh(points, [(kind, cells)], point_data=data),
+                         binary=True, compression=None)
     return files
+
+
+# VTK's 10-node tet from DOLFINx's (basix) node order: basix numbers the mid-edge nodes of
+# edges (2,3), (1,3), (1,2), (0,3), (0,2), (0,1); VTK of (0,1), (1,2), (2,0), (0,3), (1,3), (2,3).
+VTK_TET10 = [0, 1, 2, 3, 9, 6, 8, 7, 5, 4]
+
+
+def _gather_p2_grid(u):
+    """(points, 10-node tets in VTK order, None, displacement) of u in continuous P2, on
+    rank 0 (None elsewhere). Nodes shared between cells and ranks are written once."""
+    import numpy as np
+    from dolfinx import fem
+    V = u.function_space
+    if V.ufl_element().degree() != 2:
+        V = fem.VectorFunctionSpace(V.mesh, ("CG", 2))
+        u2 = fem.Function(V)
+        u2.interpolate(u)
+        u = u2
+    mesh, imap = V.mesh, V.dofmap.index_map
+    n_owned, n_local = imap.size_local, imap.size_local + imap.num_ghosts
+    to_global = imap.local_to_global(np.arange(n_local, dtype=np.int32))
+    n_cells = mesh.topology.index_map(3).size_local
+    cells = to_global[V.dofmap.list.array.reshape(-1, 10)[:n_cells]][:, VTK_TET10]
+    xyz = V.tabulate_dof_coordinates()[:n_owned]
+    disp = u.x.array.reshape(-1, 3)[:n_owned]
+    parts = mesh.comm.gather((to_global[:n_owned], xyz, disp, cells), root=0)
+    if mesh.comm.rank != 0:
+        return None
+    points, values = np.zeros((imap.size_global, 3)), np.zeros((imap.size_global, 3))
+    for idx, p, d, _ in parts:
+        points[idx], values[idx] = p, d
+    return points, np.vstack([c for *_, c in parts]).astype(np.int64), None, values
 
 
 def _gather_dg_grid(vm, u):

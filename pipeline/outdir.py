@@ -31,7 +31,8 @@ REPOSITORY = Path(__file__).resolve().parents[1]
 # Files a run writes; a folder holding nothing else (and a results.json) is a results folder
 # of a version of the tool that wrote no marker yet.
 RUN_FILES = frozenset({"results.json", "report.md", "report.html", "mesh.msh", "displacement.pvd",
-                       "von_mises.vtu", "von_mises.png", "convergence.png", "sections.png", MARKER})
+                       "displacement.vtu", "von_mises.vtu", "von_mises.png", "convergence.png",
+                       "sections.png", "peaks.png", MARKER})
 
 
 class OutputError(InputError):

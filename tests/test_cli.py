@@ -45,7 +45,7 @@ def test_contract_keys(coarse_run):
     assert fe["critical"]["error_estimate"]["status"] in ("converged", "oscillatory", "settled")
     for k in ("geometry", "mesh", "import", "assemble", "solve", "post", "output", "total"):
         assert res["timings_s"][k] >= 0
-    for name in ("results.json", "report.md", "mesh.msh", "displacement.pvd", "von_mises.vtu", "von_mises.png"):
+    for name in ("results.json", "report.md", "mesh.msh", "displacement.vtu", "von_mises.vtu", "von_mises.png"):
         assert (out / name).stat().st_size > 0, name
 
 

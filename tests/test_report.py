@@ -29,6 +29,22 @@ def test_mirror_makes_four_positive_tets_with_mirrored_displacement():
     assert np.allclose(P[12], [-1.0, -1.0, 0.0])
 
 
+def _tet10(pts4: np.ndarray) -> np.ndarray:
+    """A straight 10-node tet in VTK order: vertices, then mid-edges (0,1), (1,2), (2,0), (0,3), (1,3), (2,3)."""
+    edges = [(0, 1), (1, 2), (2, 0), (0, 3), (1, 3), (2, 3)]
+    return np.vstack([pts4] + [0.5 * (pts4[a] + pts4[b]) for a, b in edges])
+
+
+def test_mirror_keeps_ten_node_tets_positive_with_their_mid_edge_nodes():
+    pts = _tet10(np.array([[1.0, 1.0, 0.0], [2.0, 1.0, 0.0], [1.0, 2.0, 0.0], [1.0, 1.0, 1.0]]))
+    P, C, V, D = mirror_quarter(pts, np.arange(10)[None, :], None, np.zeros((10, 3)))
+    assert V is None and C.shape == (4, 10)
+    for c in C:
+        x = P[c]
+        assert np.linalg.det(np.array([x[1] - x[0], x[2] - x[0], x[3] - x[0]])) > 0
+        np.testing.assert_allclose(x, _tet10(x[:4]), atol=1e-12)   # each mid node on its VTK edge
+
+
 class _Html(HTMLParser):
     def __init__(self):
         super().__init__()

@@ -1,0 +1,49 @@
+"""The ParaView files (pipeline/fields.py) read back against the solution they were
+written from (mm, MPa): the displacement file's 10-node tets, their node order and the
+mirrored whole part."""
+from __future__ import annotations
+
+import meshio
+import numpy as np
+import pytest
+from dolfinx import fem
+from dolfinx.mesh import CellType, create_box
+from mpi4py import MPI
+
+from pipeline.elasticity import Material
+from pipeline.fields import write_fields
+from pipeline.peaks import von_mises
+
+
+def field(x: np.ndarray) -> np.ndarray:
+    """A quadratic displacement (mm) on points x (3, n): P2 holds it exactly, and it obeys
+    the quarter model's symmetry (u_x = 0 on x = 0, u_y = 0 on y = 0)."""
+    return np.vstack([1e-3 * x[0] * (1 + x[1]), 2e-3 * x[1] * x[2], -1e-3 * (x[0] ** 2 + x[2] ** 2)])
+
+
+@pytest.mark.parametrize("whole", [False, True])
+def test_displacement_file_holds_the_p2_field(tmp_path, whole):
+    mesh = create_box(MPI.COMM_WORLD, [np.zeros(3), np.array([2.0, 1.0, 1.5])], [3, 2, 2], CellType.tetrahedron)
+    u = fem.Function(fem.VectorFunctionSpace(mesh, ("CG", 2)))
+    u.interpolate(field)
+    files = write_fields(tmp_path, u, von_mises(u, Material()), whole_part=whole)
+    n_nodes = u.function_space.dofmap.index_map.size_global
+    n_cells = mesh.topology.index_map(3).size_global
+    if MPI.COMM_WORLD.rank != 0:    # rank 0 writes the files
+        return
+    m = meshio.read(tmp_path / files["displacement"])
+    cells = m.cells_dict["tetra10"]
+    assert len(cells) == (4 if whole else 1) * n_cells
+    x, d = m.points, m.point_data["displacement_mm"]
+    # Every mid-edge node sits halfway along its VTK edge (the box's tets are straight),
+    # and every cell is positively oriented, also the reflected ones.
+    for a, b, k in ((0, 1, 4), (1, 2, 5), (2, 0, 6), (0, 3, 7), (1, 3, 8), (2, 3, 9)):
+        np.testing.assert_allclose(x[cells[:, k]], 0.5 * (x[cells[:, a]] + x[cells[:, b]]), atol=1e-12)
+    e = x[cells[:, 1:4]] - x[cells[:, [0]]]
+    assert np.all(np.linalg.det(e) > 0)
+    # The field at every node: the closed form, reflected where the quarter was (u_x
+    # changes sign in x = 0, u_y in y = 0).
+    sign = np.where(x < -1e-9, -1.0, 1.0)      # which copy a node belongs to (z is never mirrored)
+    expected = field((x * sign).T).T * sign
+    np.testing.assert_allclose(d, expected, atol=1e-12)
+    assert len(x) == (4 if whole else 1) * n_nodes      # shared nodes written once per copy
