@@ -266,10 +266,9 @@ def compare(case, factor: float, threads: int = 1, solver: str = "mumps",
     Returns both peaks of both codes, their relative differences and the largest
     displacement difference relative to the largest displacement.
     """
+    from pipeline.level import peaks_of
     from pipeline.loads import crosshead_loads
     from pipeline.meshing import make_mesh
-    from pipeline.peaks import peak, von_mises
-    from pipeline.features import critical_region
     from pipeline.solve import solve
 
     if case.order != 2:
@@ -281,12 +280,10 @@ def compare(case, factor: float, threads: int = 1, solver: str = "mumps",
                 rtol=1e-12)
     cx = solve_ccx(m.mesh, m.facet_tags, lc, mat, threads=threads, solver=ccx_solver,
                    workdir=workdir)
-    region = critical_region(case)
     out: dict = {"mesh_factor": factor, "dofs": sol.dofs,
                  "cells": m.mesh.topology.index_map(3).size_global}
     for name, u in (("dolfinx", sol.u), ("calculix", cx.u)):
-        vm = von_mises(u, mat)
-        pk, cr = peak(vm), peak(vm, region)
+        _, pk, cr = peaks_of(case, u, mat)
         out[name] = {"peak_MPa": pk.value_MPa, "peak_location_mm": list(pk.location_mm),
                      "critical_MPa": cr.value_MPa, "critical_location_mm": list(cr.location_mm)}
     d, c = out["dolfinx"], out["calculix"]

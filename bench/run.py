@@ -81,11 +81,10 @@ def run_point(spec: dict) -> dict | None:
         from pipeline.level import solve_level
     else:
         from bench.calculix import solve_ccx
+        from pipeline.elasticity import Material
+        from pipeline.level import peaks_of
         from pipeline.loads import crosshead_loads
         from pipeline.meshing import make_mesh
-        from pipeline.peaks import peak, von_mises
-        from pipeline.features import critical_region
-        from pipeline.elasticity import Material
     imports = time.perf_counter() - t_imp
     if comm.rank == 0:  # a bench stopped while compiling left a claim that would fail every point
         from pipeline.formcache import jit_cache_dir, remove_interrupted
@@ -125,8 +124,7 @@ def run_point(spec: dict) -> dict | None:
         cx = solve_ccx(m.mesh, m.facet_tags, lc, mat, threads=int(spec.get("threads", 1)),
                        solver=spec.get("ccx_solver", "spooles"))
         t1 = time.perf_counter()
-        vm = von_mises(cx.u, mat)
-        pk, cr = peak(vm), peak(vm, critical_region(case))
+        _, pk, cr = peaks_of(case, cx.u, mat)
         t_post = time.perf_counter() - t1
         total = time.perf_counter() - t0
         stages = dict(m.timings, **cx.timings, post=t_post)

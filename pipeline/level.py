@@ -41,6 +41,13 @@ class Level:
     sections: dict | None = None  # section results (pipeline/sections.py), requested mesh only
 
 
+def peaks_of(case: Case, u, mat: Material) -> tuple[object, NodalPeak, NodalPeak]:
+    """Von Mises (MPa, DG) of displacement u (mm) and the case's global and critical peaks,
+    read as :func:`read_peaks` does: the one way every solver's result is read."""
+    vm = von_mises(u, mat)
+    return (vm, *read_peaks(case, vm, averaged_von_mises(u, mat)))
+
+
 def read_peaks(case: Case, vm, averaged) -> tuple[NodalPeak, NodalPeak]:
     """The global and the critical peak (MPa), each feature read by its rule: the shoulder
     fillet by the midpoint of its unaveraged and averaged readings, everything else by the
@@ -92,8 +99,7 @@ def solve_level(case: Case, factor: float, msh_path: Path | None = None,
         raise NumericalError(f"loads out of balance: equilibrium error {eq_err:.3g} N, "
                              f"constraint reaction {point_r:.3g} N (limit {limit:.3g} N)")
     t0 = time.perf_counter()
-    vm = von_mises(sol.u, mat)
-    pk, crit = read_peaks(case, vm, averaged_von_mises(sol.u, mat))
+    vm, pk, crit = peaks_of(case, sol.u, mat)
     sections = None
     if with_sections:
         sym_x = m.facet_ids.get("symmetry_x")
