@@ -269,7 +269,7 @@ def reference_value(fits: dict[int, dict], far_field: list[float] = ()) -> dict 
 
 def spawn(args: list[str], ranks: int) -> dict:
     """One point in its own process (on ``ranks`` MPI ranks); its JSON line back."""
-    from bench.run import mpirun_prefix
+    from bench.point import mpirun_prefix
     cmd = [*mpirun_prefix(ranks), sys.executable, "-m", "bench.fillet_reference", *args]
     out = subprocess.run(cmd, cwd=ROOT, env=dict(os.environ), capture_output=True, text=True)
     if out.returncode != 0:
