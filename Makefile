@@ -10,7 +10,7 @@ RANKS ?= $(shell nproc 2>/dev/null || echo 1)
 RUN := $(if $(filter 1,$(RANKS)),$(PY) -m pipeline,$(PY) -m pipeline.launch $(RANKS))
 SIZES := $(shell awk -F, '!/^\#/ && $$1 != "size" && NF > 1 {print $$1}' geometry/sizes.csv)
 
-.PHONY: run test converge bench reference sizes setup clean clean-cache $(SIZES)
+.PHONY: run test converge bench bench-sweeps reference sizes setup clean clean-cache $(SIZES)
 
 run: $(SETUP)
 	$(RUN) run --size 05 --out results/05
@@ -28,6 +28,12 @@ BENCH_ARGS ?= --pilot on --factors 4.0,2.5,2.0,1.3,1.0 --p3-factors 3.0,2.5,2.0 
 	--ccx-solvers iterative,spooles --ranks-at targets --reference-values 113.82,66.27
 bench: $(SETUP)
 	$(PY) -m bench --out results/bench --ranks 1,2 $(BENCH_ARGS)
+
+# Design-study throughput: every size on 2 ranks and on 1, and a 24-variant rf x dj grid of
+# No. 05 (targets 60 s, 90 s, 2 ranks >= 1.8x): about 10 minutes per repeat on 2 cores.
+SWEEP_BENCH_ARGS ?= --repeats 1
+bench-sweeps: $(SETUP)
+	$(PY) -m bench.sweeps --out results/bench-sweeps $(SWEEP_BENCH_ARGS)
 
 # The independent reference of No. 05's global (fillet) peak: P2, P3, P4 on meshes refined in
 # a ball at the fillet's hot spot, peak sampled on the exact fillet surface (docs/fillet-reference.md).
