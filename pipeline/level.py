@@ -6,6 +6,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable, Sequence
 
+import numpy as np
+from dolfinx import fem
 from mpi4py import MPI
 
 from .case import Case
@@ -20,6 +22,8 @@ from .solve import solve
 
 Progress = Callable[[str], None]
 Hotspots = Sequence[tuple[float, float, float]]
+
+
 @dataclass
 class Level:
     """The result of one mesh: peaks (MPa, mm), sizes, solver data, times (s)."""
@@ -41,14 +45,15 @@ class Level:
     sections: dict | None = None  # section results (pipeline/sections.py), requested mesh only
 
 
-def peaks_of(case: Case, u, mat: Material) -> tuple[object, NodalPeak, NodalPeak]:
+def peaks_of(case: Case, u: fem.Function, mat: Material) -> tuple[fem.Function, NodalPeak, NodalPeak]:
     """Von Mises (MPa, DG) of displacement u (mm) and the case's global and critical peaks,
     read as :func:`read_peaks` does: the one way every solver's result is read."""
     vm = von_mises(u, mat)
     return (vm, *read_peaks(case, vm, averaged_von_mises(u, mat)))
 
 
-def read_peaks(case: Case, vm, averaged) -> tuple[NodalPeak, NodalPeak]:
+def read_peaks(case: Case, vm: fem.Function, averaged: tuple[np.ndarray, np.ndarray]
+               ) -> tuple[NodalPeak, NodalPeak]:
     """The global and the critical peak (MPa), each feature read by its rule: the shoulder
     fillet by the midpoint of its unaveraged and averaged readings, everything else by the
     unaveraged one. Measured against independent references (docs/accuracy.md): at the

@@ -1,0 +1,24 @@
+"""make bench-sweeps' arithmetic (bench/sweeps.py): medians, the paired throughput ratio
+and the targets' verdicts, on made-up wall times (s) whose answers are worked out here."""
+from bench.sweeps import STUDIES, command, summarise
+
+
+def _runs(*walls):
+    return [{"wall_s": w, "variants": 19, "ok": 19} for w in walls]
+
+
+def test_medians_ratio_and_verdicts():
+    s = summarise({"sizes-2": _runs(50.0, 70.0, 55.0), "sizes-1": _runs(100.0, 120.0, 99.0),
+                   "grid-2": _runs(95.0, 80.0, 91.0)})
+    assert s["sizes-2"]["median_s"] == 55.0 and s["sizes-2"]["met"] is True          # <= 60 s
+    assert s["grid-2"]["median_s"] == 91.0 and s["grid-2"]["met"] is False            # > 90 s
+    # Pairs 100/50 = 2.0, 120/70 = 1.714..., 99/55 = 1.8: median 1.8, which meets >= 1.8.
+    assert abs(s["speedup_2_over_1"]["median"] - 1.8) < 1e-12 and s["speedup_2_over_1"]["met"] is True
+    assert "met" not in s["sizes-1"]
+
+
+def test_commands_use_the_launcher_for_two_ranks(tmp_path):
+    one = command(*STUDIES["sizes-1"], tmp_path)
+    two = command(*STUDIES["sizes-2"], tmp_path)
+    assert one[1:3] == ["-m", "pipeline"] and "sweep" in one
+    assert two[1:4] == ["-m", "pipeline.launch", "2"] and two[-3:] == ["--out", str(tmp_path), "--quiet"]
