@@ -116,7 +116,9 @@ def run_point(spec: dict) -> dict | None:
     return out if comm.rank == 0 else None
 
 
-def _env(threads: int) -> dict:
+def point_env(threads: int) -> dict:
+    """The environment of a point process: ``threads`` BLAS/OpenMP threads, unbuffered
+    output, the repository on the module path."""
     env = dict(os.environ)
     env.update(OMP_NUM_THREADS=str(threads), OPENBLAS_NUM_THREADS=str(threads),
                PYTHONUNBUFFERED="1")
@@ -142,7 +144,7 @@ def spawn_point(spec: dict, ranks: int, threads: int, timeout: float) -> dict:
     cmd = mpirun_prefix(ranks) + [sys.executable, "-m", "bench.point", json.dumps(spec)]
     t0 = time.perf_counter()
     try:
-        proc = subprocess.run(cmd, cwd=ROOT, env=_env(threads), capture_output=True, text=True,
+        proc = subprocess.run(cmd, cwd=ROOT, env=point_env(threads), capture_output=True, text=True,
                               timeout=timeout)
     except subprocess.TimeoutExpired:
         return {"error": f"timed out after {timeout:g} s"}

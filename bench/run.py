@@ -60,7 +60,7 @@ P3_FACTORS = (2.0, 1.5)
 QUICK_FACTORS = (2.0, 1.5)
 
 
-from bench.point import _env, spawn_point  # noqa: E402
+from bench.point import point_env, spawn_point  # noqa: E402
 from bench.tables import aggregate, label, pareto_plot, summary, summary_text, table, write_csv  # noqa: E402
 
 
@@ -76,7 +76,7 @@ def load_reference(path: Path, make: bool, say, remake: bool = False) -> dict:
                              f"--size 05 --levels 4 --out {path.parent}` (make converge) first")
         say(f"reference {path} {'to be remade' if remake else 'missing'}: running the convergence study (python -m pipeline converge --size 05 --levels 4)")
         proc = subprocess.run([sys.executable, "-m", "pipeline", "converge", "--size", "05",
-                               "--levels", "4", "--out", str(path.parent)], cwd=ROOT, env=_env(1))
+                               "--levels", "4", "--out", str(path.parent)], cwd=ROOT, env=point_env(1))
         if proc.returncode != 0 or not path.exists():
             raise SystemExit(f"bench: the convergence study failed (exit {proc.returncode}); no reference")
     res = json.loads(path.read_text())
