@@ -1,8 +1,9 @@
 """Verification study: the global (fillet) peak of No. 05 by a route independent of the
 default path (docs/fillet-reference.md). Units: mm, N, MPa.
 
-The default path takes the largest element-node value of von Mises over the whole part on
-three pilot-refined P2 meshes. This study instead
+The default path reads von Mises at the nodes of three pilot-refined P2 meshes (at the
+fillet the midpoint of the unaveraged and the nodal-averaged value, docs/design.md §5).
+This study instead
 
 - refines only a ball around the fillet's hot spot, in a geometric sequence of element
   sizes (the rest of the part keeps one fixed mesh: the journal's bending moment at its

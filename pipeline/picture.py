@@ -1,8 +1,8 @@
 """Off-screen picture of von Mises stress on the deformed part, peaks marked (mm, MPa).
 
 Runs in its own process (``python -m pipeline.picture FOLDER``) and reads only files the
-run wrote: von_mises.vtu (element-node von Mises and displacement, the exact field the
-peaks were taken from) and results.json (the peaks). A separate process because VTK's
+run wrote: von_mises.vtu (element-node von Mises and displacement: the unaveraged
+reading of the peaks) and results.json (the peaks as reported). A separate process because VTK's
 wheel crashes (std::regex, bad_alloc) when DOLFINx's libraries are loaded first.
 
 Drawn with VTK's own classes, not pyvista's plotter: pyvista.plotting imports
