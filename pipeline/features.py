@@ -20,16 +20,19 @@ def critical_region(case: Case) -> Callable[[np.ndarray], np.ndarray]:
 def fillet_region(case: Case) -> Callable[[np.ndarray], np.ndarray] | None:
     """The journal's shoulder fillet and a margin of 0.02·h3 around it (the points that
     :func:`describe_location` names "journal shoulder fillet"); None without a fillet."""
-    d = case.dims
-    if d.rf <= 0:
+    if case.dims.rf <= 0:
         return None
-    tol = 0.02 * d.h3
+    return lambda xyz: _at_journal_root(case, xyz)
 
-    def inside(xyz: np.ndarray) -> np.ndarray:
-        x = np.abs(xyz[:, 0])
-        r = np.hypot(np.abs(xyz[:, 1]), xyz[:, 2] - d.h3 / 2)
-        return (x >= d.b1 / 2 - tol) & (x <= d.b1 / 2 + d.rf + tol) & (r < d.dj / 2 + d.rf + tol)
-    return inside
+
+def _at_journal_root(case: Case, xyz: np.ndarray) -> np.ndarray:
+    """Points (n, 3, mm) on the journal's root: the shoulder fillet, or the sharp corner
+    when rf = 0, with a margin of 0.02·h3."""
+    d = case.dims
+    tol = 0.02 * d.h3
+    x = np.abs(xyz[:, 0])
+    r = np.hypot(np.abs(xyz[:, 1]), xyz[:, 2] - d.h3 / 2)
+    return (x >= d.b1 / 2 - tol) & (x <= d.b1 / 2 + d.rf + tol) & (r < d.dj / 2 + d.rf + tol)
 
 
 def describe_location(case: Case, xyz: tuple[float, float, float]) -> str:
@@ -41,8 +44,7 @@ def describe_location(case: Case, xyz: tuple[float, float, float]) -> str:
     vertical = "bottom" if z < tol else "top" if z > d.h3 - tol else "mid-height"
     if abs(r_axis - d.d2 / 2) < tol:
         return f"bore edge ({vertical} face)" if vertical != "mid-height" else "bore wall"
-    if d.b1 / 2 - tol <= x <= d.b1 / 2 + d.rf + tol and \
-            math.hypot(y, z - d.h3 / 2) < d.dj / 2 + d.rf + tol:
+    if _at_journal_root(case, np.array([xyz], dtype=float))[0]:
         # Without a fillet the journal meets the end face in a sharp re-entrant circle.
         return "journal shoulder fillet" if d.rf > 0 else "journal root (sharp corner, no fillet)"
     if x > d.b1 / 2 + tol:

@@ -10,7 +10,7 @@ from dataclasses import dataclass
 from typing import Callable
 
 import numpy as np
-from dolfinx import cpp, fem
+from dolfinx import fem, la
 
 from .elasticity import Material, stress, von_mises_expr
 
@@ -154,16 +154,16 @@ def averaged_von_mises(u: fem.Function, mat: Material) -> tuple[np.ndarray, np.n
     # DG(q) and CG(q) number a cell's nodes alike, so row k of both dofmaps is one node.
     dg = T.dofmap.list.array.reshape(-1, T.dofmap.dof_layout.num_dofs)[:owned_cells].ravel()
     cg = C.dofmap.list.array.reshape(-1, C.dofmap.dof_layout.num_dofs)[:owned_cells].ravel()
-    n_local = C.dofmap.index_map.size_local + C.dofmap.index_map.num_ghosts
-    total = fem.Function(fem.TensorFunctionSpace(mesh, ("CG", q)))
-    count = fem.Function(C)
+    imap = C.dofmap.index_map
+    n_local, n_owned = imap.size_local + imap.num_ghosts, imap.size_local
+    # Per node: the 9 stress components summed over its cells, and the number of cells.
+    sums = la.vector(imap, bs=10)
     values = sigma.x.array.reshape(-1, 9)[dg]
-    total.x.array[:] = np.column_stack([np.bincount(cg, values[:, j], n_local) for j in range(9)]).ravel()
-    count.x.array[:] = np.bincount(cg, minlength=n_local)
-    for f in (total, count):   # cells of other ranks that share this rank's nodes
-        f.x.scatter_reverse(cpp.la.ScatterMode.add)
-    n_owned = C.dofmap.index_map.size_local
-    s = total.x.array.reshape(-1, 3, 3)[:n_owned] / count.x.array[:n_owned, None, None]
+    sums.array[:] = np.column_stack([np.bincount(cg, values[:, j], n_local) for j in range(9)]
+                                    + [np.bincount(cg, minlength=n_local)]).ravel()
+    sums.scatter_reverse(la.ScatterMode.add)   # cells of other ranks that share this rank's nodes
+    node = sums.array.reshape(-1, 10)[:n_owned]
+    s = node[:, :9].reshape(-1, 3, 3) / node[:, 9, None, None]
     dev = s - np.trace(s, axis1=1, axis2=2)[:, None, None] / 3.0 * np.eye(3)
     vm = np.sqrt(1.5 * np.einsum("nij,nij->n", dev, dev))
     return vm, C.tabulate_dof_coordinates()[:n_owned]

@@ -77,7 +77,7 @@ def pilot(case: Case, comm=MPI.COMM_WORLD, progress: Progress | None = None,
     # Only the places of the peaks the run is asked for (case.want).
     spots = hot_spots(vm, PILOT_FRACTION * peak(vm).value_MPa, sep, PILOT_LIMIT) if case.want != "critical" else []
     if case.want != "global":
-        spots += [q for q in hot_spots(vm, PILOT_FRACTION * peak(vm, critical_region(case)).value_MPa, sep, PILOT_LIMIT,
+        spots += [q for q in hot_spots(vm, PILOT_FRACTION * lv.critical.unaveraged.value_MPa, sep, PILOT_LIMIT,
                                        critical_region(case))
                   if all(math.dist(q, s) >= sep for s in spots)]
     # The pilot's peaks differ in the last digits between runs on 1 and 2 ranks (and
