@@ -10,7 +10,7 @@ from typing import Callable, Sequence
 from mpi4py import MPI
 
 from .case import Case
-from .errorbar import Estimate, estimate, representative_size, with_bracket
+from .errorbar import Estimate, estimate, representative_size, two_reading_estimate, with_bracket
 from .level import Level, Progress, solve_level
 from .meshing import Mesher, given_or_new, make_meshes, owners
 from .peaks import MIDPOINT
@@ -19,12 +19,20 @@ from .pilot import Pilot, pilot
 
 def estimate_levels(levels: list[Level], case: Case, attr: str) -> Estimate:
     """Error estimate of one peak ("peak" or "critical") over levels given finest first: the
-    trend of its values over the meshes; a midpoint's band is at least its own half-width."""
-    values = [getattr(lv, attr).value_MPa for lv in levels]
+    trend of its values over the meshes; a midpoint's band is at least its own half-width.
+    With four or more meshes a midpoint's two readings are fitted to one limit
+    (errorbar.two_reading_estimate): the midpoint alone scatters more than it changes."""
+    peaks = [getattr(lv, attr) for lv in levels]
     h = [representative_size(lv.dofs) for lv in levels]
-    est = estimate(values, h, p_formal=float(case.order))
-    fine = getattr(levels[0], attr)
-    return with_bracket(est, fine.half_width_MPa) if fine.rule == MIDPOINT else est
+    fine = peaks[0]
+    if fine.rule != MIDPOINT:
+        return estimate([p.value_MPa for p in peaks], h, p_formal=float(case.order))
+    if len(levels) >= 4:
+        est = two_reading_estimate([p.unaveraged.value_MPa for p in peaks], [p.averaged.value_MPa for p in peaks],
+                                   h, p_formal=float(case.order))
+    else:
+        est = estimate([p.value_MPa for p in peaks], h, p_formal=float(case.order))
+    return with_bracket(est, fine.half_width_MPa)
 
 
 def analyse(case: Case, levels: int = 3, ratio: float = 1.3, msh_path: Path | None = None,

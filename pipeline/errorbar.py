@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import asdict, dataclass, replace
-from typing import Sequence
+from typing import Callable, Sequence
 
 import numpy as np
 
@@ -13,6 +13,7 @@ FS = 1.25          # Roache's safety factor for three or more meshes
 P_SINGULAR = 0.5   # observed order below this: the peak is not converging
 
 
+TWO_READINGS = "two readings, one limit"   # Estimate.method of two_reading_estimate
 SETTLED = 1e-3     # all meshes within this relative spread: "settled", no order fitted
 
 
@@ -42,6 +43,7 @@ class Estimate:
     error_fine: float | None        # relative error of the finest value vs extrapolated
     bracket: float | None = None    # MPa: half the gap of the finest mesh's two nodal values
     band_trend: float | None = None  # MPa: the band from the meshes' trend alone
+    method: str = ""                # TWO_READINGS when both readings were fitted, else the values'
 
     def as_dict(self) -> dict:
         return asdict(self)
@@ -120,14 +122,13 @@ def _fit(values: np.ndarray, h: np.ndarray, p: float) -> tuple[float, float, flo
     return float(f0), float(C), float(r @ r)
 
 
-def _best_order(f: np.ndarray, h: np.ndarray, lo: float, hi: float) -> float:
-    """Order p in [lo, hi] minimising the weighted fit residual (grid, then bounded search)."""
+def _best_order(ssr: Callable[[float], float], lo: float, hi: float) -> float:
+    """Order p in [lo, hi] minimising a fit's residual ssr(p) (grid, then bounded search)."""
     from scipy.optimize import minimize_scalar
     grid = np.linspace(lo, hi, 200)
-    k = int(np.argmin([_fit(f, h, p)[2] for p in grid]))
+    k = int(np.argmin([ssr(p) for p in grid]))
     a, b = grid[max(k - 1, 0)], grid[min(k + 1, len(grid) - 1)]
-    res = minimize_scalar(lambda p: _fit(f, h, p)[2], bounds=(a, b), method="bounded",
-                          options={"xatol": 1e-10})
+    res = minimize_scalar(ssr, bounds=(a, b), method="bounded", options={"xatol": 1e-10})
     return float(res.x)
 
 
@@ -140,7 +141,7 @@ def least_squares_estimate(values: Sequence[float], h: Sequence[float], p_formal
     n = len(f)
     if np.ptp(f) <= 1e-12 * scale:
         return Estimate(vals, hs, "exact", None, None, float(f[0]), 0.0, 0.0, 0.0)
-    p_obs = _best_order(f, hh, 0.05, 2.0 * p_formal + 1.0)
+    p_obs = _best_order(lambda p: _fit(f, hh, p)[2], 0.05, 2.0 * p_formal + 1.0)
     growing = bool(np.all(np.diff(f) < 0))           # finest first: each coarser one smaller
     if p_obs < P_SINGULAR and growing:
         return Estimate(vals, hs, "singular", p_obs, None, None, None, None, None)
@@ -196,6 +197,58 @@ def three_mesh_estimate(values: Sequence[float], h: Sequence[float], p_formal: f
     gci = fs * abs(e21 / f1) / (r21 ** p_used - 1)
     return Estimate(vals, hs, "converged", p, p_used, ext, gci, gci * abs(f1),
                     abs(f1 - ext) / abs(ext))
+
+
+def _fit_two(upper: np.ndarray, lower: np.ndarray, h: np.ndarray, p: float) -> tuple[np.ndarray, float]:
+    """Weighted least squares of upper = f0 + Cu h^p and lower = f0 + Cl h^p with one f0
+    (weights ∝ 1/h within each reading, as in _fit); returns ((f0, Cu, Cl), the weighted sum
+    of squared residuals of both readings)."""
+    n = len(h)
+    w = np.tile(np.sqrt((1.0 / h) / np.sum(1.0 / h)), 2)
+    hp, zero = h ** p, np.zeros(n)
+    A = np.vstack([np.column_stack([np.ones(n), hp, zero]), np.column_stack([np.ones(n), zero, hp])])
+    y = np.concatenate([upper, lower])
+    x, *_ = np.linalg.lstsq(A * w[:, None], y * w, rcond=None)
+    r = (A @ x - y) * w
+    return x, float(r @ r)
+
+
+def two_reading_estimate(upper: Sequence[float], lower: Sequence[float], h: Sequence[float],
+                         p_formal: float) -> Estimate:
+    """Estimate of a midpoint peak from >= 4 meshes (finest first) and both of its readings.
+
+    The unaveraged (upper) and nodal-averaged (lower) readings of one peak converge to one
+    value from either side, so both are fitted with a common limit f0 and a common order p
+    (Eça–Hoekstra least squares, as :func:`least_squares_estimate`, on 2n data). The midpoint
+    alone changes by less per mesh than it scatters, and a fit to it misses its limit; the
+    two readings pin the limit from both sides. ``values`` are the midpoints, the band bounds
+    |finest midpoint − f0| as in :func:`least_squares_estimate`.
+    """
+    if len(h) < 4 or not len(upper) == len(lower) == len(h):
+        raise ValueError("need at least four meshes, finest first, with both readings and one size each")
+    u, lo = np.asarray(upper, dtype=float), np.asarray(lower, dtype=float)
+    hh = np.asarray(h, dtype=float) / float(h[0])
+    mid = (u + lo) / 2.0
+    vals, hs = tuple(float(v) for v in mid), tuple(float(x) for x in h)
+    n, scale = len(mid), max(abs(mid[0]), 1e-300)
+    p_obs = _best_order(lambda p: _fit_two(u, lo, hh, p)[1], 0.05, 2.0 * p_formal + 1.0)
+    if p_obs < P_SINGULAR and bool(np.all(np.diff(mid) < 0)):   # growing with refinement
+        return Estimate(vals, hs, "singular", p_obs, None, None, None, None, None, method=TWO_READINGS)
+    delta_step = float(np.ptp(mid)) / (n - 1)
+    if P_SINGULAR <= p_obs <= p_formal:
+        p_used, k = p_obs, 4
+    else:
+        # The data do not fix the order (or it exceeds the formal one): p = 1 or the formal
+        # order, whichever fits better, with the safety factor of unconfirmed order.
+        p_used, k = min((_fit_two(u, lo, hh, q)[1], q) for q in (1.0, p_formal))[1], 3
+    (f0, cu, cl), ssr = _fit_two(u, lo, hh, p_used)
+    # ssr is a weighted mean square per reading; summed over the two, over 2n data.
+    sigma = math.sqrt(ssr / 2.0 * (2 * n) / (2 * n - k))
+    smooth = k == 4 and sigma < delta_step
+    fs = FS if smooth else 3.0
+    band = fs * abs(mid[0] - f0) + sigma + abs(mid[0] - (f0 + (cu + cl) / 2.0))
+    return Estimate(vals, hs, "converged" if smooth else "scattered", p_obs, p_used, float(f0),
+                    band / scale, band, abs(mid[0] - f0) / abs(f0), method=TWO_READINGS)
 
 
 def representative_size(dofs: int) -> float:

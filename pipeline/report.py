@@ -278,7 +278,8 @@ def render_markdown(res: dict) -> str:
     add("The trend over the meshes (the same case on coarser meshes, every size × the ratio in the "
         "table): with three meshes Richardson extrapolation and Roache's GCI (Fs = 1.25, Celik et "
         "al. 2008); with four or more a weighted least-squares fit f = f0 + C·h^p (Eça & Hoekstra "
-        "2014) whose band adds the data's scatter about the fit and uses Fs = 3 when they scatter. "
+        "2014) whose band adds the data's scatter about the fit and uses Fs = 3 when they scatter; "
+        "for a midpoint the fit takes both readings with one common limit f0. "
         "Why the two readings and this rule: docs/design.md §5, measured in docs/accuracy.md.\n")
     add("| mesh factor | DOFs | global peak (MPa) | unaveraged | averaged | critical peak (MPa) | iterations | time (s) |")
     add("|---|---|---|---|---|---|---|---|")

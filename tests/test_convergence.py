@@ -1,9 +1,10 @@
 """Richardson/GCI on closed-form sequences, and singularity detection on the real part."""
 
+import numpy as np
 import pytest
 
 from pipeline.case import resolve
-from pipeline.errorbar import estimate, observed_order
+from pipeline.errorbar import TWO_READINGS, estimate, observed_order, two_reading_estimate
 from pipeline.analysis import analyse
 from pipeline.results import build_results
 from pipeline.features import singular_feature
@@ -46,6 +47,74 @@ def test_growing_values_are_singular_and_not_extrapolated():
 def test_oscillating_values_get_a_band_not_an_order():
     est = estimate([10.0, 10.2, 9.9], H, p_formal=2.0)
     assert est.status == "oscillatory" and est.band == pytest.approx(0.3)
+
+
+H4 = [1.0, 1.2, 1.42, 1.67]   # make converge's sizes relative to the finest (ratio 1.3 in factor)
+
+
+@pytest.mark.parametrize("p", [1.0, 2.0])
+def test_two_readings_recover_their_common_limit(p):
+    upper = [113.8 + 0.9 * h ** p for h in H4]
+    lower = [113.8 - 0.5 * h ** p for h in H4]
+    est = two_reading_estimate(upper, lower, H4, p_formal=2.0)
+    assert est.method == TWO_READINGS and est.status == "converged"
+    assert est.order_observed == pytest.approx(p, abs=1e-6)
+    assert est.extrapolated == pytest.approx(113.8, rel=1e-9)
+    assert est.values[0] == pytest.approx(113.8 + 0.2, rel=1e-12)   # the finest midpoint
+    assert est.band >= abs(est.values[0] - 113.8)
+
+
+def test_two_readings_cover_the_limit_where_the_midpoint_alone_scatters():
+    """Readings with mesh-to-mesh noise of 0.25 MPa on either side of 113.8 MPa (the size of
+    the fillet's scatter on No. 05): the fit of both readings covers the limit in >= 95 % of
+    draws with a narrower band than the least squares of the midpoints alone."""
+    rng = np.random.default_rng(7)
+    h = np.array(H4)
+    hits, bands, mid_bands = 0, [], []
+    for _ in range(200):
+        upper = 113.8 + 0.9 * h ** 2 + rng.normal(0.0, 0.25, h.size)
+        lower = 113.8 - 0.5 * h ** 2 + rng.normal(0.0, 0.25, h.size)
+        est = two_reading_estimate(upper, lower, h, p_formal=2.0)
+        hits += abs(est.extrapolated - 113.8) <= est.band and abs(est.values[0] - 113.8) <= est.band
+        bands.append(est.band)
+        mid_bands.append(estimate((upper + lower) / 2, h, p_formal=2.0).band or np.inf)
+    assert hits / 200 >= 0.95
+    assert np.median(bands) < np.median(mid_bands)
+
+
+def test_two_readings_growing_without_limit_are_singular():
+    upper = [30.0 * h ** -0.3 for h in H4]
+    lower = [20.0 * h ** -0.3 for h in H4]
+    est = two_reading_estimate(upper, lower, H4, p_formal=2.0)
+    assert est.status == "singular" and est.extrapolated is None and est.band is None
+
+
+def _levels(uppers, lowers, dofs, rule):
+    from types import SimpleNamespace
+    from pipeline.peaks import NodalPeak, Peak
+    at = (0.0, 0.0, 0.0)
+    return [SimpleNamespace(dofs=n, peak=NodalPeak(Peak(u, at), Peak(lo, at), rule))
+            for u, lo, n in zip(uppers, lowers, dofs)]
+
+
+def test_studies_of_four_meshes_fit_a_midpoint_by_both_readings():
+    """estimate_levels: a midpoint over four meshes gets the two-reading fit (and at least
+    its bracket); over three meshes, or read unaveraged, the values' own fit."""
+    from pipeline.analysis import estimate_levels
+    from pipeline.peaks import MIDPOINT, UNAVERAGED
+    case = resolve("05")
+    dofs = [int(round((1.0 / h) ** 3 * 1e5)) for h in H4]
+    upper, lower = [113.8 + 0.9 * h ** 2 for h in H4], [113.8 - 0.5 * h ** 2 for h in H4]
+    four = estimate_levels(_levels(upper, lower, dofs, MIDPOINT), case, "peak")
+    assert four.method == TWO_READINGS and four.extrapolated == pytest.approx(113.8, abs=0.01)
+    assert four.band >= (upper[0] - lower[0]) / 2 == four.bracket
+    assert estimate_levels(_levels(upper[:3], lower[:3], dofs[:3], MIDPOINT), case, "peak").method != TWO_READINGS
+    assert estimate_levels(_levels(upper, lower, dofs, UNAVERAGED), case, "peak").method != TWO_READINGS
+
+
+def test_two_readings_need_four_meshes():
+    with pytest.raises(ValueError):
+        two_reading_estimate([2.0, 2.1, 2.2], [1.0, 1.1, 1.2], H, p_formal=2.0)
 
 
 def _study(overrides, factor):
