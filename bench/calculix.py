@@ -266,28 +266,25 @@ def compare(case, factor: float, threads: int = 1, solver: str = "mumps",
     Returns both peaks of both codes, their relative differences and the largest
     displacement difference relative to the largest displacement.
     """
-    from pipeline.level import peaks_of
-    from pipeline.loads import crosshead_loads
-    from pipeline.meshing import make_mesh
-    from pipeline.solve import solve
+    from dataclasses import replace
+
+    from pipeline.level import peaks_of, set_up, solve_level
 
     if case.order != 2:
         raise ValueError("the CalculiX comparison needs the P2 (C3D10) case")
-    m = make_mesh(case.dims, case.model, case.mesh_spec(factor), comm=MPI.COMM_SELF)
-    mat = Material(E=case.E_MPa, nu=case.nu)
-    lc = crosshead_loads(m, case.dims, case.load_N, case.support)
-    sol = solve(m.mesh, m.facet_tags, 2, mat, lc.tractions, lc.constraints, solver=solver,
-                rtol=1e-12)
-    cx = solve_ccx(m.mesh, m.facet_tags, lc, mat, threads=threads, solver=ccx_solver,
-                   workdir=workdir)
-    out: dict = {"mesh_factor": factor, "dofs": sol.dofs,
-                 "cells": m.mesh.topology.index_map(3).size_global}
-    for name, u in (("dolfinx", sol.u), ("calculix", cx.u)):
-        _, pk, cr = peaks_of(case, u, mat)
-        out[name] = {"peak_MPa": pk.value_MPa, "peak_location_mm": list(pk.location_mm),
-                     "critical_MPa": cr.value_MPa, "critical_location_mm": list(cr.location_mm)}
+    case = replace(case, solver=solver, rtol=1e-12)
+    prob = set_up(case, factor, comm=MPI.COMM_SELF)
+    lv = solve_level(case, factor, keep_fields=True, comm=MPI.COMM_SELF, load_mesh=lambda: prob.mesh)
+    cx = solve_ccx(prob.mesh.mesh, prob.mesh.facet_tags, prob.loads, prob.material, threads=threads,
+                   solver=ccx_solver, workdir=workdir)
+    _, pk, cr = peaks_of(case, cx.u, prob.material)
+    out: dict = {"mesh_factor": factor, "dofs": lv.dofs, "cells": lv.cells}
+    for name, (glob, crit) in (("dolfinx", (lv.peak, lv.critical)), ("calculix", (pk, cr))):
+        out[name] = {"peak_MPa": glob.value_MPa, "peak_location_mm": list(glob.location_mm),
+                     "critical_MPa": crit.value_MPa, "critical_location_mm": list(crit.location_mm)}
+    u = lv.fields[0]
     d, c = out["dolfinx"], out["calculix"]
-    ua, ub = sol.u.x.array.reshape(-1, 3), cx.u.x.array.reshape(-1, 3)
+    ua, ub = u.x.array.reshape(-1, 3), cx.u.x.array.reshape(-1, 3)
     out["rel_diff"] = {
         "peak": (c["peak_MPa"] - d["peak_MPa"]) / d["peak_MPa"],
         "critical": (c["critical_MPa"] - d["critical_MPa"]) / d["critical_MPa"],

@@ -47,10 +47,7 @@ def run_point(spec: dict) -> dict | None:
         from pipeline.level import solve_level
     else:
         from bench.calculix import solve_ccx
-        from pipeline.elasticity import Material
-        from pipeline.level import peaks_of
-        from pipeline.loads import crosshead_loads
-        from pipeline.meshing import make_mesh
+        from pipeline.level import peaks_of, set_up
     imports = time.perf_counter() - t_imp
     if comm.rank == 0:  # a bench stopped while compiling left a claim that would fail every point
         from pipeline.formcache import jit_cache_dir, remove_interrupted
@@ -81,20 +78,17 @@ def run_point(spec: dict) -> dict | None:
     else:
         if comm.size != 1:
             raise SystemExit("CalculiX points run on one rank (use threads)")
-        m = make_mesh(case.dims, case.model, case.mesh_spec(spec["factor"], hotspots), comm=comm, mesher=mesher)
+        prob = set_up(case, spec["factor"], comm=comm, hotspots=hotspots, mesher=mesher)
         mesher.close()
-        mat = Material(E=case.E_MPa, nu=case.nu)
-        t1 = time.perf_counter()
-        lc = crosshead_loads(m, case.dims, case.load_N, case.support)
-        t_lc = time.perf_counter() - t1
-        cx = solve_ccx(m.mesh, m.facet_tags, lc, mat, threads=int(spec.get("threads", 1)),
+        m, mat = prob.mesh, prob.material
+        cx = solve_ccx(m.mesh, m.facet_tags, prob.loads, mat, threads=int(spec.get("threads", 1)),
                        solver=spec.get("ccx_solver", "spooles"))
         t1 = time.perf_counter()
         _, pk, cr = peaks_of(case, cx.u, mat)
         t_post = time.perf_counter() - t1
         total = time.perf_counter() - t0
         stages = dict(m.timings, **cx.timings, post=t_post)
-        stages["loads"] += t_lc
+        stages["loads"] += prob.loads_s
         n_nodes = cx.model.nodes.shape[0]
         out.update(dofs=3 * n_nodes, cells=cx.model.elements.shape[0], iterations=None,
                    peak_MPa=pk.value_MPa, critical_MPa=cr.value_MPa,

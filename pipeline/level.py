@@ -14,7 +14,7 @@ from .case import Case
 from .elasticity import Material
 from .errors import NumericalError
 from .features import critical_region, fillet_region
-from .loads import crosshead_loads, equilibrium
+from .loads import LoadCase, crosshead_loads, equilibrium
 from .meshing import ImportedMesh, Mesher, make_mesh
 from .peaks import MIDPOINT, UNAVERAGED, NodalPeak, averaged_von_mises, largest, nodal_peak, von_mises
 from .sections import section_results
@@ -69,6 +69,36 @@ def read_peaks(case: Case, vm: fem.Function, averaged: tuple[np.ndarray, np.ndar
     return pk, nodal_peak(vm, averaged, UNAVERAGED, critical_region(case))
 
 
+@dataclass
+class Problem:
+    """One mesh of a case with its material and loads: what any solver of the case needs
+    (mm, N, MPa). ``loads_s``: the time spent turning the load into tractions (s)."""
+
+    mesh: ImportedMesh
+    material: Material
+    loads: LoadCase
+    loads_s: float
+
+
+def set_up(case: Case, factor: float, msh_path: Path | None = None, comm=MPI.COMM_WORLD,
+           hotspots: Hotspots = (), load_mesh: Callable[[], ImportedMesh] | None = None,
+           mesher: Mesher | None = None) -> Problem:
+    """The case's mesh at ``factor`` (made, or ``load_mesh()`` if given), its material and its
+    load case: the first half of every solve, the pipeline's and the CalculiX peer's.
+    Raises NumericalError if the mesh has an inverted element."""
+    if load_mesh is None:
+        m = make_mesh(case.dims, case.model, case.mesh_spec(factor, hotspots), comm=comm, msh_path=msh_path,
+                      mesher=mesher)
+    else:
+        m = load_mesh()
+    if not m.jacobian_ratio > 0:
+        raise NumericalError(f"mesh: a curved element is inverted (worst det J ratio {m.jacobian_ratio:.3g}) "
+                             f"at mesh factor {factor:.3g}; try a slightly different --mesh-factor")
+    t0 = time.perf_counter()
+    lc = crosshead_loads(m, case.dims, case.load_N, case.support)
+    return Problem(m, Material(E=case.E_MPa, nu=case.nu), lc, time.perf_counter() - t0)
+
+
 def solve_level(case: Case, factor: float, msh_path: Path | None = None,
                 keep_fields: bool = False, with_sections: bool = False, comm=MPI.COMM_WORLD,
                 progress: Progress | None = None, hotspots: Hotspots = (),
@@ -78,24 +108,17 @@ def solve_level(case: Case, factor: float, msh_path: Path | None = None,
 
     ``load_mesh``: that mesh made already (see :func:`analyse`); factor, msh_path and
     hotspots are then only the mesh's description. ``mesher``: this process's
-    mesh_io.Mesher of the case's part, if it has one. Raises NumericalError if the mesh has
+    meshing.Mesher of the case's part, if it has one. Raises NumericalError if the mesh has
     an inverted element, the solver fails, the result is not finite, or the loads do not
     balance to 1e-6·Q.
     """
     say = progress or (lambda s: None)
-    if load_mesh is None:
-        m = make_mesh(case.dims, case.model, case.mesh_spec(factor, hotspots), comm=comm, msh_path=msh_path,
-                      mesher=mesher)
-    else:
-        m = load_mesh()
+    prob = set_up(case, factor, msh_path=msh_path, comm=comm, hotspots=hotspots, load_mesh=load_mesh,
+                  mesher=mesher)
+    m, mat, lc = prob.mesh, prob.material, prob.loads
     say(f"mesh ×{factor:.3g}: {m.mesh.topology.index_map(3).size_global} tets, "
         f"geometry {m.timings['geometry']:.2f} s, mesh {m.timings['mesh']:.2f} s, "
         f"import {m.timings['import']:.2f} s")
-    if not m.jacobian_ratio > 0:
-        raise NumericalError(f"mesh: a curved element is inverted (worst det J ratio {m.jacobian_ratio:.3g}) "
-                             f"at mesh factor {factor:.3g}; try a slightly different --mesh-factor")
-    mat = Material(E=case.E_MPa, nu=case.nu)
-    lc = crosshead_loads(m, case.dims, case.load_N, case.support)
     sol = solve(m.mesh, m.facet_tags, case.order, mat, lc.tractions, lc.constraints,
                 solver=case.solver, rtol=case.rtol)
     support, eq_err, point_r = equilibrium(lc, sol.reactions)
