@@ -169,8 +169,8 @@ def make_parser() -> argparse.ArgumentParser:
                           description=DESCRIPTION, epilog=EPILOG,
                           formatter_class=argparse.RawDescriptionHelpFormatter)
     add_case_options(conv)
-    conv.add_argument("--levels", type=int, default=4,
-                      help="number of meshes (default 4, at least 4); the finest is the case's mesh / ratio^(levels-3)")
+    conv.add_argument("--levels", type=int, default=5,
+                      help="number of meshes (default 5, at least 4); the finest is the case's mesh / ratio^(levels-3)")
     conv.add_argument("--ratio", type=_positive_float, default=1.3, help="mesh-size ratio between meshes, >= 1.3 (default 1.3)")
     sweep = sub.add_parser("sweep", help="design study: a grid of dimensions and loads, each variant with its error bar",
                            description=DESCRIPTION, epilog=SWEEP_EPILOG,

@@ -143,7 +143,7 @@ def finish_picture(pic: Picture, folder: Path) -> float:
     return time.perf_counter() - pic.started
 
 
-def execute_converge(case: Case, out_dir: Path, levels: int = 4, ratio: float = 1.3,
+def execute_converge(case: Case, out_dir: Path, levels: int = 5, ratio: float = 1.3,
                      progress: Progress | None = None, comm=MPI.COMM_WORLD) -> dict:
     """Solve on ``levels`` meshes refined by ``ratio`` from the case's mesh, finest first.
 
