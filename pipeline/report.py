@@ -167,12 +167,11 @@ def verdict_section(res: dict) -> str:
     return "\n".join(L)
 
 
-def render_markdown(res: dict) -> str:
-    """The whole report as Markdown text."""
-    c, an, fe, cmp_ = res["case"], res["analytic"], res["fe"], res["comparison_pct"]
-    d = c["dims"]
+def _summary_lines(res: dict) -> list[str]:
+    """Title, the summary table, the like-with-like and verdict sections, warnings, safety factors, the picture."""
     L: list[str] = []
     add = L.append
+    c, an, fe, cmp_ = res["case"], res["analytic"], res["fe"], res["comparison_pct"]
     add(f"# Crosshead stress report: hook No. {c['size']} (case `{c['name']}`)\n")
     add("Units: lengths mm, forces N, stresses MPa.\n")
     add("## Summary\n")
@@ -206,7 +205,15 @@ def render_markdown(res: dict) -> str:
         f"global peak {cmp_['peak_vs_exact']:+.1f} % vs exact, {cmp_['peak_vs_approximate']:+.1f} % vs approximate.\n")
     add(why_sentence(res) + "\n")
     add("![von Mises on the deformed part](von_mises.png)\n")
+    return L
 
+
+def _inputs_lines(res: dict) -> list[str]:
+    """The dimensions with their origin, load, support, material, model and mesh sizes (mm, N, MPa)."""
+    L: list[str] = []
+    add = L.append
+    c, fe = res["case"], res["fe"]
+    d = c["dims"]
     add("## Inputs\n")
     add(f"Hook No. {c['size']}; row source: {c['source']}\n")
     add("| symbol | meaning | value (mm) | origin |")
@@ -232,7 +239,15 @@ def render_markdown(res: dict) -> str:
             f"{len(spots)} places where a pilot solve (mesh × {fe['pilot_mesh_factor']:.3g}) found von Mises "
             f"within {100 * (1 - fe['pilot_fraction']):.0f} % of the global or critical peak: "
             f"{', '.join(_loc(p) for p in spots)} (and their mirror images).\n")
+    return L
 
+
+def _formulas_lines(res: dict) -> list[str]:
+    """The paper's two hand formulas worked for this case, with the published values where the row has them."""
+    L: list[str] = []
+    add = L.append
+    an = res["analytic"]
+    pub = an.get("published")
     add("## Hand formulas (paper, docs/design.md §4)\n")
     at = an["approximate_terms"]
     add(f"Approximate: Me = Q/2·(l/2 − Dm/π) with l = {_f(an['approximate_span_mm'], 2)} mm: "
@@ -255,7 +270,14 @@ def render_markdown(res: dict) -> str:
         f"l = {_f(an['exact_span_mm'], 1)} mm gives {_f(cs['approximate_at_exact_span_MPa'])} MPa; exact at "
         f"l = {_f(an['approximate_span_mm'], 1)} mm gives {_f(cs['exact_at_approximate_span_MPa'])} MPa."
         + (f" Published FE result: {_f(pub['fe_MPa'])} MPa ({pub['source']}).\n" if pub else "\n"))
+    return L
 
+
+def _fe_lines(res: dict) -> list[str]:
+    """The FE solution: sizes, residual, equilibrium, how the peaks are read and each mesh level."""
+    L: list[str] = []
+    add = L.append
+    fe = res["fe"]
     add("## Finite-element solution\n")
     add(f"{fe['cells']} tetrahedra, {fe['dofs']} DOFs, {fe['iterations']} solver iterations, true relative "
         f"residual {fe['residual_rel']:.1e}, {fe['mpi_ranks']} MPI rank(s). Worst element det J ratio "
@@ -290,6 +312,14 @@ def render_markdown(res: dict) -> str:
     add("")
     if "peaks_plot" in res.get("files", {}):
         add("![peaks against degrees of freedom](peaks.png)\n")
+    return L
+
+
+def _load_sweep_lines(res: dict) -> list[str]:
+    """The loads solved by scaling one solution (linear elasticity); empty without a load sweep."""
+    L: list[str] = []
+    add = L.append
+    c = res["case"]
     sweep = res.get("load_sweep")
     if sweep:
         add("## Load sweep\n")
@@ -301,6 +331,13 @@ def render_markdown(res: dict) -> str:
             add(f"| {_f(r['load_N'], 0)} | {_f(r['peak_MPa'])} | {_f(r['critical_peak_MPa'])} | "
                 f"{_f(r['approximate_MPa'])} | {_f(r['exact_MPa'])} | {_sf(r['safety_factor'])} / {_sf(r['critical_safety_factor'])} |")
         add("")
+    return L
+
+
+def _study_timings_files_lines(res: dict) -> list[str]:
+    """The convergence study (if any), the stage timings (s) and the files written."""
+    L: list[str] = []
+    add = L.append
     conv = res.get("convergence")
     if conv:
         add("## Convergence study\n")
@@ -315,7 +352,13 @@ def render_markdown(res: dict) -> str:
     for k, v in res.get("files", {}).items():
         add(f"- {k}: `{v}`")
     add("")
-    return "\n".join(L)
+    return L
+
+
+def render_markdown(res: dict) -> str:
+    """The whole report as Markdown text."""
+    return "\n".join([*_summary_lines(res), *_inputs_lines(res), *_formulas_lines(res), *_fe_lines(res),
+                      *_load_sweep_lines(res), *_study_timings_files_lines(res)])
 
 
 def convergence_table(conv: dict) -> str:
