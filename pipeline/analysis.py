@@ -43,11 +43,11 @@ def analyse(case: Case, levels: int = 3, ratio: float = 1.3, msh_path: Path | No
     """Solve on ``levels`` meshes, the requested one and coarser by ``ratio`` each; finest first.
 
     A pilot solve first puts refinement where the peaks are (see :func:`pilot`). Then all
-    meshes are made at once, one per rank (gmsh is serial; see mesh_io.make_meshes). The
+    meshes are made at once, one per rank (gmsh is serial; see meshing.make_meshes). The
     requested mesh is solved on every rank and handed to ``on_requested`` (which may start
     work that runs beside what follows: the picture). The coarser meshes are then solved
     side by side, each on one rank (see :func:`error_bar_ranks`). ``mesher``: this
-    process's mesh_io.Mesher of the case's part, if it has one (else one for the pilot
+    process's meshing.Mesher of the case's part, if it has one (else one for the pilot
     and the meshes).
     """
     with given_or_new(mesher, case.dims, case.model) as m:

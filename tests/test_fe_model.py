@@ -48,7 +48,7 @@ def test_loads_integrate_to_q_and_match_closed_form_pressures(model, share):
 
 
 def test_meshes_are_shared_out_largest_first():
-    """mesh_io.owners: the error bar's meshes (costs factor^-3 at x1, x1.3, x1.69) on 2 ranks:
+    """meshing.owners: the error bar's meshes (costs factor^-3 at x1, x1.3, x1.69) on 2 ranks:
     the finest alone on rank 0, the two coarser (together 0.66 of it) on rank 1; one rank
     takes everything; ties go to the lower rank."""
     costs = [f ** -3 for f in (1.0, 1.3, 1.69)]

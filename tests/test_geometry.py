@@ -92,9 +92,9 @@ def test_mesh_quality_agrees_with_gmsh(gmsh_session, factor):
 
 
 def test_mesher_meshes_like_a_new_session():
-    """mesh_io.Mesher builds the part once and meshes it for spec after spec (the pilot's
+    """meshing.Mesher builds the part once and meshes it for spec after spec (the pilot's
     mesh, then the refined ones). Each mesh must be, bit for bit, the one a new gmsh session
-    makes (mesh_io.generate: build, mesh, finalise), whatever was meshed before it: the
+    makes (meshing.generate: build, mesh, finalise), whatever was meshed before it: the
     1- and 2-rank runs make their meshes in different orders on different ranks."""
     import numpy as np
 

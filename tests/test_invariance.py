@@ -189,7 +189,7 @@ def test_one_and_two_mpi_ranks_agree(tmp_path):
     iterates), not the converged answer; stresses are sampled in a DG space (no averaging
     across the partition) and peak ties are broken by coordinates (pipeline.peaks.peak).
     On 2 ranks the two coarser meshes are made by rank 1 while rank 0 makes the finest
-    (mesh_io.make_meshes): a mesh must not depend on the rank that made it.
+    (meshing.make_meshes): a mesh must not depend on the rank that made it.
     """
     one = cli_run(tmp_path / "r1", 1, levels=3)
     two = cli_run(tmp_path / "r2", 2, levels=3)

@@ -249,7 +249,7 @@ def _mesh_error_rel() -> float:
 
 
 # No. 1 at mesh factor 2 once had a 0.06-ratio curved tet on the bore wall (ligament peak
-# 96-119 instead of ~65 MPa); the mesher now relaxes every curved tet to a ratio >= 0.3 (geometry/builder.py).
+# 96-119 instead of ~65 MPa); the mesher now relaxes every curved tet to a ratio >= 0.3 (geometry/curved.py).
 @pytest.mark.parametrize("size", [SMALLEST, "1", "10"])
 def test_rounded_row_matches_no05_within_its_rounding(size):
     """Critical (bore ligament) peak of a rounded row vs No. 05 × similarity ratio.
