@@ -54,6 +54,11 @@ from pipeline.choices import SOLVERS  # noqa: E402
 from pipeline.jsonio import json_safe  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
+# The files that decide a reference study's numbers: the part, its mesh, the loads, the
+# solve, how peaks are read and how the study extrapolates.
+REFERENCE_INPUTS = ("geometry/part.py", "geometry/sizing.py", "geometry/curved.py", "pipeline/meshing.py",
+                    "pipeline/loads.py", "pipeline/solve.py", "pipeline/peaks.py", "pipeline/level.py",
+                    "pipeline/errorbar.py")
 DEFAULT_REFERENCE = Path("results/05-converge/results.json")
 FULL_FACTORS = (2.0, 1.5, 1.15, 0.9, 0.7)
 P3_FACTORS = (2.0, 1.5)
@@ -96,9 +101,8 @@ def load_reference(path: Path, make: bool, say, remake: bool = False) -> dict:
     ref["path"] = str(path)
     ref["levels"] = conv.get("levels")
     # A reference made before the geometry or mesher last changed belongs to other meshes.
-    newer = [str(f.relative_to(ROOT)) for f in (ROOT / "geometry" / "builder.py", ROOT / "pipeline" / "mesh_io.py",
-                                                 ROOT / "pipeline" / "solve.py", ROOT / "pipeline" / "crosshead.py")
-             if f.exists() and f.stat().st_mtime > path.stat().st_mtime]
+    newer = [str(f.relative_to(ROOT)) for f in (ROOT / name for name in REFERENCE_INPUTS)
+             if f.stat().st_mtime > path.stat().st_mtime]
     if newer:
         ref["stale_warning"] = (f"{', '.join(newer)} changed after the reference was made; "
                                 f"re-run with --remake-reference (or make converge)")

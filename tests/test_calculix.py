@@ -216,3 +216,11 @@ def test_bench_ranks_at_targets_adds_the_default_solver_and_calculix_on_every_le
         {("calculix", c, 2, f) for c in ("iterative", "spooles") for f in (4.0, 2.5, 1.3)}
     assert two == expected
     assert all(s["threads"] == 2 for s, r, t in pts if s["kind"] == "calculix" and t == 2)
+
+
+def test_reference_staleness_watches_files_that_exist():
+    """bench.run warns when a reference study is older than the code that made its numbers;
+    a renamed module would silence that warning, so every watched file must exist."""
+    from bench.run import REFERENCE_INPUTS
+    missing = [name for name in REFERENCE_INPUTS if not (ROOT / name).is_file()]
+    assert not missing, f"bench.run.REFERENCE_INPUTS names files that do not exist: {missing}"
