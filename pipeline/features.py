@@ -17,6 +17,29 @@ def critical_region(case: Case) -> Callable[[np.ndarray], np.ndarray]:
     return lambda xyz: np.abs(xyz[:, 0]) <= half
 
 
+KNOWN_FILLET_STEP_DEG = 7.5  # spacing of the a-priori places along the fillet (about the pilot's on No. 05)
+
+
+def known_raisers(case: Case) -> tuple[tuple[float, float, float], ...]:
+    """Places (mm, quarter x, y >= 0) where the part's stresses are known to peak, from the
+    dimensions alone: the bore edge in the plane x = 0 on the bottom and top faces (the
+    critical peak) and, with a fillet, its middle (45° into the fillet) along the lower
+    journal half, every KNOWN_FILLET_STEP_DEG from straight down to horizontal (the bearing
+    pushes the journal up, so the root's tension side is below the axis). The alternative
+    to a pilot solve for parts shaped like the table's; ``case.want`` picks the peaks."""
+    d = case.dims
+    places: list[tuple[float, float, float]] = []
+    if case.want != "global":
+        places += [(0.0, d.d2 / 2, 0.0), (0.0, d.d2 / 2, d.h3)]
+    if case.want != "critical" and d.rf > 0:
+        s = d.rf * (1 - math.sqrt(0.5))   # 45° into the fillet: in from the torus' centre circle
+        x, r = d.b1 / 2 + s, d.dj / 2 + s
+        for k in range(int(round(90 / KNOWN_FILLET_STEP_DEG)) + 1):
+            t = math.radians(k * KNOWN_FILLET_STEP_DEG)
+            places.append((x, r * math.sin(t), d.h3 / 2 - r * math.cos(t)))
+    return tuple(places)
+
+
 def fillet_region(case: Case) -> Callable[[np.ndarray], np.ndarray] | None:
     """The journal's shoulder fillet and a margin of 0.02·h3 around it (the points that
     :func:`describe_location` names "journal shoulder fillet"); None without a fillet."""
