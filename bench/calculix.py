@@ -274,7 +274,7 @@ def compare(case, factor: float, threads: int = 1, solver: str = "mumps",
         raise ValueError("the CalculiX comparison needs the P2 (C3D10) case")
     case = replace(case, solver=solver, rtol=1e-12)
     prob = set_up(case, factor, comm=MPI.COMM_SELF)
-    lv = solve_level(case, factor, keep_fields=True, comm=MPI.COMM_SELF, load_mesh=lambda: prob.mesh)
+    lv = solve_level(case, factor, keep_fields=True, comm=MPI.COMM_SELF, problem=prob)
     cx = solve_ccx(prob.mesh.mesh, prob.mesh.facet_tags, prob.loads, prob.material, threads=threads,
                    solver=ccx_solver, workdir=workdir)
     _, pk, cr = peaks_of(case, cx.u, prob.material)

@@ -132,6 +132,15 @@ def _best_order(ssr: Callable[[float], float], lo: float, hi: float) -> float:
     return float(res.x)
 
 
+def _order_used(p_obs: float, p_formal: float, ssr: Callable[[float], float]) -> tuple[float, bool]:
+    """The order to extrapolate with, and whether the data confirm it: the observed order if
+    it lies in [P_SINGULAR, p_formal]; else the data do not fix it, and p = 1 or the formal
+    order is used, whichever fits better (smaller ssr(p))."""
+    if P_SINGULAR <= p_obs <= p_formal:
+        return p_obs, True
+    return min((ssr(q), q) for q in (1.0, p_formal))[1], False
+
+
 def least_squares_estimate(values: Sequence[float], h: Sequence[float], p_formal: float) -> Estimate:
     """Eça–Hoekstra style estimate from >= 4 meshes (finest first)."""
     f = np.asarray(values, dtype=float)
@@ -141,26 +150,22 @@ def least_squares_estimate(values: Sequence[float], h: Sequence[float], p_formal
     n = len(f)
     if np.ptp(f) <= 1e-12 * scale:
         return Estimate(vals, hs, "exact", None, None, float(f[0]), 0.0, 0.0, 0.0)
-    p_obs = _best_order(lambda p: _fit(f, hh, p)[2], 0.05, 2.0 * p_formal + 1.0)
+    def ssr(p: float) -> float:
+        return _fit(f, hh, p)[2]
+    p_obs = _best_order(ssr, 0.05, 2.0 * p_formal + 1.0)
     growing = bool(np.all(np.diff(f) < 0))           # finest first: each coarser one smaller
     if p_obs < P_SINGULAR and growing:
         return Estimate(vals, hs, "singular", p_obs, None, None, None, None, None)
     delta_step = float(np.ptp(f)) / (n - 1)
-    if P_SINGULAR <= p_obs <= p_formal:
-        p_used = p_obs
-        f0, C, ssr = _fit(f, hh, p_used)
-        sigma = math.sqrt(ssr * n / (n - 3)) if n > 3 else 0.0
+    p_used, confirmed = _order_used(p_obs, p_formal, ssr)
+    f0, C, res = _fit(f, hh, p_used)
+    if confirmed:
+        sigma = math.sqrt(res * n / (n - 3)) if n > 3 else 0.0
         smooth = sigma < delta_step
-        fs = FS if smooth else 3.0
-    else:
-        # Order outside [0.5, formal]: the data do not fix it. Fits with p = 1 and the formal
-        # order; the one that fits better, and the safety factor of scattered data.
-        fits = [(_fit(f, hh, p)[2], p) for p in (1.0, p_formal)]
-        p_used = min(fits)[1]
-        f0, C, ssr = _fit(f, hh, p_used)
-        sigma = math.sqrt(ssr * n / (n - 2))
+    else:   # an unconfirmed order: the safety factor of scattered data
+        sigma = math.sqrt(res * n / (n - 2))
         smooth = False
-        fs = 3.0
+    fs = FS if smooth else 3.0
     band = fs * abs(f[0] - f0) + sigma + abs(f[0] - (f0 + C))
     status = "converged" if smooth else "scattered"
     return Estimate(vals, hs, status, p_obs, p_used, f0, band / scale, band,
@@ -231,20 +236,18 @@ def two_reading_estimate(upper: Sequence[float], lower: Sequence[float], h: Sequ
     mid = (u + lo) / 2.0
     vals, hs = tuple(float(v) for v in mid), tuple(float(x) for x in h)
     n, scale = len(mid), max(abs(mid[0]), 1e-300)
-    p_obs = _best_order(lambda p: _fit_two(u, lo, hh, p)[1], 0.05, 2.0 * p_formal + 1.0)
+    def ssr(p: float) -> float:
+        return _fit_two(u, lo, hh, p)[1]
+    p_obs = _best_order(ssr, 0.05, 2.0 * p_formal + 1.0)
     if p_obs < P_SINGULAR and bool(np.all(np.diff(mid) < 0)):   # growing with refinement
         return Estimate(vals, hs, "singular", p_obs, None, None, None, None, None, method=TWO_READINGS)
     delta_step = float(np.ptp(mid)) / (n - 1)
-    if P_SINGULAR <= p_obs <= p_formal:
-        p_used, k = p_obs, 4
-    else:
-        # The data do not fix the order (or it exceeds the formal one): p = 1 or the formal
-        # order, whichever fits better, with the safety factor of unconfirmed order.
-        p_used, k = min((_fit_two(u, lo, hh, q)[1], q) for q in (1.0, p_formal))[1], 3
-    (f0, cu, cl), ssr = _fit_two(u, lo, hh, p_used)
-    # ssr is a weighted mean square per reading; summed over the two, over 2n data.
-    sigma = math.sqrt(ssr / 2.0 * (2 * n) / (2 * n - k))
-    smooth = k == 4 and sigma < delta_step
+    p_used, confirmed = _order_used(p_obs, p_formal, ssr)
+    k = 4 if confirmed else 3   # fitted parameters: f0, Cu, Cl and (if confirmed) p
+    (f0, cu, cl), res = _fit_two(u, lo, hh, p_used)
+    # res is a weighted mean square per reading; summed over the two, over 2n data.
+    sigma = math.sqrt(res / 2.0 * (2 * n) / (2 * n - k))
+    smooth = confirmed and sigma < delta_step
     fs = FS if smooth else 3.0
     band = fs * abs(mid[0] - f0) + sigma + abs(mid[0] - (f0 + (cu + cl) / 2.0))
     return Estimate(vals, hs, "converged" if smooth else "scattered", p_obs, p_used, float(f0),

@@ -103,18 +103,19 @@ def solve_level(case: Case, factor: float, msh_path: Path | None = None,
                 keep_fields: bool = False, with_sections: bool = False, comm=MPI.COMM_WORLD,
                 progress: Progress | None = None, hotspots: Hotspots = (),
                 load_mesh: Callable[[], ImportedMesh] | None = None,
-                mesher: Mesher | None = None) -> Level:
+                mesher: Mesher | None = None, problem: Problem | None = None) -> Level:
     """Build, mesh and solve the case with every mesh size times ``factor``; find the peaks.
 
     ``load_mesh``: that mesh made already (see :func:`analyse`); factor, msh_path and
-    hotspots are then only the mesh's description. ``mesher``: this process's
+    hotspots are then only the mesh's description. ``problem``: mesh, material and loads
+    set up already (:func:`set_up`), when another solver gets the same ones. ``mesher``: this process's
     meshing.Mesher of the case's part, if it has one. Raises NumericalError if the mesh has
     an inverted element, the solver fails, the result is not finite, or the loads do not
     balance to 1e-6·Q.
     """
     say = progress or (lambda s: None)
-    prob = set_up(case, factor, msh_path=msh_path, comm=comm, hotspots=hotspots, load_mesh=load_mesh,
-                  mesher=mesher)
+    prob = problem or set_up(case, factor, msh_path=msh_path, comm=comm, hotspots=hotspots, load_mesh=load_mesh,
+                             mesher=mesher)
     m, mat, lc = prob.mesh, prob.material, prob.loads
     say(f"mesh ×{factor:.3g}: {m.mesh.topology.index_map(3).size_global} tets, "
         f"geometry {m.timings['geometry']:.2f} s, mesh {m.timings['mesh']:.2f} s, "
