@@ -592,6 +592,24 @@ def test_singular_peak_has_no_safety_factor():
     assert safety_text(sf, "critical_safety_factor") == "**2.00**"
 
 
+def test_verdict_pass_fail_undecided_and_capacity():
+    """results.verdict against 80 MPa at Q = 10 000 N, worked by hand: 40 ± 1 passes with
+    margin +100 % and capacity 20 000 N (19 512-20 513 N from the band); 100 fails; 79 ± 2
+    straddles 80 (undecided); a singular peak and a nominal stress without band."""
+    from pipeline.results import verdict
+    v = verdict(80.0, 10_000.0, {"a": (40.0, {"error_estimate": {"band": 1.0}}),
+                                 "b": (100.0, {}), "c": (79.0, {"error_estimate": {"band": 2.0}}),
+                                 "s": (500.0, {"singular_feature": "edge of the rigid patch"}),
+                                 "n": (50.0, None)})
+    assert v["a"]["verdict"] == "pass" and v["a"]["margin_pct"] == pytest.approx(100.0)
+    assert v["a"]["capacity_N"] == pytest.approx(20_000.0)
+    assert v["a"]["capacity_range_N"] == pytest.approx([80e4 / 41, 80e4 / 39])
+    assert v["b"]["verdict"] == "fail" and v["b"]["margin_pct"] == pytest.approx(-20.0)
+    assert v["c"]["verdict"] == "undecided"
+    assert v["s"]["verdict"] == "none" and "capacity_N" not in v["s"]
+    assert v["n"]["verdict"] == "pass" and v["n"]["band_MPa"] == 0.0
+
+
 def test_rigid_support_run_gives_no_global_safety_factor(tmp_path):
     """Through the CLI on coarse meshes: the rigid patch's edge is singular, so stdout,
     results.json and report.md give no safety factor for that peak."""
@@ -602,6 +620,8 @@ def test_rigid_support_run_gives_no_global_safety_factor(tmp_path):
     assert p.returncode == 0, p.stderr
     fe = json.loads((out / "results.json").read_text())["fe"]
     assert fe["peak"].get("singular_feature") and fe["safety_factor"] is None
+    assert fe["verdict"]["global_peak"]["verdict"] == "none"
+    assert "singular" in fe["verdict"]["global_peak"]["why"]
     assert "none (singular peak) (global)" in p.stdout
     assert "**none**" in (out / "report.md").read_text()
 
