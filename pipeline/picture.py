@@ -19,9 +19,9 @@ from pathlib import Path
 import numpy as np
 
 WINDOW = (2000, 950)  # pixels: two panels side by side
-# Left: into the cut faces (symmetry planes), showing the ligament beside the bore and the
-# critical peak. Right: from below and outside, the journal root, its shoulder fillet and
-# the global peak. Each panel labels only the peak it shows.
+# Left: from above, the seat, the bore and the ligament beside it. Right: from below and
+# outside, the journal root, its shoulder fillet and the bottom face. A panel marks a peak
+# only where the camera sees it (seen_from), so no label points at a hidden place.
 VIEWS = ((-0.9, -1.5, 0.9), (0.5, 1.6, -1.0))
 COLOURS = {"black": (0.0, 0.0, 0.0), "magenta": (0.8, 0.0, 0.8), "red": (0.85, 0.1, 0.1),
            "green": (0.1, 0.6, 0.2)}
@@ -52,6 +52,44 @@ def boundary_surface(xyz: np.ndarray, tets: np.ndarray) -> tuple[np.ndarray, np.
     outer = faces[count[which.ravel()] == 1]
     used, tri = np.unique(outer, return_inverse=True)
     return used, tri.reshape(-1, 3)
+
+
+def seen_from(points: np.ndarray, tri: np.ndarray, target: np.ndarray, eye: np.ndarray,
+              tol_mm: float) -> bool:
+    """True when no surface triangle crosses the line of sight from ``eye`` to ``target``
+    (mm) more than ``tol_mm`` before the target: the camera sees that point of the surface.
+
+    ``points`` (n×3, mm) and ``tri`` (m×3 indices) are the drawn surface. A ray-triangle
+    test (Möller and Trumbore 1997) against every triangle at once; the triangles that
+    meet at the target itself cross at the target and do not count.
+    """
+    a, b, c = points[tri[:, 0]], points[tri[:, 1]], points[tri[:, 2]]
+    ray = np.asarray(target, float) - np.asarray(eye, float)
+    dist = float(np.linalg.norm(ray))
+    e1, e2 = b - a, c - a
+    pvec = np.cross(ray, e2)
+    det = np.einsum("ij,ij->i", e1, pvec)
+    ok = np.abs(det) > 1e-14 * dist * np.einsum("ij,ij->i", e1, e1)
+    det = np.where(ok, det, 1.0)
+    tvec = np.asarray(eye, float) - a
+    u = np.einsum("ij,ij->i", tvec, pvec) / det
+    qvec = np.cross(tvec, e1)
+    v = (qvec @ ray) / det
+    t = np.einsum("ij,ij->i", e2, qvec) / det  # fraction of the way from eye to target
+    hit = ok & (u >= 0) & (v >= 0) & (u + v <= 1) & (t > 0) & (t < 1 - tol_mm / dist)
+    return not bool(hit.any())
+
+
+def mark_places(points0: np.ndarray, points: np.ndarray, tri: np.ndarray, loc, mirrored: bool,
+                eyes: list[np.ndarray], tol_mm: float) -> list[np.ndarray | None]:
+    """Where to mark a peak at ``loc`` (mm, undeformed) in each panel: the drawn (deformed)
+    position of the nearest surface node, or None where the camera at that eye cannot see
+    it. With ``mirrored`` (a quarter model drawn whole) each mirror image of the peak
+    (±x, ±y) is an equal peak, and a panel marks the first one it sees."""
+    images = [np.asarray(loc, float) * (sx, sy, 1.0) for sx in (1, -1) for sy in (1, -1)] if mirrored \
+        else [np.asarray(loc, float)]
+    drawn = [points[int(np.argmin(np.linalg.norm(points0 - q, axis=1)))] for q in images]
+    return [next((p for p in drawn if seen_from(points, tri, p, eye, tol_mm)), None) for eye in eyes]
 
 
 def read_vtu(path: Path) -> tuple[np.ndarray, np.ndarray, dict[str, np.ndarray]]:
@@ -194,14 +232,21 @@ def render_folder(folder: Path, out_name: str = "von_mises.png") -> Path:
     scale = 0.04 * length / umax
     points = points0 + scale * disp
     fe, case = res["fe"], res["case"]
-    marks = (("global peak", fe["peak_MPa"], fe["peak_location_mm"], "black"),
-             ("critical peak", fe["critical_peak_MPa"], fe["critical_location_mm"], "magenta"))
     # The colour range of every node, not only the surface's: the peak can sit on a tet
     # that touches the surface at a vertex only, whose value there is drawn by no triangle.
     lut = _turbo(float(arrays["von_mises_MPa"].min()), float(arrays["von_mises_MPa"].max()))
     centre = 0.5 * (points.min(axis=0) + points.max(axis=0))
     whole = bool(points0[:, 0].min() < -1e-6 * length)
     arrows = load_arrows(res["case"]["dims"], res["case"]["load_N"], whole)
+    eyes = [centre + length * np.asarray(d) for d in VIEWS]
+    mirrored = whole and case["model"] == "quarter"
+    marks = [(label, value, colour, mark_places(points0, points, tri, loc, mirrored, eyes, 1e-3 * length))
+             for label, value, loc, colour in (
+                 ("global peak", fe["peak_MPa"], fe["peak_location_mm"], "black"),
+                 ("critical peak", fe["critical_peak_MPa"], fe["critical_location_mm"], "magenta"))]
+    unseen = [f"{label} ({value:.1f} MPa) at ({', '.join(f'{c:.1f}' for c in loc)}) mm is not in view"
+              for (label, value, _, places), loc in zip(marks, (fe["peak_location_mm"], fe["critical_location_mm"]))
+              if all(p is None for p in places)]
 
     window = vtkRenderWindow()
     window.SetOffScreenRendering(1)
@@ -216,26 +261,28 @@ def render_folder(folder: Path, out_name: str = "von_mises.png") -> Path:
         ren.AddActor(_surface_actor(points, tri, vm, lut))
         for tail, vec, colour in arrows:
             ren.AddActor(_arrow_actor(tail, vec, COLOURS[colour]))
-        label, value, loc, colour = marks[1] if col == 0 else marks[0]
-        p = points[int(np.argmin(np.linalg.norm(points0 - np.asarray(loc), axis=1)))]
-        sphere = vtkSphereSource()
-        sphere.SetCenter(*p)
-        sphere.SetRadius(0.012 * length)
-        sphere.SetThetaResolution(24)
-        sphere.SetPhiResolution(24)
-        mapper = vtkPolyDataMapper()
-        mapper.SetInputConnection(sphere.GetOutputPort())
-        ball = vtkActor()
-        ball.SetMapper(mapper)
-        ball.GetProperty().SetColor(*COLOURS[colour])
-        ren.AddActor(ball)
-        tag = _text(f"{label}: {value:.1f} MPa", 26, COLOURS[colour], box=True)
-        tag.GetPositionCoordinate().SetCoordinateSystemToWorld()  # drawn on top, at the peak
-        tag.GetPositionCoordinate().SetValue(*p)
-        ren.AddViewProp(tag)
+        for label, value, colour, places in marks:
+            p = places[col]
+            if p is None:
+                continue
+            sphere = vtkSphereSource()
+            sphere.SetCenter(*p)
+            sphere.SetRadius(0.012 * length)
+            sphere.SetThetaResolution(24)
+            sphere.SetPhiResolution(24)
+            mapper = vtkPolyDataMapper()
+            mapper.SetInputConnection(sphere.GetOutputPort())
+            ball = vtkActor()
+            ball.SetMapper(mapper)
+            ball.GetProperty().SetColor(*COLOURS[colour])
+            ren.AddActor(ball)
+            tag = _text(f"{label}: {value:.1f} MPa", 26, COLOURS[colour], box=True)
+            tag.GetPositionCoordinate().SetCoordinateSystemToWorld()  # drawn on top, at the peak
+            tag.GetPositionCoordinate().SetValue(*p)
+            ren.AddViewProp(tag)
         cam = ren.GetActiveCamera()
         cam.SetFocalPoint(*centre)
-        cam.SetPosition(*(centre + length * np.asarray(direction)))
+        cam.SetPosition(*eyes[col])
         cam.SetViewUp(0.0, 0.0, 1.0)
         ren.ResetCameraClippingRange()
         # x, y, z arrows in the panel's lower left corner, seen from the same direction.
@@ -253,7 +300,8 @@ def render_folder(folder: Path, out_name: str = "von_mises.png") -> Path:
             shown = f"{case['model']} model" + (", shown mirrored" if whole and case["model"] == "quarter" else "")
             title = _text(f"Crosshead No. {case['size']}, Q = {case['load_N']:g} N, {shown}, "
                           f"{case['support']} support\nvon Mises (MPa) on the deformed part, "
-                          f"displacement x{scale:.0f}\nred: hook load on the seat, green: journal supports",
+                          f"displacement x{scale:.0f}\nred: hook load on the seat, green: journal supports"
+                          + "".join(f"\n{u}" for u in unseen),
                           22, (0.0, 0.0, 0.0))
             title.GetPositionCoordinate().SetCoordinateSystemToNormalizedViewport()
             title.GetPositionCoordinate().SetValue(0.01, 0.87)

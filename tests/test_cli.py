@@ -84,15 +84,10 @@ def test_bad_input_exit_2_one_line(tmp_path, args, field):
     assert not out.exists()
 
 
-def test_picture_draws_the_outer_surface_only():
-    """pipeline.picture.boundary_surface on a cube of 5·n³ disconnected tets (each tet its own
-    nodes, like von_mises.vtu): the outer surface of a cube split into tets has 2 triangles
-    per face square, 12 n² in all, whatever the split; the triangles use original nodes
-    (by index, so each keeps its own value). (numpy only: no VTK in this process, which cannot share one with DOLFINx.)"""
+def _tet_cube(n: int) -> tuple[np.ndarray, np.ndarray]:
+    """A cube [0, n]³ of 5·n³ disconnected tets (each tet its own nodes, like von_mises.vtu):
+    the 5-tet split of a unit cube, mirrored cube to cube so that faces match."""
     import itertools
-    from pipeline.picture import boundary_surface
-    n = 3
-    # The 5-tet split of a unit cube, mirrored cube to cube so that faces match.
     base = [(0, 1, 2, 4), (1, 3, 2, 7), (1, 4, 5, 7), (2, 4, 7, 6), (1, 2, 4, 7)]
     corners = np.array([(i & 1, (i >> 1) & 1, (i >> 2) & 1) for i in range(8)], float)
     pts = []
@@ -102,13 +97,42 @@ def test_picture_draws_the_outer_surface_only():
         for tet in base:
             pts += [local[v] for v in tet]
     pts = np.array(pts)
-    tets = np.arange(len(pts)).reshape(-1, 4)
+    return pts, np.arange(len(pts)).reshape(-1, 4)
+
+
+def test_picture_draws_the_outer_surface_only():
+    """pipeline.picture.boundary_surface on a cube of 5·n³ disconnected tets: the outer
+    surface of a cube split into tets has 2 triangles per face square, 12 n² in all,
+    whatever the split; the triangles use original nodes (by index, so each keeps its own
+    value). (numpy only: no VTK in this process, which cannot share one with DOLFINx.)"""
+    from pipeline.picture import boundary_surface
+    n = 3
+    pts, tets = _tet_cube(n)
     used, tri = boundary_surface(pts, tets)
     xyz = pts[used][tri]
     on_face = [np.all(np.isclose(xyz[:, :, k], v), axis=1) for k in range(3) for v in (0, n)]
     assert len(tri) == 12 * n ** 2
     assert int(np.sum(np.any(on_face, axis=0))) == len(tri)
     assert len(np.unique(used)) == len(used) and tri.max() == len(used) - 1
+
+
+def test_picture_marks_a_peak_only_where_the_camera_sees_it():
+    """pipeline.picture.seen_from / mark_places on the cube [-1.5, 1.5]³: from an eye on the
+    −x side a node of the −x face is seen, one of the +x face is not (the cube is in the
+    way); mirrored (a quarter drawn whole), the +x peak's image in x on the −x face is
+    marked instead, and an eye on the +x side marks the peak itself."""
+    from pipeline.picture import boundary_surface, mark_places, seen_from
+    pts, tets = _tet_cube(3)
+    used, tri = boundary_surface(pts - 1.5, tets)
+    surf = (pts - 1.5)[used]
+    left, right = np.array([-10.0, 0.3, 0.2]), np.array([10.0, 0.3, 0.2])
+    assert seen_from(surf, tri, np.array([-1.5, 0.5, 0.5]), left, 1e-3)
+    assert not seen_from(surf, tri, np.array([1.5, 0.5, 0.5]), left, 1e-3)
+    peak = (1.5, 0.5, 0.5)
+    plain = mark_places(surf, surf, tri, peak, False, [left, right], 1e-3)
+    assert plain[0] is None and np.allclose(plain[1], peak)
+    whole = mark_places(surf, surf, tri, peak, True, [left, right], 1e-3)
+    assert np.allclose(whole[0], (-1.5, 0.5, 0.5)) and np.allclose(whole[1], peak)
 
 
 def test_picture_shows_the_field(coarse_run):
