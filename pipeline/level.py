@@ -18,7 +18,8 @@ from .loads import LoadCase, crosshead_loads, equilibrium
 from .meshing import ImportedMesh, Mesher, make_mesh
 from .peaks import MIDPOINT, UNAVERAGED, NodalPeak, averaged_von_mises, largest, nodal_peak, von_mises
 from .sections import section_results
-from .solve import solve
+from . import runcache, solvecache
+from .solve import Solution, solve
 
 Progress = Callable[[str], None]
 Hotspots = Sequence[tuple[float, float, float]]
@@ -41,6 +42,7 @@ class Level:
     constraint_reaction_N: float
     jacobian_ratio: float
     timings: dict[str, float]
+    scaled_from: dict | None = None  # see solve.Solution.scaled_from
     fields: tuple | None = None  # (u, von_mises) on the requested mesh only
     sections: dict | None = None  # section results (pipeline/sections.py), requested mesh only
 
@@ -99,17 +101,44 @@ def set_up(case: Case, factor: float, msh_path: Path | None = None, comm=MPI.COM
     return Problem(m, Material(E=case.E_MPa, nu=case.nu), lc, time.perf_counter() - t0)
 
 
+def solve_or_scale(case: Case, prob: Problem) -> Solution:
+    """The displacement of the problem: an earlier solve of the same mesh and problem at
+    another load or E, scaled (pipeline/solvecache.py: exact in linear elasticity), or a
+    new solve, which is then kept for the next run. With the run cache off, a new solve."""
+    m, lc = prob.mesh, prob.loads
+    V = fem.VectorFunctionSpace(m.mesh, ("Lagrange", case.order)) if runcache.enabled() else None
+    ids = None if V is None else solvecache.node_ids(V, m)
+    if not m.mesh.comm.allreduce(ids is not None, op=MPI.LAND):
+        return solve(m.mesh, m.facet_tags, case.order, prob.material, lc.tractions, lc.constraints,
+                     solver=case.solver, rtol=case.rtol)
+    t0 = time.perf_counter()
+    name = solvecache.key(case, m, V)
+    entry = solvecache.earlier(name, m.mesh.comm)
+    sol = None if entry is None else solvecache.scaled(entry, m, V, ids, lc, case)
+    if sol is not None:
+        sol.timings = {"assemble": 0.0, "solve": time.perf_counter() - t0}
+        return sol
+    t_key = time.perf_counter() - t0
+    sol = solve(m.mesh, m.facet_tags, case.order, prob.material, lc.tractions, lc.constraints,
+                solver=case.solver, rtol=case.rtol)
+    t0 = time.perf_counter()
+    solvecache.store(name, sol, ids, case)
+    sol.timings["solve"] += t_key + time.perf_counter() - t0
+    return sol
+
+
 def solve_level(case: Case, factor: float, msh_path: Path | None = None,
                 keep_fields: bool = False, with_sections: bool = False, comm=MPI.COMM_WORLD,
                 progress: Progress | None = None, hotspots: Hotspots = (),
                 load_mesh: Callable[[], ImportedMesh] | None = None,
-                mesher: Mesher | None = None, problem: Problem | None = None) -> Level:
+                mesher: Mesher | None = None, problem: Problem | None = None, reuse: bool = True) -> Level:
     """Build, mesh and solve the case with every mesh size times ``factor``; find the peaks.
 
     ``load_mesh``: that mesh made already (see :func:`analyse`); factor, msh_path and
     hotspots are then only the mesh's description. ``problem``: mesh, material and loads
     set up already (:func:`set_up`), when another solver gets the same ones. ``mesher``: this process's
-    meshing.Mesher of the case's part, if it has one. Raises NumericalError if the mesh has
+    meshing.Mesher of the case's part, if it has one. ``reuse``: take an earlier solve of
+    this mesh scaled to the case's load and E, and keep this one (:func:`solve_or_scale`). Raises NumericalError if the mesh has
     an inverted element, the solver fails, the result is not finite, or the loads do not
     balance to 1e-6·Q.
     """
@@ -120,8 +149,8 @@ def solve_level(case: Case, factor: float, msh_path: Path | None = None,
     say(f"mesh ×{factor:.3g}: {m.mesh.topology.index_map(3).size_global} tets, "
         f"geometry {m.timings['geometry']:.2f} s, mesh {m.timings['mesh']:.2f} s, "
         f"import {m.timings['import']:.2f} s")
-    sol = solve(m.mesh, m.facet_tags, case.order, mat, lc.tractions, lc.constraints,
-                solver=case.solver, rtol=case.rtol)
+    sol = solve_or_scale(case, prob) if reuse else solve(
+        m.mesh, m.facet_tags, case.order, mat, lc.tractions, lc.constraints, solver=case.solver, rtol=case.rtol)
     support, eq_err, point_r = equilibrium(lc, sol.reactions)
     limit = 1e-6 * case.load_N
     if not (eq_err <= limit and point_r <= limit):
@@ -138,12 +167,16 @@ def solve_level(case: Case, factor: float, msh_path: Path | None = None,
                                    sym_idx, pk.value_MPa)
     t_post = time.perf_counter() - t0
     timings = dict(m.timings, **sol.timings, post=t_post)
-    say(f"solve ×{factor:.3g}: {sol.dofs} DOFs, {sol.iterations} iterations ({case.solver}), "
-        f"assemble {sol.timings['assemble']:.2f} s, solve {sol.timings['solve']:.2f} s; "
+    how = (f"{sol.iterations} iterations ({case.solver}), assemble {sol.timings['assemble']:.2f} s, "
+           f"solve {sol.timings['solve']:.2f} s" if sol.scaled_from is None else
+           f"the solve at Q = {sol.scaled_from['load_N']:g} N, E = {sol.scaled_from['E_MPa']:g} MPa scaled "
+           f"({sol.timings['solve']:.2f} s)")
+    say(f"solve ×{factor:.3g}: {sol.dofs} DOFs, {how}; "
         f"peak {pk.value_MPa:.2f} MPa, critical {crit.value_MPa:.2f} MPa")
     return Level(factor=factor, dofs=sol.dofs, cells=m.mesh.topology.index_map(3).size_global,
                  peak=pk, critical=crit, iterations=sol.iterations,
                  residual_rel=sol.residual_rel, seat_force_N=lc.seat_force_z_N,
                  support_force_N=support, equilibrium_error_N=eq_err,
                  constraint_reaction_N=point_r, jacobian_ratio=m.jacobian_ratio,
-                 timings=timings, fields=(sol.u, vm) if keep_fields else None, sections=sections)
+                 timings=timings, scaled_from=sol.scaled_from, fields=(sol.u, vm) if keep_fields else None,
+                 sections=sections)

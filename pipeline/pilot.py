@@ -71,7 +71,7 @@ def pilot(case: Case, comm=MPI.COMM_WORLD, progress: Progress | None = None,
         say(f"pilot skipped: the places found by an earlier run of this part and model are reused "
             f"({len(known.hotspots)} places; load, E and the allowable do not move them)")
         return Pilot(factor=known.factor, hotspots=known.hotspots, time_s=time.perf_counter() - t0)
-    lv = solve_level(case, pilot_factor(case), comm=comm, keep_fields=True, mesher=mesher)
+    lv = solve_level(case, pilot_factor(case), comm=comm, keep_fields=True, mesher=mesher, reuse=False)
     vm = lv.fields[1]
     sep = PILOT_SEPARATION * case.dims.h3
     # Only the places of the peaks the run is asked for (case.want).

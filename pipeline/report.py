@@ -283,6 +283,13 @@ def _fe_lines(res: dict) -> list[str]:
         f"residual {fe['residual_rel']:.1e}, {fe['mpi_ranks']} MPI rank(s). Worst element det J ratio "
         f"{fe['mesh_min_jacobian_ratio']:.3f} (≤ 0 would be an inverted element"
         + ("; below 0.1 is poor" if fe['mesh_min_jacobian_ratio'] >= 0.1 else "; **below 0.1: poor, check the mesh**") + ").\n")
+    scaled = [lv["mesh_factor"] for lv in fe["levels"] if lv.get("scaled_from")]
+    if scaled:
+        src = next(lv["scaled_from"] for lv in fe["levels"] if lv.get("scaled_from"))
+        add(f"Not solved again: on the mesh(es) ×{', ×'.join(f'{f:g}' for f in scaled)} the displacement is an "
+            f"earlier run's solution of the same mesh and problem at Q = {_f(src['load_N'], 1)} N, E = "
+            f"{_f(src['E_MPa'], 0)} MPa, scaled by the load ratio and the inverse modulus ratio (exact in linear "
+            "elasticity; the solver figures above are that solve's).\n")
     add(f"Equilibrium: seat load {_f(fe['seat_force_N'], 3)} N, support {_f(fe['support_force_N'], 3)} N on the "
         f"model (share {fe['model_load_share']:g} of Q); imbalance {fe['equilibrium_error_N']:.2e} N; force "
         f"carried by the rigid-motion constraint {fe['constraint_reaction_N']:.2e} N (limit 1e-6·Q).\n")

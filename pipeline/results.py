@@ -82,6 +82,7 @@ def build_results(case: Case, levels: list[Level], timings: dict[str, float],
         "dofs": fine.dofs, "cells": fine.cells, "order": case.order,
         "model": case.model, "support": case.support, "solver": case.solver,
         "iterations": fine.iterations, "residual_rel": fine.residual_rel,
+        "scaled_from": fine.scaled_from,
         "equilibrium_error_N": fine.equilibrium_error_N,
         "constraint_reaction_N": fine.constraint_reaction_N,
         "seat_force_N": fine.seat_force_N, "support_force_N": fine.support_force_N,
@@ -106,7 +107,8 @@ def build_results(case: Case, levels: list[Level], timings: dict[str, float],
                     "peak_averaged_MPa": lv.peak.averaged.value_MPa,
                     "critical_unaveraged_MPa": lv.critical.unaveraged.value_MPa,
                     "critical_averaged_MPa": lv.critical.averaged.value_MPa,
-                    "iterations": lv.iterations, "time_s": sum(lv.timings.values())}
+                    "iterations": lv.iterations, "scaled_from": lv.scaled_from,
+                    "time_s": sum(lv.timings.values())}
                    for lv in levels],
     }
     return {

@@ -1,10 +1,11 @@
-"""Work that a run can reuse from an earlier one: meshes, and the pilot's refined places.
+"""Work that a run can reuse from an earlier one: meshes, the pilot's refined places, and
+(pipeline/solvecache.py) solutions.
 
 A mesh depends only on the part, the model and the mesh spec (sizes, factor, order,
 refined places) and on the meshing code; the pilot's places depend on those and on what
 shapes the stress field (support, Poisson's ratio, element order, solver), not on the
 load, Young's modulus or the allowable (linear elasticity, traction loads). So a run that
-changes only load, E or the allowable reuses both and starts from the solve.
+changes only load, E or the allowable reuses both, and its solutions too, scaled.
 
 Entries live in .venv/cache/runs (pickles and JSON written by this tool only), each
 written to a temporary name and renamed, so concurrent runs never read half a file; at
@@ -35,10 +36,11 @@ def enabled() -> bool:
     return os.environ.get("CROSSHEAD_NO_CACHE", "") in ("", "0")
 
 
-def _code_hash() -> str:
+def source_hash(files: tuple[str, ...]) -> str:
+    """A hash of the source files (paths from the repository root) whose code makes an entry."""
     repo = Path(__file__).resolve().parents[1]
     h = hashlib.sha1()
-    for rel in _CODE:
+    for rel in files:
         h.update((repo / rel).read_bytes())
     return h.hexdigest()
 
@@ -48,7 +50,7 @@ def key(kind: str, **parts: Any) -> str:
     def plain(v):
         return dataclasses.asdict(v) if dataclasses.is_dataclass(v) else v
     text = json.dumps({k: plain(v) for k, v in parts.items()}, sort_keys=True, default=str)
-    return f"{kind}-{hashlib.sha1((text + _code_hash()).encode()).hexdigest()[:20]}"
+    return f"{kind}-{hashlib.sha1((text + source_hash(_CODE)).encode()).hexdigest()[:20]}"
 
 
 def load(name: str) -> Any | None:

@@ -48,6 +48,9 @@ class Solution:
     reactions: list[np.ndarray]  # per Constraint: reaction force vector (N), summed
     reaction: np.ndarray | None = None  # R = K u - f at this rank's owned DOFs (N): section resultants
     timings: dict[str, float] = field(default_factory=dict)
+    # Set when this is an earlier solve scaled to a new load or E (pipeline/solvecache.py):
+    # that solve's load_N (N) and E_MPa (MPa).
+    scaled_from: dict | None = None
 
 
 # GAMG on an elasticity matrix: smoothed aggregation, threshold, aggressive coarsening on
@@ -92,6 +95,17 @@ def solver_options(name: str, rtol: float) -> dict[str, object]:
     raise ValueError(f"solver must be one of {SOLVERS}, got {name!r}")
 
 
+def constrained(V, facet_tags, constraints: Sequence[Constraint]) -> tuple[list, list[np.ndarray]]:
+    """The DirichletBCs of the constraints on space V and, per Constraint, the (V-numbered,
+    blocked-by-component) DOFs it fixes: where its reaction is summed."""
+    bcs, bc_dofs = [], []
+    for c in constraints:
+        b_, d_ = dirichlet_bc(V, facet_tags, c)
+        bcs += b_
+        bc_dofs.append(np.concatenate(d_) if d_ else np.array([], dtype=np.int32))
+    return bcs, bc_dofs
+
+
 def solve(mesh, facet_tags, order: int, mat: Material, tractions: Sequence[Traction],
           constraints: Sequence[Constraint], solver: str = "pmg", rtol: float = 1e-10,
           progress: Callable[[str], None] | None = None) -> Solution:
@@ -114,11 +128,7 @@ def solve(mesh, facet_tags, order: int, mat: Material, tractions: Sequence[Tract
     L_form = ufl.inner(zero, v) * ufl.dx
     for t in tractions:
         L_form += ufl.inner(t.value, v) * ds(t.marker)
-    bcs, bc_dofs = [], []
-    for c in constraints:
-        b_, d_ = dirichlet_bc(V, facet_tags, c)
-        bcs += b_
-        bc_dofs.append(np.concatenate(d_) if d_ else np.array([], dtype=np.int32))
+    bcs, bc_dofs = constrained(V, facet_tags, constraints)
     a = fem.form(a_form)
     L = fem.form(L_form)
     # pmg multiplies with the fine matrix in SBAIJ (see assemble_sbaij, p_multigrid); the

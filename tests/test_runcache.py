@@ -1,7 +1,7 @@
-"""Reusing meshes and pilot places between runs (pipeline/runcache.py): a run that changes
-only the load reuses both and gives the first run's stresses scaled by the load ratio
-(linear elasticity: an independent check of the reuse); what shapes the field changes the
-key."""
+"""Reusing meshes, pilot places and solutions between runs (pipeline/runcache.py,
+pipeline/solvecache.py): a run that changes only the load or E reuses all three, and its
+stresses equal those of a new solve at that load and E with the cache off (an independent
+check of the scaling); what shapes the field changes the key."""
 from __future__ import annotations
 
 from dataclasses import replace
@@ -20,16 +20,36 @@ def cache(tmp_path, monkeypatch):
     return tmp_path / "runs"
 
 
-def test_a_load_change_reuses_mesh_and_pilot(cache, tmp_path):
+def test_a_load_change_reuses_mesh_pilot_and_solution(cache, tmp_path, monkeypatch):
     case = resolve("05", None, {"mesh_factor": 3.0})
     first = execute_run(case, tmp_path / "a", levels=1, write_fields=False)
     n_entries = len(list(cache.glob("*.pickle")))
-    assert n_entries == 3  # the pilot's mesh, its places, the requested mesh
-    second = execute_run(replace(case, load_N=2.5 * case.load_N), tmp_path / "b", levels=1, write_fields=False)
-    assert len(list(cache.glob("*.pickle"))) == n_entries  # nothing new: both reused
+    assert n_entries == 4  # the pilot's mesh, its places, the requested mesh, its solution
+    changed = replace(case, load_N=2.5 * case.load_N, E_MPa=70_000.0)
+    second = execute_run(changed, tmp_path / "b", levels=1, write_fields=False)
+    assert len(list(cache.glob("*.pickle"))) == n_entries  # nothing new: all reused
     assert second["timings_s"]["pilot"] < 0.2 * first["timings_s"]["pilot"]
+    assert second["fe"]["scaled_from"] == {"load_N": case.load_N, "E_MPa": case.E_MPa}
+    monkeypatch.setenv("CROSSHEAD_NO_CACHE", "1")
+    fresh = execute_run(changed, tmp_path / "c", levels=1, write_fields=False)
+    assert fresh["fe"]["scaled_from"] is None
+    # The same mesh (the pilot's places are the same), solved anew: equal to the solver's
+    # tolerance (rtol 1e-8 on the residual).
+    assert fresh["fe"]["dofs"] == second["fe"]["dofs"]
     for key in ("peak_MPa", "critical_peak_MPa"):
-        assert second["fe"][key] == pytest.approx(2.5 * first["fe"][key], rel=1e-9)
+        assert second["fe"][key] == pytest.approx(fresh["fe"][key], rel=1e-7)
+        assert second["fe"][key] == pytest.approx(2.5 * first["fe"][key], rel=1e-12)
+    sec2, secf = second["fe"]["sections"], fresh["fe"]["sections"]
+    assert sec2["critical_section"]["nominal_MPa"] == pytest.approx(secf["critical_section"]["nominal_MPa"], rel=1e-7)
+
+
+def test_a_solution_of_another_mesh_or_poisson_ratio_is_not_reused(cache, tmp_path):
+    """A changed ν or mesh factor changes the solution's key: the run solves anew."""
+    case = resolve("05", None, {"mesh_factor": 3.0})
+    execute_run(case, tmp_path / "a", levels=1, write_fields=False)
+    for other in (replace(case, nu=0.25), replace(case, mesh_factor=3.2)):
+        res = execute_run(other, tmp_path / f"b{other.nu}{other.mesh_factor}", levels=1, write_fields=False)
+        assert res["fe"]["scaled_from"] is None
 
 
 def test_keys_follow_what_shapes_the_field():
