@@ -112,10 +112,11 @@ def run_point(spec: dict) -> dict | None:
 
 def point_env(threads: int) -> dict:
     """The environment of a point process: ``threads`` BLAS/OpenMP threads, unbuffered
-    output, the repository on the module path."""
+    output, the repository on the module path, and the run cache off: a point times the
+    meshing, the pilot and the solve, not the reuse of an earlier repeat's."""
     env = dict(os.environ)
     env.update(OMP_NUM_THREADS=str(threads), OPENBLAS_NUM_THREADS=str(threads),
-               PYTHONUNBUFFERED="1")
+               PYTHONUNBUFFERED="1", CROSSHEAD_NO_CACHE="1")
     env["PYTHONPATH"] = str(ROOT) + (os.pathsep + env["PYTHONPATH"] if env.get("PYTHONPATH") else "")
     return env
 

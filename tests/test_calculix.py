@@ -9,6 +9,7 @@ they differ only where elements are curved (the shoulder fillet).
 """
 import json
 import math
+import os
 import shutil
 import subprocess
 import sys
@@ -151,7 +152,9 @@ def test_dat_reader_rejects_missing_nodes(tmp_path):
 
 
 def test_bench_quick(tmp_path):
-    """--quick: 2 levels, P2 pmg + mumps + CalculiX, one repeat; every output written."""
+    """--quick: 2 levels, P2 pmg + mumps + CalculiX, one repeat; every output written. Run
+    with the run cache on, as `make bench` is: every point still meshes (points at the same
+    factor share a mesh, so a cache hit would time ~1 ms)."""
     ref = tmp_path / "ref.json"
     ref.write_text(json.dumps({"case": {"size": "05", "model": "quarter", "support": "bearing"},
                                "convergence": {"peak": {"extrapolated": 110.0, "status": "converged"},
@@ -159,7 +162,8 @@ def test_bench_quick(tmp_path):
     out = tmp_path / "bench"
     p = subprocess.run([sys.executable, "-m", "bench.run", "--quick", "--no-warmup",
                         "--reference", str(ref), "--out", str(out)],
-                       cwd=ROOT, capture_output=True, text=True, timeout=1800)
+                       cwd=ROOT, capture_output=True, text=True, timeout=1800,
+                       env=dict(os.environ, CROSSHEAD_NO_CACHE="0"))
     assert p.returncode == 0, p.stdout[-2000:] + p.stderr[-2000:]
     data = json.loads((out / "bench.json").read_text())
     rows = data["rows"]
@@ -168,6 +172,7 @@ def test_bench_quick(tmp_path):
     assert len(rows) == 6 and all("error" not in r for r in rows)
     for r in rows:
         assert r["t_total"] > 0 and r["mem_MiB"] > 0 and r["dofs"] > 0
+        assert r["t_mesh"] > 0.02, r  # meshed, not taken from the run cache
         assert math.isfinite(r["peak_err"]) and math.isfinite(r["critical_err"])
     by = {(r["kind"], r["solver"], r["factor"]): r for r in rows}
     for f in (2.0, 1.5):  # same mesh, same problem: MUMPS and p-multigrid agree, CalculiX is close
