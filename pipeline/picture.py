@@ -14,9 +14,16 @@ from __future__ import annotations
 import json
 import time
 import sys
+from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
+
+if TYPE_CHECKING:  # VTK loads only in the picture's own process (module docstring)
+    from vtkmodules.vtkCommonCore import vtkLookupTable
+    from vtkmodules.vtkRenderingAnnotation import vtkScalarBarActor
+    from vtkmodules.vtkRenderingCore import vtkRenderer, vtkRenderWindow, vtkTextActor
 
 WINDOW = (2000, 950)  # pixels: two panels side by side
 # Left: from above, the seat, the bore and the ligament beside it. Right: from below and
@@ -212,17 +219,29 @@ def _arrow_actor(tail: np.ndarray, vec: np.ndarray, colour: tuple[float, float, 
     return actor
 
 
-def render_folder(folder: Path, out_name: str = "von_mises.png") -> Path:
-    """Draw folder/von_mises.vtu with the peaks of folder/results.json into a PNG."""
-    import vtkmodules.vtkRenderingFreeType  # noqa: F401  (text)
-    import vtkmodules.vtkRenderingOpenGL2  # noqa: F401  (the render window's backend)
-    from vtkmodules.vtkFiltersSources import vtkSphereSource
-    from vtkmodules.vtkIOImage import vtkPNGWriter
-    from vtkmodules.vtkRenderingAnnotation import vtkAxesActor, vtkScalarBarActor
-    from vtkmodules.vtkRenderingCore import (vtkActor, vtkLightKit, vtkPolyDataMapper, vtkRenderer,
-                                             vtkRenderWindow, vtkWindowToImageFilter)
+@dataclass(frozen=True)
+class _Scene:
+    """What both panels draw (mm, MPa), read once from a run's folder."""
 
-    folder = Path(folder)
+    case: dict                  # results.json's case: size, load, model, support
+    points: np.ndarray          # drawn surface nodes, mm, displaced by ``scale`` × displacement
+    tri: np.ndarray             # surface triangles, indices into ``points``
+    vm: np.ndarray              # von Mises at ``points``, MPa
+    lut: vtkLookupTable         # colours over every node's von Mises range, MPa
+    length: float               # b6, mm: sets the displacement scale, camera distance and ball size
+    scale: float                # displacement magnification
+    centre: np.ndarray          # where both cameras look, mm
+    eyes: list[np.ndarray]      # camera positions of the panels, mm
+    mirrored: bool              # a quarter model drawn whole
+    arrows: list[tuple[np.ndarray, np.ndarray, str]]             # load_arrows
+    marks: list[tuple[str, float, str, list[np.ndarray | None]]]  # (label, MPa, colour, place per panel)
+    unseen: list[str]           # peaks no panel sees, named in the title instead
+
+
+def _scene(folder: Path) -> _Scene:
+    """Read folder/results.json and folder/von_mises.vtu into what the panels draw: the
+    outer surface displaced so its largest move is 4 % of b6 (mm), its colours, the load
+    arrows and where each panel marks the peaks."""
     res = json.loads((folder / "results.json").read_text(encoding="utf-8"))
     xyz, tets, arrays = read_vtu(folder / "von_mises.vtu")
     used, tri = boundary_surface(xyz, tets)
@@ -240,6 +259,18 @@ def render_folder(folder: Path, out_name: str = "von_mises.png") -> Path:
     arrows = load_arrows(res["case"]["dims"], res["case"]["load_N"], whole)
     eyes = [centre + length * np.asarray(d) for d in VIEWS]
     mirrored = whole and case["model"] == "quarter"
+    marks, unseen = _peak_marks(fe, points0, points, tri, mirrored, eyes, length)
+    return _Scene(case=case, points=points, tri=tri, vm=vm, lut=lut, length=length, scale=scale,
+                  centre=centre, eyes=eyes, mirrored=mirrored, arrows=arrows, marks=marks, unseen=unseen)
+
+
+def _peak_marks(fe: dict, points0: np.ndarray, points: np.ndarray, tri: np.ndarray, mirrored: bool,
+                eyes: list[np.ndarray], length: float
+                ) -> tuple[list[tuple[str, float, str, list[np.ndarray | None]]], list[str]]:
+    """The global and critical peaks as (label, value MPa, colour, drawn place per panel or
+    None), see :func:`mark_places`; and a line for each peak that no panel sees, so that the
+    title names it rather than a label pointing at a hidden place. ``length`` (b6, mm) sets
+    the tolerance of the line-of-sight test."""
     marks = [(label, value, colour, mark_places(points0, points, tri, loc, mirrored, eyes, 1e-3 * length))
              for label, value, loc, colour in (
                  ("global peak", fe["peak_MPa"], fe["peak_location_mm"], "black"),
@@ -247,92 +278,145 @@ def render_folder(folder: Path, out_name: str = "von_mises.png") -> Path:
     unseen = [f"{label} ({value:.1f} MPa) at ({', '.join(f'{c:.1f}' for c in loc)}) mm is not in view"
               for (label, value, _, places), loc in zip(marks, (fe["peak_location_mm"], fe["critical_location_mm"]))
               if all(p is None for p in places)]
+    return marks, unseen
 
-    window = vtkRenderWindow()
-    window.SetOffScreenRendering(1)
-    window.SetSize(*WINDOW)
-    window.SetNumberOfLayers(2)
-    for col, direction in enumerate(VIEWS):
-        ren = vtkRenderer()
-        ren.SetViewport(0.5 * col, 0.0, 0.5 * (col + 1), 1.0)
-        ren.SetBackground(1.0, 1.0, 1.0)
-        vtkLightKit().AddLightsToRenderer(ren)
-        window.AddRenderer(ren)
-        ren.AddActor(_surface_actor(points, tri, vm, lut))
-        for tail, vec, colour in arrows:
-            ren.AddActor(_arrow_actor(tail, vec, COLOURS[colour]))
-        for label, value, colour, places in marks:
-            p = places[col]
-            if p is None:
-                continue
-            sphere = vtkSphereSource()
-            sphere.SetCenter(*p)
-            sphere.SetRadius(0.012 * length)
-            sphere.SetThetaResolution(24)
-            sphere.SetPhiResolution(24)
-            mapper = vtkPolyDataMapper()
-            mapper.SetInputConnection(sphere.GetOutputPort())
-            ball = vtkActor()
-            ball.SetMapper(mapper)
-            ball.GetProperty().SetColor(*COLOURS[colour])
-            ren.AddActor(ball)
-            tag = _text(f"{label}: {value:.1f} MPa", 26, COLOURS[colour], box=True)
-            tag.GetPositionCoordinate().SetCoordinateSystemToWorld()  # drawn on top, at the peak
-            tag.GetPositionCoordinate().SetValue(*p)
-            ren.AddViewProp(tag)
-        cam = ren.GetActiveCamera()
-        cam.SetFocalPoint(*centre)
-        cam.SetPosition(*eyes[col])
-        cam.SetViewUp(0.0, 0.0, 1.0)
-        ren.ResetCameraClippingRange()
-        # x, y, z arrows in the panel's lower left corner, seen from the same direction.
-        axes_ren = vtkRenderer()
-        axes_ren.SetLayer(1)
-        axes_ren.SetViewport(0.5 * col, 0.0, 0.5 * col + 0.1, 0.21)
-        axes_ren.AddActor(vtkAxesActor())
-        axes_cam = axes_ren.GetActiveCamera()
-        axes_cam.SetFocalPoint(0.0, 0.0, 0.0)
-        axes_cam.SetPosition(*(4.0 * np.asarray(direction) / np.linalg.norm(direction)))
-        axes_cam.SetViewUp(0.0, 0.0, 1.0)
-        axes_ren.ResetCameraClippingRange()
-        window.AddRenderer(axes_ren)
-        if col == 0:
-            shown = f"{case['model']} model" + (", shown mirrored" if whole and case["model"] == "quarter" else "")
-            title = _text(f"Crosshead No. {case['size']}, Q = {case['load_N']:g} N, {shown}, "
-                          f"{case['support']} support\nvon Mises (MPa) on the deformed part, "
-                          f"displacement x{scale:.0f}\nred: hook load on the seat, green: journal supports"
-                          + "".join(f"\n{u}" for u in unseen),
-                          22, (0.0, 0.0, 0.0))
-            title.GetPositionCoordinate().SetCoordinateSystemToNormalizedViewport()
-            title.GetPositionCoordinate().SetValue(0.01, 0.87)
-            ren.AddViewProp(title)
-        else:
-            bar = vtkScalarBarActor()
-            bar.SetLookupTable(lut)
-            bar.SetTitle("von Mises (MPa)")
-            bar.SetNumberOfLabels(5)
-            bar.SetLabelFormat("%.1f")
-            bar.GetPositionCoordinate().SetValue(0.83, 0.15)
-            bar.SetWidth(0.1)
-            bar.SetHeight(0.7)
-            bar.UnconstrainedFontSizeOn()  # the font sizes below, not fitted to the bar
-            for prop in (bar.GetTitleTextProperty(), bar.GetLabelTextProperty()):
-                prop.SetFontSize(22)
-                prop.SetColor(0.0, 0.0, 0.0)
-                prop.SetItalic(False)
-                prop.SetShadow(False)
-            ren.AddViewProp(bar)
+
+def _panel(window: vtkRenderWindow, scene: _Scene, col: int) -> vtkRenderer:
+    """Add panel ``col`` (0 left, 1 right) to ``window`` and return its renderer: the
+    coloured surface, the load arrows and the peaks this panel's camera sees, looking from
+    ``scene.eyes[col]`` at the part's centre with z up."""
+    from vtkmodules.vtkRenderingCore import vtkLightKit, vtkRenderer
+    ren = vtkRenderer()
+    ren.SetViewport(0.5 * col, 0.0, 0.5 * (col + 1), 1.0)
+    ren.SetBackground(1.0, 1.0, 1.0)
+    vtkLightKit().AddLightsToRenderer(ren)
+    window.AddRenderer(ren)
+    ren.AddActor(_surface_actor(scene.points, scene.tri, scene.vm, scene.lut))
+    for tail, vec, colour in scene.arrows:
+        ren.AddActor(_arrow_actor(tail, vec, COLOURS[colour]))
+    for label, value, colour, places in scene.marks:
+        p = places[col]
+        if p is None:
+            continue
+        _peak_mark(ren, label, value, COLOURS[colour], p, 0.012 * scene.length)
+    cam = ren.GetActiveCamera()
+    cam.SetFocalPoint(*scene.centre)
+    cam.SetPosition(*scene.eyes[col])
+    cam.SetViewUp(0.0, 0.0, 1.0)
+    ren.ResetCameraClippingRange()
+    return ren
+
+
+def _peak_mark(ren: vtkRenderer, label: str, value: float, colour: tuple[float, float, float],
+               place: np.ndarray, radius_mm: float) -> None:
+    """A ball of ``radius_mm`` at ``place`` (mm) and a label "label: value MPa" drawn on
+    top of everything at the same place, so it stays readable where the ball is small."""
+    from vtkmodules.vtkFiltersSources import vtkSphereSource
+    from vtkmodules.vtkRenderingCore import vtkActor, vtkPolyDataMapper
+    sphere = vtkSphereSource()
+    sphere.SetCenter(*place)
+    sphere.SetRadius(radius_mm)
+    sphere.SetThetaResolution(24)
+    sphere.SetPhiResolution(24)
+    mapper = vtkPolyDataMapper()
+    mapper.SetInputConnection(sphere.GetOutputPort())
+    ball = vtkActor()
+    ball.SetMapper(mapper)
+    ball.GetProperty().SetColor(*colour)
+    ren.AddActor(ball)
+    tag = _text(f"{label}: {value:.1f} MPa", 26, colour, box=True)
+    tag.GetPositionCoordinate().SetCoordinateSystemToWorld()  # drawn on top, at the peak
+    tag.GetPositionCoordinate().SetValue(*place)
+    ren.AddViewProp(tag)
+
+
+def _axes_inset(window: vtkRenderWindow, col: int, direction: tuple[float, float, float]) -> None:
+    """x, y, z arrows in panel ``col``'s lower left corner, seen from the panel's
+    ``direction``, on the window's upper layer so the part never hides them."""
+    from vtkmodules.vtkRenderingAnnotation import vtkAxesActor
+    from vtkmodules.vtkRenderingCore import vtkRenderer
+    axes_ren = vtkRenderer()
+    axes_ren.SetLayer(1)
+    axes_ren.SetViewport(0.5 * col, 0.0, 0.5 * col + 0.1, 0.21)
+    axes_ren.AddActor(vtkAxesActor())
+    axes_cam = axes_ren.GetActiveCamera()
+    axes_cam.SetFocalPoint(0.0, 0.0, 0.0)
+    axes_cam.SetPosition(*(4.0 * np.asarray(direction) / np.linalg.norm(direction)))
+    axes_cam.SetViewUp(0.0, 0.0, 1.0)
+    axes_ren.ResetCameraClippingRange()
+    window.AddRenderer(axes_ren)
+
+
+def _title(scene: _Scene) -> vtkTextActor:
+    """The left panel's title: the case (N), what is drawn and how much the displacement
+    is magnified, the colours of the load arrows and any peak no panel sees."""
+    case = scene.case
+    shown = f"{case['model']} model" + (", shown mirrored" if scene.mirrored else "")
+    title = _text(f"Crosshead No. {case['size']}, Q = {case['load_N']:g} N, {shown}, "
+                  f"{case['support']} support\nvon Mises (MPa) on the deformed part, "
+                  f"displacement x{scene.scale:.0f}\nred: hook load on the seat, green: journal supports"
+                  + "".join(f"\n{u}" for u in scene.unseen),
+                  22, (0.0, 0.0, 0.0))
+    title.GetPositionCoordinate().SetCoordinateSystemToNormalizedViewport()
+    title.GetPositionCoordinate().SetValue(0.01, 0.87)
+    return title
+
+
+def _scale_bar(lut: vtkLookupTable) -> vtkScalarBarActor:
+    """The right panel's colour scale of von Mises (MPa), five labels, in black text."""
+    from vtkmodules.vtkRenderingAnnotation import vtkScalarBarActor
+    bar = vtkScalarBarActor()
+    bar.SetLookupTable(lut)
+    bar.SetTitle("von Mises (MPa)")
+    bar.SetNumberOfLabels(5)
+    bar.SetLabelFormat("%.1f")
+    bar.GetPositionCoordinate().SetValue(0.83, 0.15)
+    bar.SetWidth(0.1)
+    bar.SetHeight(0.7)
+    bar.UnconstrainedFontSizeOn()  # the font sizes below, not fitted to the bar
+    for prop in (bar.GetTitleTextProperty(), bar.GetLabelTextProperty()):
+        prop.SetFontSize(22)
+        prop.SetColor(0.0, 0.0, 0.0)
+        prop.SetItalic(False)
+        prop.SetShadow(False)
+    return bar
+
+
+def _write_png(window: vtkRenderWindow, out: Path) -> None:
+    """Render ``window`` once, off screen, and write its pixels to ``out`` (PNG)."""
+    from vtkmodules.vtkIOImage import vtkPNGWriter
+    from vtkmodules.vtkRenderingCore import vtkWindowToImageFilter
     window.Render()
     image = vtkWindowToImageFilter()
     image.SetInput(window)
     image.ReadFrontBufferOff()
     image.ShouldRerenderOff()  # rendered just above
     image.Update()
-    out = folder / out_name
     writer = vtkPNGWriter()
     writer.SetFileName(str(out))
     writer.SetInputConnection(image.GetOutputPort())
     writer.Write()
+
+
+def render_folder(folder: Path, out_name: str = "von_mises.png") -> Path:
+    """Draw folder/von_mises.vtu with the peaks of folder/results.json into a PNG."""
+    import vtkmodules.vtkRenderingFreeType  # noqa: F401  (text)
+    import vtkmodules.vtkRenderingOpenGL2  # noqa: F401  (the render window's backend)
+    from vtkmodules.vtkRenderingCore import vtkRenderWindow
+
+    folder = Path(folder)
+    scene = _scene(folder)
+    window = vtkRenderWindow()
+    window.SetOffScreenRendering(1)
+    window.SetSize(*WINDOW)
+    window.SetNumberOfLayers(2)
+    for col, direction in enumerate(VIEWS):
+        ren = _panel(window, scene, col)
+        _axes_inset(window, col, direction)
+        # The left panel carries the title, the right one the colour scale.
+        ren.AddViewProp(_title(scene) if col == 0 else _scale_bar(scene.lut))
+    out = folder / out_name
+    _write_png(window, out)
     window.Finalize()
     return out
 
