@@ -198,6 +198,41 @@ def make_parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     args = make_parser().parse_args(argv)
+    _fill_defaults(args)
+    error = _argument_error(args)
+    if error is not None:
+        sys.stderr.write(error)
+        return 2
+    ref = _reference(args)
+    out = Path(args.out)
+    if not out.is_absolute():
+        out = ROOT / out
+    out.mkdir(parents=True, exist_ok=True)
+    load_before = os.getloadavg()
+    fingerprint = source_fingerprint()
+    points = build_matrix(args)
+    if args.warmup:
+        _warm_up(points, max(args.factors), args.timeout)
+    t_bench = time.perf_counter()
+    rows = _run_points(points, args.repeats, args.timeout, ref)
+    changed = source_fingerprint() != fingerprint
+    if changed:
+        _say("WARNING: geometry/ or pipeline/ sources changed while the bench ran; "
+             "its points may come from different meshes: run it again on a frozen tree")
+    summ, by_cores, text = _print_tables(rows, args.threads, args.ranks, args.ranks_at)
+    meta = _meta(args, load_before, t_bench, fingerprint, changed)
+    _write_outputs(out, meta, ref, rows, summ, by_cores, text)
+    return 0 if all("error" not in r for r in rows) else 3
+
+
+def _say(msg: str) -> None:
+    """One progress line, stamped with the seconds since this process started."""
+    print(f"[bench {time.perf_counter() - T_START:7.1f} s] {msg}", flush=True)
+
+
+def _fill_defaults(args: argparse.Namespace) -> None:
+    """Fill the options left out: --quick's small matrix first, then the full matrix's
+    defaults (mesh factors, orders, solvers, 3 repeats) for what is still unset."""
     if args.quick:
         args.factors = args.factors or list(QUICK_FACTORS)
         args.orders = args.orders or [2]
@@ -211,25 +246,31 @@ def main(argv: list[str] | None = None) -> int:
     args.orders = args.orders or [1, 2, 3]
     args.solvers = args.solvers or list(SOLVERS)
     args.repeats = args.repeats or 3
+
+
+def _argument_error(args: argparse.Namespace) -> str | None:
+    """The stderr line for options the bench cannot run with (exit 2), or None: reference
+    values that are not two positive MPa, unknown solvers or orders, counts below 1, or
+    CalculiX asked for but not installed."""
     bad = [s for s in args.solvers if s not in SOLVERS] + \
           [s for s in args.ccx_solvers if s not in ("spooles", "iterative")]
     if args.reference_values is not None and (len(args.reference_values) != 2 or
                                               not all(math.isfinite(v) and v > 0 for v in args.reference_values)):
-        sys.stderr.write("error: --reference-values needs two positive numbers GLOBAL,CRITICAL (MPa)\n")
-        return 2
+        return "error: --reference-values needs two positive numbers GLOBAL,CRITICAL (MPa)\n"
     if bad or any(o not in (1, 2, 3) for o in args.orders) or args.repeats < 1 or \
             any(n < 1 for n in args.ranks) or args.threads < 1:
-        sys.stderr.write("error: bad --solvers/--ccx-solvers/--orders/--repeats/--ranks/--threads\n")
-        return 2
+        return "error: bad --solvers/--ccx-solvers/--orders/--repeats/--ranks/--threads\n"
     if args.ccx and shutil.which("ccx") is None:
-        sys.stderr.write("error: ccx (CalculiX) not found; install calculix-ccx (tools/setup.sh) or use --no-ccx\n")
-        return 2
+        return "error: ccx (CalculiX) not found; install calculix-ccx (tools/setup.sh) or use --no-ccx\n"
+    return None
 
-    def say(msg: str) -> None:
-        print(f"[bench {time.perf_counter() - T_START:7.1f} s] {msg}", flush=True)
 
+def _reference(args: argparse.Namespace) -> dict:
+    """The peaks (MPa) errors are measured against: the convergence study's extrapolation
+    (made first when the default path is missing or --remake-reference asks), or the
+    --reference-values given by hand; says which."""
     make_ref = Path(args.reference) == DEFAULT_REFERENCE
-    ref = load_reference(args.reference, make_ref or args.remake_reference, say,
+    ref = load_reference(args.reference, make_ref or args.remake_reference, _say,
                          remake=args.remake_reference)
     if args.reference_values:
         # An independent solution given by hand (e.g. P3 + MUMPS): errors are measured
@@ -238,46 +279,53 @@ def main(argv: list[str] | None = None) -> int:
         ref["peak"], ref["critical"] = args.reference_values
         ref["path"] = f"--reference-values (study: {ref['path']})"
         ref["peak_gci"] = ref["critical_gci"] = None
-    say(f"reference: peak {ref['peak']:.3f} MPa (GCI {100 * (ref['peak_gci'] or 0):.2f} %), "
-        f"critical {ref['critical']:.3f} MPa (GCI {100 * (ref['critical_gci'] or 0):.2f} %) from {ref['path']}")
-    out = Path(args.out)
-    if not out.is_absolute():
-        out = ROOT / out
-    out.mkdir(parents=True, exist_ok=True)
-    load_before = os.getloadavg()
-    fingerprint = source_fingerprint()
-    points = build_matrix(args)
-    if args.warmup:
-        seen = set()
-        for spec, ranks, thr in points:
-            key = (spec["kind"], spec["order"])
-            if key in seen or ranks != 1:
-                continue
-            seen.add(key)
-            w = dict(spec, factor=max(args.factors))
-            say(f"warm-up (form cache) {key[0]} P{key[1]}")
-            r = spawn_point(w, 1, thr, args.timeout)
-            if "error" in r:
-                say(f"  warm-up failed: {r['error']}")
-    rows = []
-    t_bench = time.perf_counter()
+    _say(f"reference: peak {ref['peak']:.3f} MPa (GCI {100 * (ref['peak_gci'] or 0):.2f} %), "
+         f"critical {ref['critical']:.3f} MPa (GCI {100 * (ref['critical_gci'] or 0):.2f} %) from {ref['path']}")
+    return ref
+
+
+def _warm_up(points: list[tuple[dict, int, int]], factor: float, timeout: float) -> None:
+    """One untimed run per kind and element order on one rank, at the coarsest mesh
+    ``factor``, so the form-compiler cache is full before any point is timed."""
+    seen = set()
     for spec, ranks, thr in points:
-        runs = [spawn_point(spec, ranks, thr, args.timeout) for _ in range(args.repeats)]
+        key = (spec["kind"], spec["order"])
+        if key in seen or ranks != 1:
+            continue
+        seen.add(key)
+        w = dict(spec, factor=factor)
+        _say(f"warm-up (form cache) {key[0]} P{key[1]}")
+        r = spawn_point(w, 1, thr, timeout)
+        if "error" in r:
+            _say(f"  warm-up failed: {r['error']}")
+
+
+def _run_points(points: list[tuple[dict, int, int]], repeats: int, timeout: float, ref: dict) -> list[dict]:
+    """Every point ``repeats`` times, each run in a fresh process (at most ``timeout`` s);
+    one row per point with the median times (s) and the errors against ``ref``, each said
+    as it finishes."""
+    rows = []
+    for spec, ranks, thr in points:
+        runs = [spawn_point(spec, ranks, thr, timeout) for _ in range(repeats)]
         row = aggregate(spec, ranks, thr, runs, ref)
         rows.append(row)
         if "error" in row:
-            say(f"{label(row)} factor {spec['factor']}: FAILED {row['error']}")
+            _say(f"{label(row)} factor {spec['factor']}: FAILED {row['error']}")
         else:
-            say(f"{label(row)} factor {spec['factor']}: {row['dofs']} DOFs, total {row['t_total']:.2f} s, "
-                f"peak {row['peak_MPa']:.2f} ({100 * row['peak_err']:+.2f} %), critical "
-                f"{row['critical_MPa']:.2f} ({100 * row['critical_err']:+.2f} %)")
-    changed = source_fingerprint() != fingerprint
-    if changed:
-        say("WARNING: geometry/ or pipeline/ sources changed while the bench ran; "
-            "its points may come from different meshes: run it again on a frozen tree")
-    summ = summary(rows, cores=args.threads)
-    by_cores = {n * args.threads: summary(rows, cores=n * args.threads)
-                for n in args.ranks if n != 1 and args.ranks_at != "finest"}
+            _say(f"{label(row)} factor {spec['factor']}: {row['dofs']} DOFs, total {row['t_total']:.2f} s, "
+                 f"peak {row['peak_MPa']:.2f} ({100 * row['peak_err']:+.2f} %), critical "
+                 f"{row['critical_MPa']:.2f} ({100 * row['critical_err']:+.2f} %)")
+    return rows
+
+
+def _print_tables(rows: list[dict], threads: int, ranks: list[int],
+                  ranks_at: str) -> tuple[dict, dict[int, dict], str]:
+    """Print the table of every point and the time-to-1 % summary on one core per process
+    (``threads`` threads), then on each larger core count the --ranks ran every level on;
+    returns (summary, summaries by core count, table text) for bench.json."""
+    summ = summary(rows, cores=threads)
+    by_cores = {n * threads: summary(rows, cores=n * threads)
+                for n in ranks if n != 1 and ranks_at != "finest"}
     text = table(rows)
     print()
     print(text)
@@ -286,7 +334,14 @@ def main(argv: list[str] | None = None) -> int:
     for n, s_n in by_cores.items():
         print(f"\non {n} cores (pipeline on {n} MPI ranks, CalculiX with {n} threads):")
         print(summary_text(s_n, scaling=False))
-    meta = {"date": time.strftime("%Y-%m-%d %H:%M:%S"), "host": platform.node(),
+    return summ, by_cores, text
+
+
+def _meta(args: argparse.Namespace, load_before: tuple[float, float, float], t_bench: float,
+          fingerprint: str, changed: bool) -> dict:
+    """How, where and when the bench ran, for bench.json: the machine, its load before
+    and now, the wall time since ``t_bench`` (s), the sources' fingerprint, versions."""
+    return {"date": time.strftime("%Y-%m-%d %H:%M:%S"), "host": platform.node(),
             "cpus": os.cpu_count(), "python": sys.version.split()[0],
             "loadavg_before": load_before, "loadavg_after": os.getloadavg(),
             "bench_wall_s": time.perf_counter() - t_bench, "repeats": args.repeats,
@@ -298,14 +353,19 @@ def main(argv: list[str] | None = None) -> int:
                       "CalculiX core = write + ccx + read; total = geometry → peaks, including the "
                       "gmsh mesh and the DOLFINx import used to build its loads and compute its peaks",
                       "errors are relative to the Richardson extrapolation of the convergence study"]}
+
+
+def _write_outputs(out: Path, meta: dict, ref: dict, rows: list[dict], summ: dict,
+                   by_cores: dict[int, dict], text: str) -> None:
+    """Write bench.json (everything, units s, MPa, MiB), bench.csv (the rows) and
+    bench.png (error against time, when matplotlib can draw it) into ``out``."""
     data = {"units": {"time": "s", "stress": "MPa", "memory": "MiB"}, "meta": meta,
             "reference": ref, "rows": rows, "summary": summ,
             "summary_by_cores": {str(n): v for n, v in by_cores.items()}, "table": text}
     (out / "bench.json").write_text(json.dumps(json_safe(data), indent=2) + "\n")
     write_csv(out / "bench.csv", rows)
     plotted = pareto_plot(out / "bench.png", rows, ref)
-    say(f"wrote {out}/bench.json, bench.csv" + (", bench.png" if plotted else ""))
-    return 0 if all("error" not in r for r in rows) else 3
+    _say(f"wrote {out}/bench.json, bench.csv" + (", bench.png" if plotted else ""))
 
 
 def source_fingerprint() -> str:
