@@ -11,7 +11,7 @@ import numpy as np
 from .part import GeometryError
 
 HO_TARGET = 0.3  # worst det J ratio accepted on a curved tet (see _relax_curved)
-RELAX_STEP = 0.5  # how far _relax_curved pulls a mid-edge node per pass (× its bow); see there
+RELAX_STEP = 0.5  # how far _straighten pulls a mid-edge node per pass (× its bow); see there
 
 
 def ensure_curved_quality(order: int) -> float:
@@ -75,67 +75,108 @@ def _relax_curved(target: float) -> float:
     near its tangent line with the body face: their boundary edges bow (follow the CAD
     surface) while their interior edge stays straight, which folds a tet thinner than the bow.
 
-    1. The mid-edge nodes of each bad tet move by the mean bow of its curved edges, so the
-       sliver bends with the surface; a move is kept only if no tet it touches ends worse
-       and below target. Nodes on curves and on named surfaces (symmetry planes, seat,
-       bearing) stay. The others move: inside the volume, on a free plane (the body face
-       beside the fillet leaves its plane by hundredths of a mm) and on the free fillet
-       itself, whose bowed nodes get the mean bow on top of their own.
-    2. What is still bad: mid-edge nodes are pulled towards their edge's midpoint,
-       RELAX_STEP of their bow per pass (a straight tet has ratio 1, so this ends); the
-       boundary there becomes locally faceted, and fillet nodes lie off the torus by
-       hundredths of a mm (docs/accuracy.md).
+    Two steps: 1. :func:`_bend_with_surface` bends the bad tets with the surface;
+    2. :func:`_straighten` pulls what is still bad towards straight. The nodes either moved
+    are set in gmsh.
 
     It gives the peaks of gmsh's high-order optimiser on the same linear meshes to a few
     hundredths of a percent, in a fraction of its time; why step 1 and why steps of half
     the bow: docs/decisions.md.
     """
+    mesh = _gmsh_tet10()
+    if mesh is None:
+        return 1.0
+    tags, index, conn, x = mesh
+    straight = _straight_positions(x, conn)
+    movable = _movable_nodes(index, len(x))
+    ratio = _ratios(x, conn, straight)
+    bad = np.flatnonzero(ratio < target)
+    if len(bad) == 0:
+        return float(ratio.min())
+    x, bent = _bend_with_surface(x, conn, straight, movable, ratio, bad, target)
+    x, alpha, final = _straighten(x, conn, straight, ratio, bent, target)
+    moved = np.union1d(np.flatnonzero(alpha < 1), bent)
+    for n in moved:
+        gmsh.model.mesh.setNode(int(tags[n]), x[n].tolist(), [])
+    return float(final.min())
+
+
+def _gmsh_tet10() -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None:
+    """The 10-node tets of the current gmsh mesh, or None when it has none: (node tags,
+    the index of each tag into the node arrays, the tets as node indices (m×10, gmsh's
+    order), node coordinates (n×3, a copy)). Lengths are gmsh's: mm of the part scaled to
+    h3 = 25 mm (pipeline/meshing.py, meshing_scale)."""
     _, conn = gmsh.model.mesh.getElementsByType(11)
     if len(conn) == 0:
-        return 1.0
+        return None
     tags, coords, _ = gmsh.model.mesh.getNodes()
     index = np.zeros(int(tags.max()) + 1, dtype=np.int64)
     index[tags.astype(np.int64)] = np.arange(len(tags))
     conn = index[conn.astype(np.int64)].reshape(-1, 10)
     x = coords.reshape(-1, 3).copy()
+    return tags, index, conn, x
+
+
+def _straight_positions(x: np.ndarray, conn: np.ndarray) -> np.ndarray:
+    """Node positions (n×3, gmsh lengths) with every mid-edge node moved to the midpoint of
+    its edge: the tets as straight-sided. ``x - straight`` is a node's bow, zero off curved
+    surfaces and curves."""
     mids = conn[:, 4:].ravel()
     a = conn[:, _TET10_EDGES[:, 0]].ravel()
     b = conn[:, _TET10_EDGES[:, 1]].ravel()
     straight = x.copy()
     straight[mids] = 0.5 * (x[a] + x[b])
-    bow = x - straight                           # zero off curved surfaces and curves
-    # Nodes on a named surface (symmetry planes, seat, bearing) or on a curve stay put in
-    # step 1: a mid-edge node on a plane has no bow either, but must stay on its plane.
-    movable = np.ones(len(x), dtype=bool)
+    return straight
+
+
+def _movable_nodes(index: np.ndarray, n: int) -> np.ndarray:
+    """Which of the ``n`` nodes :func:`_bend_with_surface` may move (bool per node):
+    not those on a curve or on a named surface (symmetry planes, seat, bearing). A mid-edge
+    node on a plane has no bow either, but must stay on its plane."""
+    movable = np.ones(n, dtype=bool)
     pinned = [(1, t) for _, t in gmsh.model.getEntities(1)]
     pinned += [(2, t) for _, g in gmsh.model.getPhysicalGroups(2)
                for t in gmsh.model.getEntitiesForPhysicalGroup(2, g)]
     for dim, t in pinned:
         movable[index[gmsh.model.mesh.getNodes(dim, t, includeBoundary=True)[0].astype(np.int64)]] = False
+    return movable
 
-    def ratios(y: np.ndarray, known: np.ndarray | None = None, moved: np.ndarray | None = None) -> np.ndarray:
-        # Only tets with a bowed mid-edge node: a straight tet has ratio 1 (and most are).
-        # Given the ratios ``known`` of a y that differs only at the nodes ``moved``, only
-        # the tets with a moved node are computed again (the loop below moves few nodes).
-        if known is None:
-            todo = np.arange(len(conn))
-            r = np.ones(len(conn))
-        else:
-            hit = np.zeros(len(y), dtype=bool)
-            hit[moved] = True
-            todo = np.flatnonzero(hit[conn[:, 4:]].any(axis=1))  # only mid-edge nodes move
-            r = known.copy()
-        mid = conn[todo, 4:]
-        bowed = np.abs(y[mid] - straight[mid]).max(axis=(1, 2)) > 0
-        r[todo] = 1.0
-        r[todo[bowed]] = _tet10_det_ratios(y, conn[todo[bowed]])
-        return r
 
-    ratio = ratios(x)
-    bad = np.flatnonzero(ratio < target)
-    if len(bad) == 0:
-        return float(ratio.min())
-    # 1. Movable mid-edge nodes of bad tets move by the mean bow of the tet's bowed ones.
+def _ratios(y: np.ndarray, conn: np.ndarray, straight: np.ndarray, known: np.ndarray | None = None,
+            moved: np.ndarray | None = None) -> np.ndarray:
+    """det J ratio of every tet for node positions ``y``, computed only for tets with a
+    bowed mid-edge node: a straight tet has ratio 1 (and most are).
+
+    Given the ratios ``known`` of a y that differs only at the nodes ``moved``, only the
+    tets with a moved node are computed again (the repair moves few nodes per pass).
+    """
+    if known is None:
+        todo = np.arange(len(conn))
+        r = np.ones(len(conn))
+    else:
+        hit = np.zeros(len(y), dtype=bool)
+        hit[moved] = True
+        todo = np.flatnonzero(hit[conn[:, 4:]].any(axis=1))  # only mid-edge nodes move
+        r = known.copy()
+    mid = conn[todo, 4:]
+    bowed = np.abs(y[mid] - straight[mid]).max(axis=(1, 2)) > 0
+    r[todo] = 1.0
+    r[todo[bowed]] = _tet10_det_ratios(y, conn[todo[bowed]])
+    return r
+
+
+def _bend_with_surface(x: np.ndarray, conn: np.ndarray, straight: np.ndarray, movable: np.ndarray,
+                       ratio: np.ndarray, bad: np.ndarray, target: float) -> tuple[np.ndarray, np.ndarray]:
+    """Step 1 of :func:`_relax_curved`: returns (node positions, the nodes moved).
+
+    The mid-edge nodes of each bad tet (``bad``, ratios ``ratio``) move by the mean bow of
+    its curved edges, so the sliver bends with the surface; a move is kept only if no tet it
+    touches ends worse and below ``target``. Nodes on curves and on named surfaces
+    (symmetry planes, seat, bearing) stay (``movable``). The others move: inside the volume,
+    on a free plane (the body face beside the fillet leaves its plane by hundredths of a mm)
+    and on the free fillet itself, whose bowed nodes get the mean bow on top of their own.
+    """
+    bow = x - straight                           # zero off curved surfaces and curves
     m = conn[bad, 4:]
     bowed = np.abs(bow[m]).max(axis=2) > 0
     mean_bow = (bow[m] * bowed[..., None]).sum(1) / np.maximum(bowed.sum(1), 1)[:, None]
@@ -147,18 +188,33 @@ def _relax_curved(target: float) -> float:
     bent = np.flatnonzero(count > 0)
     trial = x.copy()
     trial[bent] += total[bent] / count[bent, None]
-    r_trial = ratios(trial, ratio, bent)
+    r_trial = _ratios(trial, conn, straight, ratio, bent)
     worse = np.flatnonzero((r_trial < ratio) & (r_trial < target))
     reject = np.zeros(len(x), dtype=bool)
     reject[conn[worse, 4:].ravel()] = True
     bent = bent[~reject[bent]]
+    x = x.copy()
     x[bent] = trial[bent]
-    # 2. Pull what is still bad towards straight.
-    curved = x.copy()
+    return x, bent
+
+
+def _straighten(x: np.ndarray, conn: np.ndarray, straight: np.ndarray, ratio: np.ndarray,
+                bent: np.ndarray, target: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Step 2 of :func:`_relax_curved`: returns (node positions, each node's share of its
+    bow left, 1 as curved and 0 straight, every tet's ratio).
+
+    What is still below ``target`` after step 1 (which moved ``bent`` from positions
+    with ratios ``ratio``): its mid-edge nodes are pulled towards their edge's midpoint,
+    RELAX_STEP of their bow per pass (a straight tet has ratio 1, so this ends); the
+    boundary there becomes locally faceted, and fillet nodes lie off the torus by
+    hundredths of a mm (docs/accuracy.md).
+    """
+    curved = x                                   # as step 1 left them
+    x = x.copy()
     alpha = np.ones(len(x))                      # 1 = as curved, 0 = straight
     final, nodes = ratio, bent
     while True:
-        final = ratios(x, final, nodes)
+        final = _ratios(x, conn, straight, final, nodes)
         bad = final < target
         if not bad.any():
             break
@@ -168,10 +224,7 @@ def _relax_curved(target: float) -> float:
             raise GeometryError("mesh: a tet stays inverted with straight edges")
         alpha[nodes] = np.maximum(alpha[nodes] - RELAX_STEP, 0.0)
         x[nodes] = straight[nodes] + alpha[nodes, None] * (curved[nodes] - straight[nodes])
-    moved = np.union1d(np.flatnonzero(alpha < 1), bent)
-    for n in moved:
-        gmsh.model.mesh.setNode(int(tags[n]), x[n].tolist(), [])
-    return float(final.min())
+    return x, alpha, final
 
 
 _SAMPLE = [(0, 0, 0), (1, 0, 0), (0, 1, 0), (0, 0, 1), (.5, 0, 0), (0, .5, 0), (0, 0, .5),
