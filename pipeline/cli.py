@@ -12,7 +12,12 @@ import math
 import os
 import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:  # for annotations only: the commands import what they use when they run
+    from pipeline.case import Case
 
 T_START = time.perf_counter()
 
@@ -216,7 +221,9 @@ def main(argv: list[str] | None = None, handle_signals: bool = False) -> int:
         return 130
 
 
-def _dispatch(args) -> int:
+def _dispatch(args: argparse.Namespace) -> int:
+    """Do the command; a failure becomes one line on stderr (rank 0) and its exit status:
+    2 bad input or an output folder that cannot be written, 3 the computation failed."""
     from mpi4py import MPI
 
     from geometry.part import GeometryError
@@ -226,71 +233,7 @@ def _dispatch(args) -> int:
     try:
         if args.command == "sweep":
             return _sweep(args, rank0)
-        from dataclasses import replace
-
-        from pipeline.case import check, resolve
-        overrides = {k: getattr(args, k) for k in CASE_KEYS}
-        overrides.update({f"dims.{k}": v for k, v in args.dim})
-        loads = args.loads or []
-        if loads:
-            overrides["load_N"] = loads[0]
-        for q in loads[1:]:  # every load of a sweep must pass the same checks as the first
-            check(replace(resolve(args.size, args.case, overrides), load_N=q))
-        if args.size is None and args.case is None:
-            raise InputError("size: give --size (hook number) or --case (case file)")
-        case = resolve(args.size, args.case, overrides)
-        if args.levels < 1 or args.levels > 8:
-            raise InputError(f"levels: must lie in 1..8, got {args.levels}")
-        if args.command == "converge" and (args.levels < 4 or args.ratio < 1.3):
-            raise InputError("levels/ratio: a convergence study needs at least 4 meshes and ratio >= 1.3")
-        if not 1.1 <= args.ratio <= 3:
-            raise InputError(f"ratio: must lie in [1.1, 3], got {args.ratio:g}")
-        if args.command == "converge":  # the study's finest mesh must pass the case's mesh checks too
-            finest = case.mesh_factor / args.ratio ** max(args.levels - 3, 0)
-            try:
-                check(replace(case, mesh_factor=finest))
-            except InputError as exc:
-                raise InputError(f"levels: the finest mesh of this study (mesh factor {case.mesh_factor:g} / "
-                                 f"{args.ratio:g}^{args.levels - 3} = {finest:.3g}) is not allowed: {exc}") from None
-        if rank0:  # before any form is compiled; the other ranks wait for rank 0's compiles
-            from pipeline.formcache import claims_since, jit_cache_dir, remove_interrupted
-            from pipeline.interrupts import on_stop
-            cache, started = jit_cache_dir(), time.time()
-            # A compile cut short by Ctrl-C leaves its claim, and every later run needing
-            # that form would wait for it and time out: a stopped run removes its own.
-            stack.enter_context(on_stop(lambda: [c.unlink(missing_ok=True) for c in claims_since(cache, started)]))
-            for stale in remove_interrupted(cache):
-                _progress(f"removed {stale.name} from the form cache (an interrupted compile)")
-        from pipeline.resources import check_fits, factors_of
-        est = check_fits(case, factors_of(case, args.command, args.levels, args.ratio), args.memory_limit)
-        if est is not None and est.tets > 3e5 and rank0 and not args.quiet:
-            _progress(f"a large run: the finest mesh has about {est.tets:.1e} tets, {est.dofs:.1e} DOFs, "
-                      f"{est.bytes / 1024 ** 3:.1f} GiB; meshing alone may take minutes")
-        from pipeline.outdir import check_out, default_out
-        out = args.out if args.out is not None else default_out(
-            case.name if args.command == "run" else f"{case.name}-converge")
-        check_out(out)  # refused before any work; checked again under the lock
-        say = (lambda s: None) if (args.quiet or not rank0) else _progress
-        if case.want != "both":
-            other = "global (fillet)" if case.want == "critical" else "critical (bore ligament)"
-            say(f"want = {case.want}: skipping the refinement for the {other} peak"
-                + (" (fillet elements at the bore edges' size; the pilot refines the ligaments only)"
-                   if case.want == "critical" else " (the pilot refines the fillet only)")
-                + "; that peak is shown without a verdict")
-        _progress(f"imports {time.perf_counter() - T_START:.2f} s; case {case.name}: hook No. {case.size}, "
-                  f"Q = {case.load_N:g} N, {case.model} model, {case.support} support, P{case.order}") \
-            if not args.quiet and rank0 else None
-        if args.command == "run":
-            from pipeline.commands import execute_run
-            res = execute_run(case, out, levels=args.levels, ratio=args.ratio, progress=say,
-                              write_fields=not args.no_fields, loads=loads if len(loads) > 1 else None,
-                              quarter_fields=args.quarter_fields)
-        else:
-            from pipeline.commands import execute_converge
-            res = execute_converge(case, out, levels=args.levels, ratio=args.ratio, progress=say)
-        if rank0 and not args.quiet:
-            _summary(res, out)
-        return 0
+        return _run_or_converge(args, rank0, stack)
     except InputError as exc:
         if rank0:
             sys.stderr.write(f"error: {_one_line(exc)}\n")
@@ -314,6 +257,115 @@ def _dispatch(args) -> int:
         return 3
     finally:
         stack.close()
+
+
+def _run_or_converge(args: argparse.Namespace, rank0: bool, stack: contextlib.ExitStack) -> int:
+    """The run and converge commands: the case and the output folder are checked before
+    any work, then pipeline.commands does it and rank 0 prints the summary. Clean-ups
+    that must last until the command ends go on ``stack``."""
+    case, loads = _case_of(args)
+    if rank0:  # before any form is compiled; the other ranks wait for rank 0's compiles
+        _guard_form_cache(stack)
+    _check_memory(args, case, rank0)
+    from pipeline.outdir import check_out, default_out
+    out = args.out if args.out is not None else default_out(
+        case.name if args.command == "run" else f"{case.name}-converge")
+    check_out(out)  # refused before any work; checked again under the lock
+    say = (lambda s: None) if (args.quiet or not rank0) else _progress
+    _announce(args, case, say, rank0)
+    if args.command == "run":
+        from pipeline.commands import execute_run
+        res = execute_run(case, out, levels=args.levels, ratio=args.ratio, progress=say,
+                          write_fields=not args.no_fields, loads=loads if len(loads) > 1 else None,
+                          quarter_fields=args.quarter_fields)
+    else:
+        from pipeline.commands import execute_converge
+        res = execute_converge(case, out, levels=args.levels, ratio=args.ratio, progress=say)
+    if rank0 and not args.quiet:
+        _summary(res, out)
+    return 0
+
+
+def _case_of(args: argparse.Namespace) -> tuple[Case, list[float]]:
+    """The checked case the options describe (--size or --case with the options'
+    overrides) and the loads of --load (N, empty when not given). Every load of a list
+    passes the same checks as the first; raises InputError otherwise."""
+    from dataclasses import replace
+
+    from pipeline.case import check, resolve
+    from pipeline.errors import InputError
+    overrides = {k: getattr(args, k) for k in CASE_KEYS}
+    overrides.update({f"dims.{k}": v for k, v in args.dim})
+    loads = args.loads or []
+    if loads:
+        overrides["load_N"] = loads[0]
+    for q in loads[1:]:  # every load of a sweep must pass the same checks as the first
+        check(replace(resolve(args.size, args.case, overrides), load_N=q))
+    if args.size is None and args.case is None:
+        raise InputError("size: give --size (hook number) or --case (case file)")
+    case = resolve(args.size, args.case, overrides)
+    _check_levels(args, case)
+    return case, loads
+
+
+def _check_levels(args: argparse.Namespace, case: Case) -> None:
+    """Refuse (InputError) --levels outside 1..8 and --ratio outside [1.1, 3]; a convergence
+    study needs at least 4 meshes at a ratio >= 1.3, and its finest mesh must pass the
+    case's mesh checks too."""
+    from dataclasses import replace
+
+    from pipeline.case import check
+    from pipeline.errors import InputError
+    if args.levels < 1 or args.levels > 8:
+        raise InputError(f"levels: must lie in 1..8, got {args.levels}")
+    if args.command == "converge" and (args.levels < 4 or args.ratio < 1.3):
+        raise InputError("levels/ratio: a convergence study needs at least 4 meshes and ratio >= 1.3")
+    if not 1.1 <= args.ratio <= 3:
+        raise InputError(f"ratio: must lie in [1.1, 3], got {args.ratio:g}")
+    if args.command == "converge":  # the study's finest mesh must pass the case's mesh checks too
+        finest = case.mesh_factor / args.ratio ** max(args.levels - 3, 0)
+        try:
+            check(replace(case, mesh_factor=finest))
+        except InputError as exc:
+            raise InputError(f"levels: the finest mesh of this study (mesh factor {case.mesh_factor:g} / "
+                             f"{args.ratio:g}^{args.levels - 3} = {finest:.3g}) is not allowed: {exc}") from None
+
+
+def _guard_form_cache(stack: contextlib.ExitStack) -> None:
+    """Rank 0, before any form is compiled: remove the form-cache claims that interrupted
+    compiles left, and have this command remove its own if it is stopped (on ``stack``)."""
+    from pipeline.formcache import claims_since, jit_cache_dir, remove_interrupted
+    from pipeline.interrupts import on_stop
+    cache, started = jit_cache_dir(), time.time()
+    # A compile cut short by Ctrl-C leaves its claim, and every later run needing
+    # that form would wait for it and time out: a stopped run removes its own.
+    stack.enter_context(on_stop(lambda: [c.unlink(missing_ok=True) for c in claims_since(cache, started)]))
+    for stale in remove_interrupted(cache):
+        _progress(f"removed {stale.name} from the form cache (an interrupted compile)")
+
+
+def _check_memory(args: argparse.Namespace, case: Case, rank0: bool) -> None:
+    """Refuse a command whose meshes would not fit in memory (--memory-limit, GiB; raises
+    InputError), and warn that a large one's meshing alone may take minutes."""
+    from pipeline.resources import check_fits, factors_of
+    est = check_fits(case, factors_of(case, args.command, args.levels, args.ratio), args.memory_limit)
+    if est is not None and est.tets > 3e5 and rank0 and not args.quiet:
+        _progress(f"a large run: the finest mesh has about {est.tets:.1e} tets, {est.dofs:.1e} DOFs, "
+                  f"{est.bytes / 1024 ** 3:.1f} GiB; meshing alone may take minutes")
+
+
+def _announce(args: argparse.Namespace, case: Case, say: Callable[[str], None], rank0: bool) -> None:
+    """The first progress lines: which refinement --want skips, then the import time (s)
+    and the case (hook number, load in N, model, support, element order)."""
+    if case.want != "both":
+        other = "global (fillet)" if case.want == "critical" else "critical (bore ligament)"
+        say(f"want = {case.want}: skipping the refinement for the {other} peak"
+            + (" (fillet elements at the bore edges' size; the pilot refines the ligaments only)"
+               if case.want == "critical" else " (the pilot refines the fillet only)")
+            + "; that peak is shown without a verdict")
+    _progress(f"imports {time.perf_counter() - T_START:.2f} s; case {case.name}: hook No. {case.size}, "
+              f"Q = {case.load_N:g} N, {case.model} model, {case.support} support, P{case.order}") \
+        if not args.quiet and rank0 else None
 
 
 def _sweep(args, rank0: bool) -> int:
