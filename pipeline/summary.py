@@ -146,6 +146,28 @@ def write_csv(rows: list[dict], path: Path) -> None:
 
 
 def markdown(rows: list[dict], skipped: list[str], png_name: str | None) -> str:
+    """summary.md: the table of every row (N, MPa, s), the rows to check before using their
+    FE numbers, notes on what the rows share or lack, and the plot ``png_name`` if drawn."""
+    lines = _table_lines(rows)
+    lines.append("")
+    lines += _warning_lines(rows)
+    if not rows:
+        lines.append("No results found.")
+    notes = _source_notes(rows)
+    if rows:
+        notes.append(f"Global peak at: {_peak_places(rows, 'fe_peak_feature')}. Critical peak at: "
+                     f"{_peak_places(rows, 'fe_critical_feature')}.")
+    notes += _status_notes(rows)
+    notes += _run_notes(rows, skipped)
+    lines += [f"- {n}" for n in notes]
+    if png_name:
+        lines += ["", f"![stresses against hook number]({png_name})"]
+    return "\n".join(lines) + "\n"
+
+
+def _table_lines(rows: list[dict]) -> list[str]:
+    """The title, what the columns mean, and the table: one line per row, ⚠ on the rows
+    with warnings (N, MPa, s)."""
     lines = [
         "# Crosshead stresses across hook sizes",
         "",
@@ -170,17 +192,27 @@ def markdown(rows: list[dict], skipped: list[str], png_name: str | None) -> str:
             f"{_fe_cell(r, 'critical')} | "
             f"{r['fe_critical_status']} | {_n(r['safety_factor'])} | {_n(r['critical_safety_factor'])} | "
             f"{r['dofs'] if r['dofs'] is not None else '–'} | {_n(r['time_s'], 1)} |")
-    lines.append("")
+    return lines
+
+
+def _warning_lines(rows: list[dict]) -> list[str]:
+    """The rows whose FE numbers need a look first (see :func:`warnings_of`), each with
+    its reasons, after what the thresholds mean; nothing when no row has warnings."""
     warned = [r for r in rows if r.get("warnings")]
-    if warned:
-        lines += [f"**⚠ Check these rows before using their FE numbers** (a curved tet with det J "
-                  f"ratio below {JACOBIAN_SUSPECT:g} can carry a spurious peak; an error bar above "
-                  f"{100 * BAND_TOO_WIDE:.0f} % of the value means one of the meshes disagrees wildly: "
-                  "look at its levels in results.json, rerun finer or with another --mesh-factor):", ""]
-        lines += [f"- No. {r['size']}: {r['warnings']}." for r in warned]
-        lines.append("")
-    if not rows:
-        lines.append("No results found.")
+    if not warned:
+        return []
+    lines = [f"**⚠ Check these rows before using their FE numbers** (a curved tet with det J "
+             f"ratio below {JACOBIAN_SUSPECT:g} can carry a spurious peak; an error bar above "
+             f"{100 * BAND_TOO_WIDE:.0f} % of the value means one of the meshes disagrees wildly: "
+             "look at its levels in results.json, rerun finer or with another --mesh-factor):", ""]
+    lines += [f"- No. {r['size']}: {r['warnings']}." for r in warned]
+    lines.append("")
+    return lines
+
+
+def _source_notes(rows: list[dict]) -> list[str]:
+    """Where the rows' dimensions come from: the rows taken from the table as given, with
+    their sources, and what the scaled (not DIN) rows are."""
     notes = []
     own = [r for r in rows if r["dimensions"].startswith("table row")]
     if own:
@@ -194,16 +226,23 @@ def markdown(rows: list[dict], skipped: list[str], png_name: str | None) -> str:
             "(No. 05 carries the paper's rounded 10 000 N, the scaled rows kg × 9.81 N); the "
             "remaining differences come from the 0.5 mm rounding (notably the fillet radius rf, "
             "which drives the global peak at the journal shoulder) and the mesh.")
-    def where(key: str) -> str:
-        by: dict[str, list[str]] = {}
-        for r in rows:
-            by.setdefault(r[key] or "?", []).append(r["size"])
-        if len(by) == 1:
-            return f"{next(iter(by))} (every row)"
-        return "; ".join(f"{f} (No. {', '.join(s)})" for f, s in sorted(by.items(), key=lambda kv: -len(kv[1])))
-    if rows:
-        notes.append(f"Global peak at: {where('fe_peak_feature')}. Critical peak at: "
-                     f"{where('fe_critical_feature')}.")
+    return notes
+
+
+def _peak_places(rows: list[dict], key: str) -> str:
+    """The features a peak sits at (``key``: a row's feature column) with the hook numbers
+    at each, the most common first; one feature is said once for every row."""
+    by: dict[str, list[str]] = {}
+    for r in rows:
+        by.setdefault(r[key] or "?", []).append(r["size"])
+    if len(by) == 1:
+        return f"{next(iter(by))} (every row)"
+    return "; ".join(f"{f} (No. {', '.join(s)})" for f, s in sorted(by.items(), key=lambda kv: -len(kv[1])))
+
+
+def _status_notes(rows: list[dict]) -> list[str]:
+    """What each error-bar status that occurs in the rows means for its bar."""
+    notes = []
     statuses = {s for r in rows for s in (r["fe_peak_status"], r["fe_critical_status"])}
     if "oscillatory" in statuses:
         notes.append("*oscillatory*: the peak moved up and down between the meshes; the "
@@ -221,6 +260,14 @@ def markdown(rows: list[dict], skipped: list[str], png_name: str | None) -> str:
     if "unsettled" in statuses:
         notes.append("*unsettled*: the peak still falls between the meshes without a steady rate "
                      "(not in the asymptotic range); the bar is the largest change, no extrapolation.")
+    return notes
+
+
+def _run_notes(rows: list[dict], skipped: list[str]) -> list[str]:
+    """How the rows were run: whether alike (mesh factor, meshes per error bar), the
+    allowable stress (MPa) when one for all, their total run time (s), and the folders
+    skipped."""
+    notes = []
     factors = {r["mesh_factor"] for r in rows}
     meshes = {r["meshes"] for r in rows}
     if len(factors) > 1 or len(meshes) > 1:
@@ -236,10 +283,7 @@ def markdown(rows: list[dict], skipped: list[str], png_name: str | None) -> str:
         notes.append(f"Total run time of the rows: {total:.0f} s.")
     if skipped:
         notes.append("Skipped folders: " + "; ".join(skipped) + ".")
-    lines += [f"- {n}" for n in notes]
-    if png_name:
-        lines += ["", f"![stresses against hook number]({png_name})"]
-    return "\n".join(lines) + "\n"
+    return notes
 
 
 def plot(rows: list[dict], path: Path) -> bool:
