@@ -60,7 +60,7 @@ def execute_run(case: Case, out_dir: Path, levels: int = 3, ratio: float = 1.3,
             t_output = time.perf_counter() - t0
             if comm.rank == 0:
                 picture = start_picture(stage)
-                stack.enter_context(on_stop(picture.proc.kill))  # a stopped run draws nothing
+                stack.enter_context(on_stop(picture.kill))  # a stopped run draws nothing
 
         try:
             lv, pl = analyse(case, levels=levels, ratio=ratio, msh_path=stage / "mesh.msh",
@@ -68,8 +68,9 @@ def execute_run(case: Case, out_dir: Path, levels: int = 3, ratio: float = 1.3,
                              mesher=mesher)
         except BaseException:
             if picture is not None:  # the run failed: no picture either
-                picture.proc.kill()
-                picture.proc.wait()
+                picture.kill()
+                for proc in picture.procs:
+                    proc.wait()
             raise
         timings = sum_timings(lv, pl)
         res = build_results(case, lv, timings, comm, pl)
@@ -85,7 +86,7 @@ def execute_run(case: Case, out_dir: Path, levels: int = 3, ratio: float = 1.3,
             write_json(stage / "results.json", res, comm)  # every mesh's peaks, for peaks.png
             res["timings_s"]["picture"] = finish_picture(picture, stage)
             for key, name in (("sections_plot", "sections.png"), ("peaks_plot", "peaks.png")):
-                if (stage / name).exists():  # drawn by the picture process too
+                if (stage / name).exists():  # drawn by the plots process
                     files[key] = name
         res["timings_s"]["total"] = time.perf_counter() - t_all
         write_json(stage / "results.json", res, comm)
@@ -115,31 +116,45 @@ def load_sweep(res: dict, case: Case, loads: list[float]) -> list[dict]:
 
 @dataclass
 class Picture:
-    """The picture process started by :func:`start_picture`, and when (perf_counter, s)."""
+    """The drawing processes started by :func:`start_picture` (the picture, the plots), and
+    when (perf_counter, s)."""
 
-    proc: subprocess.Popen
+    procs: list[subprocess.Popen]
     started: float
+
+    def kill(self) -> None:
+        """Stop every drawing process (a failed or stopped run draws nothing)."""
+        for proc in self.procs:
+            proc.kill()
 
 
 def start_picture(folder: Path) -> Picture:
-    """Start pipeline.picture in its own process (VTK cannot share one with DOLFINx)."""
-    proc = subprocess.Popen([sys.executable, "-m", "pipeline.picture", str(folder)],
-                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
-                            cwd=Path(__file__).resolve().parents[1])
+    """Start pipeline.picture (VTK: it cannot share a process with DOLFINx) and
+    pipeline.plots (matplotlib) in two processes of their own: side by side they finish
+    sooner than one after the other once the ranks' solves leave the cores free."""
+    procs = [subprocess.Popen([sys.executable, "-m", module, str(folder)],
+                              stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
+                              cwd=Path(__file__).resolve().parents[1])
+             for module in ("pipeline.picture", "pipeline.plots")]
     # mpirun binds each rank to one core, and a child inherits its parent's binding: the
-    # picture then shared rank 0's core while rank 1's core idled once its mesh was
-    # solved. Let it run on any core.
-    with contextlib.suppress(AttributeError, OSError):  # no affinity outside Linux
-        os.sched_setaffinity(proc.pid, range(os.cpu_count() or 1))
-    return Picture(proc=proc, started=time.perf_counter())
+    # drawing then shared rank 0's core while rank 1's core idled once its mesh was
+    # solved. Let them run on any core.
+    for proc in procs:
+        with contextlib.suppress(AttributeError, OSError):  # no affinity outside Linux
+            os.sched_setaffinity(proc.pid, range(os.cpu_count() or 1))
+    return Picture(procs=procs, started=time.perf_counter())
 
 
 def finish_picture(pic: Picture, folder: Path) -> float:
-    """Wait for the picture; its wall time (s) from start. Raises if no picture was made."""
-    _, err = pic.proc.communicate()
-    if pic.proc.returncode != 0 or not (folder / "von_mises.png").exists():
-        tail = (err.strip().splitlines() or ["no message"])[-1]
-        raise RuntimeError(f"picture rendering failed: {tail}")
+    """Wait for the drawing processes; their wall time (s) from start. Raises if one failed
+    or no picture was made."""
+    for proc in pic.procs:
+        _, err = proc.communicate()
+        if proc.returncode != 0:
+            tail = (err.strip().splitlines() or ["no message"])[-1]
+            raise RuntimeError(f"drawing failed ({proc.args[2]}): {tail}")
+    if not (folder / "von_mises.png").exists():
+        raise RuntimeError("picture rendering failed: no von_mises.png")
     return time.perf_counter() - pic.started
 
 

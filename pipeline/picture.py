@@ -12,7 +12,6 @@ solves on the same cores (docs/decisions.md).
 from __future__ import annotations
 
 import json
-import time
 import sys
 from dataclasses import dataclass
 from pathlib import Path
@@ -421,33 +420,5 @@ def render_folder(folder: Path, out_name: str = "von_mises.png") -> Path:
     return out
 
 
-def draw_folder(folder: Path, wait_s: float = 3600.0) -> None:
-    """Everything drawn for a run, in this process beside the error-bar solves: the picture;
-    when the results carry section stresses, sections.png; and once the run has written
-    the results of every mesh (at most ``wait_s`` s later), peaks.png (pipeline/plots.py).
-    The run stops this process if it fails, so the wait ends either way."""
-    render_folder(folder)
-    res = json.loads((Path(folder) / "results.json").read_text(encoding="utf-8"))
-    sections = res["fe"].get("sections")
-    from .plots import peaks_plot, sections_plot
-    if sections:
-        sections_plot(Path(folder) / "sections.png", sections, res["analytic"], float(res["case"]["dims"]["h3"]))
-    final = _all_levels(Path(folder), wait_s)
-    if final is not None:
-        peaks_plot(Path(folder) / "peaks.png", final)
-
-
-def _all_levels(folder: Path, wait_s: float) -> dict | None:
-    """results.json once it holds every mesh's results (its timings have the error-bar
-    meshes' total), polled every 20 ms; None after ``wait_s`` s."""
-    end = time.monotonic() + wait_s
-    while time.monotonic() < end:
-        res = json.loads((folder / "results.json").read_text(encoding="utf-8"))
-        if "error_bar_meshes" in res.get("timings_s", {}):
-            return res
-        time.sleep(0.02)
-    return None
-
-
 if __name__ == "__main__":
-    draw_folder(Path(sys.argv[1]))
+    render_folder(Path(sys.argv[1]))

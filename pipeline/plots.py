@@ -1,6 +1,14 @@
-"""Matplotlib plots (convergence); headless backend (units: MPa, mm)."""
+"""Matplotlib plots (convergence, sections, peaks against DOFs); headless backend (units:
+MPa, mm).
+
+``python -m pipeline.plots FOLDER`` draws a run's plots in their own process, beside the
+error-bar solves and the picture (pipeline/picture.py), from the files the run writes.
+"""
 from __future__ import annotations
 
+import json
+import sys
+import time
 from pathlib import Path
 
 
@@ -108,3 +116,33 @@ def peaks_plot(path: Path, res: dict) -> bool:
     fig.savefig(path, dpi=110)
     plt.close(fig)
     return True
+
+
+def draw_plots(folder: Path, wait_s: float = 3600.0) -> None:
+    """A run's plots from folder/results.json: sections.png when the results carry section
+    stresses, and peaks.png once the run has written the results of every mesh (at most
+    ``wait_s`` s later). The run stops this process if it fails, so the wait ends either way."""
+    folder = Path(folder)
+    res = json.loads((folder / "results.json").read_text(encoding="utf-8"))
+    sections = res["fe"].get("sections")
+    if sections:
+        sections_plot(folder / "sections.png", sections, res["analytic"], float(res["case"]["dims"]["h3"]))
+    final = _all_levels(folder, wait_s)
+    if final is not None:
+        peaks_plot(folder / "peaks.png", final)
+
+
+def _all_levels(folder: Path, wait_s: float) -> dict | None:
+    """results.json once it holds every mesh's results (its timings have the error-bar
+    meshes' total), polled every 20 ms; None after ``wait_s`` s."""
+    end = time.monotonic() + wait_s
+    while time.monotonic() < end:
+        res = json.loads((folder / "results.json").read_text(encoding="utf-8"))
+        if "error_bar_meshes" in res.get("timings_s", {}):
+            return res
+        time.sleep(0.02)
+    return None
+
+
+if __name__ == "__main__":
+    draw_plots(Path(sys.argv[1]))
