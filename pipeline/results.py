@@ -46,33 +46,53 @@ def build_results(case: Case, levels: list[Level], timings: dict[str, float],
                                  case.exact_span_mm)
     est_peak = estimate_levels(levels, case, "peak") if len(levels) >= 3 else None
     est_crit = estimate_levels(levels, case, "critical") if len(levels) >= 3 else None
-
-    def peak_block(p: NodalPeak, est: Estimate | None) -> dict:
-        block = {"value_MPa": p.value_MPa, "location_mm": list(p.location_mm),
-                 "feature": describe_location(case, p.location_mm),
-                 "definition": DEFINITION[p.rule], "error_bar_method": ERROR_BAR_METHOD[p.rule],
-                 "unaveraged_MPa": p.unaveraged.value_MPa, "averaged_MPa": p.averaged.value_MPa,
-                 "averaged_location_mm": list(p.averaged.location_mm)}
-        singular = singular_feature(case, p.location_mm)
-        if est is not None:
-            block["error_estimate"] = est.as_dict()
-            if est.status == "singular" and singular is None:
-                singular = f"{block['feature']} (values do not converge under refinement)"
-        if singular is not None:
-            block["singular_feature"] = singular
-            if est is not None:
-                # Not a converged number, whatever the fit of a few meshes says.
-                block["error_estimate"].update(status="singular", extrapolated=None, band=None,
-                                               gci_fine=None, error_fine=None)
-        return block
-
-    ex, ap = hand.exact, hand.approximate
-    peak_b, crit_b = peak_block(fine.peak, est_peak), peak_block(fine.critical, est_crit)
+    peak_b, crit_b = peak_block(case, fine.peak, est_peak), peak_block(case, fine.critical, est_crit)
     unwanted = {"critical": (peak_b, "global"), "global": (crit_b, "critical")}.get(case.want)
     if unwanted is not None:
         unwanted[0]["not_wanted"] = (f"want = {case.want}: the run did not refine for the {unwanted[1]} peak; "
                                      "shown for orientation only")
-    fe = {
+    return {
+        "units": {"length": "mm", "force": "N", "stress": "MPa"},
+        "case": case.as_dict(),
+        "analytic": _analytic_block(case, hand),
+        "fe": _fe_block(case, levels, peak_b, crit_b, comm, pl),
+        "comparison_pct": {
+            "critical_vs_exact": pct(fine.critical.value_MPa, hand.exact.sigma_MPa),
+            "critical_vs_approximate": pct(fine.critical.value_MPa, hand.approximate.sigma_MPa),
+            "peak_vs_exact": pct(fine.peak.value_MPa, hand.exact.sigma_MPa),
+            "peak_vs_approximate": pct(fine.peak.value_MPa, hand.approximate.sigma_MPa),
+        },
+        "timings_s": timings,
+    }
+
+
+def peak_block(case: Case, p: NodalPeak, est: Estimate | None) -> dict:
+    """One peak's results.json block (MPa, mm): value, place, how it is read, its error
+    estimate, and the singular feature it sits at, if any (then no converged value)."""
+    block = {"value_MPa": p.value_MPa, "location_mm": list(p.location_mm),
+             "feature": describe_location(case, p.location_mm),
+             "definition": DEFINITION[p.rule], "error_bar_method": ERROR_BAR_METHOD[p.rule],
+             "unaveraged_MPa": p.unaveraged.value_MPa, "averaged_MPa": p.averaged.value_MPa,
+             "averaged_location_mm": list(p.averaged.location_mm)}
+    singular = singular_feature(case, p.location_mm)
+    if est is not None:
+        block["error_estimate"] = est.as_dict()
+        if est.status == "singular" and singular is None:
+            singular = f"{block['feature']} (values do not converge under refinement)"
+    if singular is not None:
+        block["singular_feature"] = singular
+        if est is not None:
+            # Not a converged number, whatever the fit of a few meshes says.
+            block["error_estimate"].update(status="singular", extrapolated=None, band=None,
+                                           gci_fine=None, error_fine=None)
+    return block
+
+
+def _fe_block(case: Case, levels: list[Level], peak_b: dict, crit_b: dict, comm, pl: Pilot | None) -> dict:
+    """results.json's "fe": the requested mesh's peaks, solver and equilibrium figures,
+    safety factors, sections, verdicts and every mesh's row (N, MPa, mm)."""
+    fine = levels[0]
+    return {
         "peak_MPa": fine.peak.value_MPa,
         "peak_location_mm": list(fine.peak.location_mm),
         "critical_peak_MPa": fine.critical.value_MPa,
@@ -95,45 +115,50 @@ def build_results(case: Case, levels: list[Level], timings: dict[str, float],
         "pilot_mesh_factor": None if pl is None else pl.factor,
         "pilot_fraction": PILOT_FRACTION,
         "sections": fine.sections,
-        "verdict": verdict(case.allowable_MPa, case.load_N, {
-            "global_peak": (fine.peak.value_MPa, peak_b), "critical_peak": (fine.critical.value_MPa, crit_b),
-            **({"critical_section_nominal": (fine.sections["critical_section"]["nominal_MPa"], None)}
-               if fine.sections and "critical_section" in fine.sections else {}),
-            **({"journal_root_nominal": (fine.sections["journal_root"]["nominal_MPa"], None)}
-               if fine.sections else {})}),
-        "levels": [{"mesh_factor": lv.factor, "dofs": lv.dofs, "cells": lv.cells,
-                    "peak_MPa": lv.peak.value_MPa, "critical_peak_MPa": lv.critical.value_MPa,
-                    "peak_unaveraged_MPa": lv.peak.unaveraged.value_MPa,
-                    "peak_averaged_MPa": lv.peak.averaged.value_MPa,
-                    "critical_unaveraged_MPa": lv.critical.unaveraged.value_MPa,
-                    "critical_averaged_MPa": lv.critical.averaged.value_MPa,
-                    "iterations": lv.iterations, "scaled_from": lv.scaled_from,
-                    "time_s": sum(lv.timings.values())}
-                   for lv in levels],
+        "verdict": verdict(case.allowable_MPa, case.load_N, _checked_stresses(fine, peak_b, crit_b)),
+        "levels": [_level_row(lv) for lv in levels],
     }
+
+
+def _checked_stresses(fine: Level, peak_b: dict, crit_b: dict) -> dict[str, tuple[float, dict | None]]:
+    """What the verdict checks: both peaks with their blocks, and the nominal stresses of
+    the sections the run has (MPa, no block: they carry no error bar)."""
+    checks: dict[str, tuple[float, dict | None]] = {
+        "global_peak": (fine.peak.value_MPa, peak_b), "critical_peak": (fine.critical.value_MPa, crit_b)}
+    if fine.sections and "critical_section" in fine.sections:
+        checks["critical_section_nominal"] = (fine.sections["critical_section"]["nominal_MPa"], None)
+    if fine.sections:
+        checks["journal_root_nominal"] = (fine.sections["journal_root"]["nominal_MPa"], None)
+    return checks
+
+
+def _level_row(lv: Level) -> dict:
+    """One mesh's row of results.json's "levels" (MPa, s)."""
+    return {"mesh_factor": lv.factor, "dofs": lv.dofs, "cells": lv.cells,
+            "peak_MPa": lv.peak.value_MPa, "critical_peak_MPa": lv.critical.value_MPa,
+            "peak_unaveraged_MPa": lv.peak.unaveraged.value_MPa,
+            "peak_averaged_MPa": lv.peak.averaged.value_MPa,
+            "critical_unaveraged_MPa": lv.critical.unaveraged.value_MPa,
+            "critical_averaged_MPa": lv.critical.averaged.value_MPa,
+            "iterations": lv.iterations, "scaled_from": lv.scaled_from,
+            "time_s": sum(lv.timings.values())}
+
+
+def _analytic_block(case: Case, hand: formulas.HandResults) -> dict:
+    """results.json's "analytic": the paper's two hand formulas worked for the case (MPa,
+    mm, N), with the published values where the case's row has them."""
+    ex, ap = hand.exact, hand.approximate
     return {
-        "units": {"length": "mm", "force": "N", "stress": "MPa"},
-        "case": case.as_dict(),
-        "analytic": {
-            "approximate_MPa": ap.sigma_MPa, "exact_MPa": ex.sigma_MPa,
-            "approximate_span_mm": ap.span_mm, "exact_span_mm": ex.span_mm,
-            "approximate_terms": {"lever_mm": ap.lever_mm, "Me_Nmm": ap.Me_Nmm},
-            "exact_terms": {"N1_N": ex.N1_N, "M1_Nmm": ex.M1_Nmm, "N2_N": ex.N2_N,
-                            "M2_Nmm": ex.M2_Nmm, "R_mm": ex.R_mm, "F_mm2": ex.F_mm2,
-                            "W_mm3": ex.W_mm3},
-            "consistent_span": {
-                "approximate_at_exact_span_MPa": hand.approximate_at_exact_span.sigma_MPa,
-                "exact_at_approximate_span_MPa": hand.exact_at_approximate_span.sigma_MPa},
-            "published": published(case.size, case.load_N, ap.span_mm, ex.span_mm),
-        },
-        "fe": fe,
-        "comparison_pct": {
-            "critical_vs_exact": pct(fine.critical.value_MPa, ex.sigma_MPa),
-            "critical_vs_approximate": pct(fine.critical.value_MPa, ap.sigma_MPa),
-            "peak_vs_exact": pct(fine.peak.value_MPa, ex.sigma_MPa),
-            "peak_vs_approximate": pct(fine.peak.value_MPa, ap.sigma_MPa),
-        },
-        "timings_s": timings,
+        "approximate_MPa": ap.sigma_MPa, "exact_MPa": ex.sigma_MPa,
+        "approximate_span_mm": ap.span_mm, "exact_span_mm": ex.span_mm,
+        "approximate_terms": {"lever_mm": ap.lever_mm, "Me_Nmm": ap.Me_Nmm},
+        "exact_terms": {"N1_N": ex.N1_N, "M1_Nmm": ex.M1_Nmm, "N2_N": ex.N2_N,
+                        "M2_Nmm": ex.M2_Nmm, "R_mm": ex.R_mm, "F_mm2": ex.F_mm2,
+                        "W_mm3": ex.W_mm3},
+        "consistent_span": {
+            "approximate_at_exact_span_MPa": hand.approximate_at_exact_span.sigma_MPa,
+            "exact_at_approximate_span_MPa": hand.exact_at_approximate_span.sigma_MPa},
+        "published": published(case.size, case.load_N, ap.span_mm, ex.span_mm),
     }
 
 

@@ -106,6 +106,20 @@ def constrained(V, facet_tags, constraints: Sequence[Constraint]) -> tuple[list,
     return bcs, bc_dofs
 
 
+@dataclass
+class _System:
+    """The assembled linear system on space V, with what the reactions need again."""
+
+    V: fem.FunctionSpace
+    v: ufl.Argument  # test function
+    dx_split: object  # the volume measures (elasticity.volume_measures)
+    L_form: ufl.Form  # the load form (N)
+    A: PETSc.Mat
+    b: PETSc.Vec
+    bcs: list
+    bc_dofs: list[np.ndarray]
+
+
 def solve(mesh, facet_tags, order: int, mat: Material, tractions: Sequence[Traction],
           constraints: Sequence[Constraint], solver: str = "pmg", rtol: float = 1e-10,
           progress: Callable[[str], None] | None = None) -> Solution:
@@ -119,6 +133,25 @@ def solve(mesh, facet_tags, order: int, mat: Material, tractions: Sequence[Tract
     if solver == "pmg" and order == 1:
         solver = "gamg"
     t0 = time.perf_counter()
+    system = _assemble(mesh, facet_tags, order, mat, tractions, constraints, solver)
+    t_assemble = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    uh, reason, its, res_rel = _krylov(system, mat, facet_tags, constraints, solver, rtol)
+    t_solve = time.perf_counter() - t0
+    _check(uh, reason, its, res_rel, solver, rtol)
+    t0 = time.perf_counter()
+    reactions, reaction = _reactions(system, uh, mat)
+    t_assemble += time.perf_counter() - t0
+    V = system.V
+    dofs = V.dofmap.index_map.size_global * V.dofmap.index_map_bs
+    return Solution(u=uh, iterations=its, reason=reason, residual_rel=float(res_rel), dofs=dofs,
+                    solver=solver, bc_dofs=system.bc_dofs, reactions=reactions, reaction=reaction,
+                    timings={"assemble": t_assemble, "solve": t_solve})
+
+
+def _assemble(mesh, facet_tags, order: int, mat: Material, tractions: Sequence[Traction],
+              constraints: Sequence[Constraint], solver: str) -> _System:
+    """Stiffness matrix (MPa·mm) and load vector (N) of the problem, constraints applied."""
     V = fem.VectorFunctionSpace(mesh, ("Lagrange", order))
     u, v = ufl.TrialFunction(V), ufl.TestFunction(V)
     ds = ufl.Measure("ds", domain=mesh, subdomain_data=facet_tags)
@@ -140,17 +173,22 @@ def solve(mesh, facet_tags, order: int, mat: Material, tractions: Sequence[Tract
     set_bc(b, bcs)
     if solver in ("gamg", "hypre"):  # pmg gives its coarse (P1) matrix its own
         A.setNearNullSpace(rigid_body_nullspace(V))
-    t_assemble = time.perf_counter() - t0
+    return _System(V, v, dx_split, L_form, A, b, bcs, bc_dofs)
 
-    t0 = time.perf_counter()
-    ksp = PETSc.KSP().create(mesh.comm)
+
+def _krylov(system: _System, mat: Material, facet_tags, constraints: Sequence[Constraint], solver: str,
+            rtol: float) -> tuple[fem.Function, int, int, float]:
+    """Solve A u = b with the named solver: (u in mm, PETSc's converged reason, iterations,
+    true relative residual ‖b − A u‖/‖b‖)."""
+    A, b, V = system.A, system.b, system.V
+    ksp = PETSc.KSP().create(V.mesh.comm)
     prefix = f"crosshead_{ksp.handle}_"  # unique while this KSP lives (its options are removed after set-up)
     ksp.setOptionsPrefix(prefix)
     opts = PETSc.Options()
     for k, val in solver_options(solver, rtol).items():
         opts[prefix + k] = val
     ksp.setOperators(A)
-    mg_parts = p_multigrid(ksp, V, mat, facet_tags, constraints, dx_split) if solver == "pmg" else ()
+    mg_parts = p_multigrid(ksp, V, mat, facet_tags, constraints, system.dx_split) if solver == "pmg" else ()
     ksp.setFromOptions()
     # PCSetUp reads the multigrid levels' options (mg_levels_*): set up before deleting them.
     ksp.setUp()
@@ -165,7 +203,15 @@ def solve(mesh, facet_tags, order: int, mat: Material, tractions: Sequence[Tract
     r.axpy(-1.0, b)
     bnorm = b.norm()
     res_rel = r.norm() / bnorm if bnorm > 0 else r.norm()
-    t_solve = time.perf_counter() - t0
+    ksp.destroy()
+    for obj in mg_parts:
+        obj.destroy()
+    return uh, reason, its, res_rel
+
+
+def _check(uh: fem.Function, reason: int, its: int, res_rel: float, solver: str, rtol: float) -> None:
+    """Raise NumericalError unless the solver converged, u is finite and the true residual
+    is below max(1000·rtol, 1e-6) (iterative) or 1e-8 (MUMPS)."""
     if reason <= 0:
         raise NumericalError(f"solver {solver} did not converge (PETSc reason {reason}, {its} iterations)")
     if not np.all(np.isfinite(uh.x.array)) or not np.isfinite(res_rel):
@@ -174,26 +220,22 @@ def solve(mesh, facet_tags, order: int, mat: Material, tractions: Sequence[Tract
     if res_rel > limit:
         raise NumericalError(f"true residual {res_rel:.3g} above {limit:.1g} after solve")
 
-    # Reactions: residual of the unconstrained system, R = K u - f, at the fixed DOFs.
-    t0 = time.perf_counter()
-    R = fem.petsc.assemble_vector(fem.form(volume_integral(ufl.inner(stress(uh, mat), strain(v)), dx_split)
-                                           - L_form))
+
+def _reactions(system: _System, uh: fem.Function, mat: Material) -> tuple[list[np.ndarray], np.ndarray]:
+    """Per constraint the summed reaction force (N, 3 components), and R = K u − f at this
+    rank's owned DOFs (N): the residual of the unconstrained system at the fixed DOFs."""
+    V, v = system.V, system.v
+    R = fem.petsc.assemble_vector(fem.form(volume_integral(ufl.inner(stress(uh, mat), strain(v)), system.dx_split)
+                                           - system.L_form))
     R.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
     n_owned = V.dofmap.index_map.size_local * V.dofmap.index_map_bs
     Ra = R.array_r
     reactions = []
-    for d_ in bc_dofs:
+    for d_ in system.bc_dofs:
         owned = d_[d_ < n_owned]
         f = np.zeros(3)
         for comp in range(3):
             sel = owned[owned % 3 == comp]
             f[comp] = Ra[sel].sum()
-        reactions.append(mesh.comm.allreduce(f, op=MPI.SUM))
-    t_assemble += time.perf_counter() - t0
-    ksp.destroy()
-    for obj in mg_parts:
-        obj.destroy()
-    dofs = V.dofmap.index_map.size_global * V.dofmap.index_map_bs
-    return Solution(u=uh, iterations=its, reason=reason, residual_rel=float(res_rel), dofs=dofs,
-                    solver=solver, bc_dofs=bc_dofs, reactions=reactions, reaction=Ra[:n_owned].copy(),
-                    timings={"assemble": t_assemble, "solve": t_solve})
+        reactions.append(V.mesh.comm.allreduce(f, op=MPI.SUM))
+    return reactions, Ra[:n_owned].copy()
