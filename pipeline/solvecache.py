@@ -119,7 +119,7 @@ def earlier(name: str, comm: MPI.Comm) -> Stored | None:
     return comm.bcast(entry, root=0)
 
 
-def _rows_of(entry: Stored, ids: np.ndarray, nodes_mm: np.ndarray, tol_mm: float) -> np.ndarray | None:
+def stored_rows(entry: Stored, ids: np.ndarray, nodes_mm: np.ndarray, tol_mm: float) -> np.ndarray | None:
     """For each DOF node (numbers ``ids``, positions ``nodes_mm``) its row in the entry;
     None if one is missing or lies more than ``tol_mm`` from the stored position."""
     rows = np.searchsorted(entry.node_ids, ids)
@@ -136,7 +136,7 @@ def scaled(entry: Stored, m: ImportedMesh, V, ids: np.ndarray, lc: LoadCase, cas
     (on every rank) if some rank's DOF nodes are not all among the stored ones, at their
     stored positions to 1e-6 mm."""
     comm = m.mesh.comm
-    rows = _rows_of(entry, ids, V.tabulate_dof_coordinates(), 1e-6)
+    rows = stored_rows(entry, ids, V.tabulate_dof_coordinates(), 1e-6)
     if not comm.allreduce(rows is not None, op=MPI.LAND):
         return None
     force = case.load_N / entry.load_N

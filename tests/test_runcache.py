@@ -66,3 +66,22 @@ def test_the_cache_is_bounded(cache, monkeypatch):
         rc.store(f"x-{i}", i)
     assert sorted(p.stem for p in cache.glob("*.pickle")) == ["x-3", "x-4", "x-5"]
     assert rc.load("x-5") == 5 and rc.load("x-0") is None
+
+
+def test_a_stored_solution_is_found_node_by_node_or_not_at_all():
+    """solvecache.stored_rows on made-up nodes: a rank's nodes in any order find their rows
+    by the mesher's node numbers; a number that is not stored, or a node 1e-5 mm away from
+    its stored position (another mesh with the same counts), finds nothing."""
+    import numpy as np
+
+    from pipeline.solvecache import Stored, stored_rows
+    ids = np.array([0, 3, 5, 9])
+    nodes = np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]])
+    entry = Stored(10_000.0, 210_000.0, ids, nodes, nodes * 0.1, nodes * 2.0, [], 1, 2, 1e-9, 12, "pmg")
+    mine = np.array([9, 0, 5])
+    rows = stored_rows(entry, mine, nodes[[3, 0, 2]], 1e-6)
+    assert rows.tolist() == [3, 0, 2]
+    assert stored_rows(entry, np.array([9, 4]), nodes[[3, 1]], 1e-6) is None
+    assert stored_rows(entry, np.array([10]), nodes[[3]], 1e-6) is None
+    moved = nodes[[3, 0, 2]] + [0.0, 0.0, 1e-5]
+    assert stored_rows(entry, mine, moved, 1e-6) is None
