@@ -279,7 +279,9 @@ def spawn(args: list[str], ranks: int) -> dict:
     return json.loads(line[len("POINT "):])
 
 
-def main(argv: list[str] | None = None) -> int:
+def _parser() -> argparse.ArgumentParser:
+    """The study's options: where it writes, its ranks, the ball and outer mesh, the orders,
+    and one point (--point, with --centre) for the process the study spawns per point."""
     p = argparse.ArgumentParser(prog="python -m bench.fillet_reference", description=__doc__.split("\n\n")[0])
     p.add_argument("--out", type=Path, default=Path("results/fillet-reference"))
     p.add_argument("--ranks", type=int, default=2)
@@ -288,88 +290,158 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--orders", default="2,3,4")
     p.add_argument("--point", nargs=2, metavar=("ORDER", "H_BALL"))
     p.add_argument("--centre", help="x,y,z of the ball (mm); default: found by a P3 probe")
-    a = p.parse_args(argv)
+    return p
+
+
+def main(argv: list[str] | None = None) -> int:
+    """The study (or, with --point, one of its points): the ball's centre, each order's
+    sequence of ball sizes, the far-field checks, then reference.json and a summary."""
+    a = _parser().parse_args(argv)
     if a.point:
-        centre = tuple(float(c) for c in a.centre.split(","))
-        r = run_point(int(a.point[0]), float(a.point[1]), centre, a.outer, a.radius)
-        from mpi4py import MPI
-        if MPI.COMM_WORLD.rank == 0:
-            print("POINT " + json.dumps(r), flush=True)
-        return 0
-    out = a.out
-    out.mkdir(parents=True, exist_ok=True)
-    log = out / "points.jsonl"
-    done = [json.loads(ln) for ln in log.read_text().splitlines()] if log.exists() else []
-    t_all = time.perf_counter()
+        return _print_point(a)
+    study = _Study.open(a.out, radius=a.radius, ranks=a.ranks)
+    centre = _ball_centre(study, a.centre, a.outer)
+    orders = [int(o) for o in a.orders.split(",")]
+    rows = _sequences(study, orders, a.outer, centre)
+    far_field = _far_field(study, orders, centre)
+    fits = _fits(rows, orders)
+    ref = reference_value(fits, [r["surface_peak_MPa"] for r in far_field])
+    _write_reference(study.out / "reference.json", centre, a.outer, a.radius, ref, far_field, fits, rows)
+    for order, fit in fits.items():
+        study.say(f"P{order}: finest three {fit['finest_three_mean_MPa']:.3f} MPa (spread {fit['finest_three_spread_MPa']:.3f}), "
+                  f"all levels {fit['min_MPa']:.3f}..{fit['max_MPa']:.3f} MPa; Richardson {fit['richardson']}")
+    if ref:
+        study.say(f"reference: {ref['value_MPa']:.2f} ± {ref['band_MPa']:.2f} MPa ({100 * ref['band_MPa'] / ref['value_MPa']:.2f} %), "
+                  f"{ref['how']}")
+    return 0
 
-    def say(msg: str) -> None:
-        print(f"[{time.perf_counter() - t_all:8.1f} s] {msg}", flush=True)
 
-    def point(order: int, h: float, outer: float, centre: tuple[float, ...]) -> tuple[dict, bool]:
+def _parse_centre(text: str) -> tuple[float, ...]:
+    """The ball centre x,y,z (mm) from its command-line form."""
+    return tuple(float(c) for c in text.split(","))
+
+
+def _point_args(order: int, h: float, centre: tuple[float, ...], outer: float, radius: float) -> list[str]:
+    """The command line of one point's process: order, ball size h (mm), ball centre (mm),
+    outer mesh factor and ball radius (mm)."""
+    return ["--point", str(order), str(h), "--centre", ",".join(map(str, centre)),
+            "--outer", str(outer), "--radius", str(radius)]
+
+
+def _print_point(a: argparse.Namespace) -> int:
+    """Solve the one point --point asks for and print its row as a ``POINT`` JSON line
+    (rank 0): the line :func:`spawn` reads back."""
+    centre = _parse_centre(a.centre)
+    r = run_point(int(a.point[0]), float(a.point[1]), centre, a.outer, a.radius)
+    from mpi4py import MPI
+    if MPI.COMM_WORLD.rank == 0:
+        print("POINT " + json.dumps(r), flush=True)
+    return 0
+
+
+@dataclass
+class _Study:
+    """The study's folder and the rows of points.jsonl, which an interrupted or repeated
+    study reuses instead of solving them again; progress lines are stamped with the
+    seconds since ``started`` (perf_counter, s)."""
+
+    out: Path
+    radius: float   # the ball radius (mm) every point of this study uses
+    ranks: int      # MPI ranks per point process
+    done: list[dict]
+    started: float
+
+    @classmethod
+    def open(cls, out: Path, radius: float, ranks: int) -> _Study:
+        """Create ``out`` if needed and read the rows earlier runs left in points.jsonl."""
+        out.mkdir(parents=True, exist_ok=True)
+        log = out / "points.jsonl"
+        done = [json.loads(ln) for ln in log.read_text().splitlines()] if log.exists() else []
+        return cls(out=out, radius=radius, ranks=ranks, done=done, started=time.perf_counter())
+
+    def say(self, msg: str) -> None:
+        """One progress line, stamped with the study's elapsed time."""
+        print(f"[{time.perf_counter() - self.started:8.1f} s] {msg}", flush=True)
+
+    def point(self, order: int, h: float, outer: float, centre: tuple[float, ...]) -> tuple[dict, bool]:
         """The point's row: from points.jsonl when an earlier run made it, else solved now
         (in its own process) and appended there. Second: whether it was solved now."""
-        for r in done:
+        for r in self.done:
             if (r["order"], r["h_ball_mm"], r["outer_factor"], r["ball_radius_mm"], tuple(r["ball_centre_mm"])) \
-                    == (order, h, outer, a.radius, centre):
+                    == (order, h, outer, self.radius, centre):
                 return r, False
-        r = spawn(["--point", str(order), str(h), "--centre", ",".join(map(str, centre)),
-                   "--outer", str(outer), "--radius", str(a.radius)], a.ranks)
-        done.append(r)
-        with log.open("a") as f:
+        r = spawn(_point_args(order, h, centre, outer, self.radius), self.ranks)
+        self.done.append(r)
+        with (self.out / "points.jsonl").open("a") as f:
             f.write(json.dumps(r) + "\n")
         return r, True
 
-    if a.centre:
-        centre = tuple(float(c) for c in a.centre.split(","))
-    else:
-        # Where the ball goes: the surface maximum of a P3 solution on the unrefined mesh
-        # (a ball of the fillet's own size at a point of the fillet changes nothing there).
-        # Not kept in points.jsonl: its centre is a guess, and it is cheap.
-        from pipeline.case import resolve
-        case = resolve(size="05")
-        probe_centre = fillet_torus(case.dims).at(math.radians(45), math.radians(40))
-        h0 = case.mesh_spec(a.outer).size_fillet * a.outer
-        probe = spawn(["--point", "3", f"{h0}", "--centre", ",".join(map(str, probe_centre)),
-                       "--outer", str(a.outer), "--radius", str(a.radius)], a.ranks)
-        centre = tuple(probe["surface_peak_at_mm"])
-        say(f"probe P3: surface peak {probe['surface_peak_MPa']:.2f} MPa at theta {probe['theta_deg']:.1f}°, "
-            f"phi {probe['phi_deg']:.1f}° → ball centre ({centre[0]:.3f}, {centre[1]:.3f}, {centre[2]:.3f}) mm")
-    orders = [int(o) for o in a.orders.split(",")]
+
+def _ball_centre(study: _Study, given: str | None, outer: float) -> tuple[float, ...]:
+    """Where the ball goes (mm): --centre when given, else the surface maximum of a P3
+    solution on the unrefined mesh (a ball of the fillet's own size at a point of the
+    fillet changes nothing there). The probe is not kept in points.jsonl: its centre is a
+    guess, and it is cheap."""
+    if given:
+        return _parse_centre(given)
+    from pipeline.case import resolve
+    case = resolve(size="05")
+    probe_centre = fillet_torus(case.dims).at(math.radians(45), math.radians(40))
+    h0 = case.mesh_spec(outer).size_fillet * outer
+    probe = spawn(_point_args(3, h0, probe_centre, outer, study.radius), study.ranks)
+    centre = tuple(probe["surface_peak_at_mm"])
+    study.say(f"probe P3: surface peak {probe['surface_peak_MPa']:.2f} MPa at theta {probe['theta_deg']:.1f}°, "
+              f"phi {probe['phi_deg']:.1f}° → ball centre ({centre[0]:.3f}, {centre[1]:.3f}, {centre[2]:.3f}) mm")
+    return centre
+
+
+def _sequences(study: _Study, orders: list[int], outer: float, centre: tuple[float, ...]) -> list[dict]:
+    """Every order's rows over its ball sizes (ORDERS_AT, coarsest first), the outer mesh
+    fixed at ``outer``; a line for each point solved now."""
     rows = []
     for order in orders:
         for h in ORDERS_AT[order]:
-            r, new = point(order, h, a.outer, centre)
+            r, new = study.point(order, h, outer, centre)
             rows.append(r)
             if new:
-                say(f"P{order} h {h:.3f} mm: {r['dofs']} DOFs, surface peak {r['surface_peak_MPa']:.3f} MPa "
-                    f"(cell max {r['surface_peak_cellmax_MPa']:.3f}) "
-                    f"(θ {r['theta_deg']:.1f}°, φ {r['phi_deg']:.1f}°), nodal {r['nodal_peak_MPa']:.3f} MPa, "
-                    f"torus gap {r['torus_gap_min_mm']:.1e}..{r['torus_gap_max_mm']:.1e} mm, "
-                    f"mesh {r['time_mesh_s']:.1f} s, solve {r['time_solve_s']:.1f} s")
-    # The far field: the middle P3 level again with finer meshes outside the ball.
+                study.say(f"P{order} h {h:.3f} mm: {r['dofs']} DOFs, surface peak {r['surface_peak_MPa']:.3f} MPa "
+                          f"(cell max {r['surface_peak_cellmax_MPa']:.3f}) "
+                          f"(θ {r['theta_deg']:.1f}°, φ {r['phi_deg']:.1f}°), nodal {r['nodal_peak_MPa']:.3f} MPa, "
+                          f"torus gap {r['torus_gap_min_mm']:.1e}..{r['torus_gap_max_mm']:.1e} mm, "
+                          f"mesh {r['time_mesh_s']:.1f} s, solve {r['time_solve_s']:.1f} s")
+    return rows
+
+
+def _far_field(study: _Study, orders: list[int], centre: tuple[float, ...]) -> list[dict]:
+    """The far field's share: the middle P3 level again with the finer meshes outside the
+    ball of OUTER_CHECKS (none without P3); a line for each point solved now."""
     h_mid = H_BALLS_MM[2]
     far_field = []
     for outer in (OUTER_CHECKS if 3 in orders else ()):
-        r, new = point(3, h_mid, outer, centre)
+        r, new = study.point(3, h_mid, outer, centre)
         far_field.append(r)
         if new:
-            say(f"far field: P3 h {h_mid} mm with the outer mesh ×{outer}: {r['dofs']} DOFs, "
-                f"surface peak {r['surface_peak_MPa']:.3f} MPa, solve {r['time_solve_s']:.1f} s")
-    fits = {order: sequence_summary(sorted((r for r in rows if r["order"] == order), key=lambda r: -r["h_ball_mm"]))
+            study.say(f"far field: P3 h {h_mid} mm with the outer mesh ×{outer}: {r['dofs']} DOFs, "
+                      f"surface peak {r['surface_peak_MPa']:.3f} MPa, solve {r['time_solve_s']:.1f} s")
+    return far_field
+
+
+def _fits(rows: list[dict], orders: list[int]) -> dict[int, dict]:
+    """Each order's sequence summary (coarsest ball first), for the orders with at least
+    the three levels Richardson's extrapolation needs."""
+    return {order: sequence_summary(sorted((r for r in rows if r["order"] == order), key=lambda r: -r["h_ball_mm"]))
             for order in orders if sum(r["order"] == order for r in rows) >= 3}
-    ref = reference_value(fits, [r["surface_peak_MPa"] for r in far_field])
-    (out / "reference.json").write_text(json.dumps({"centre_mm": centre, "outer_factor": a.outer,
-                                                    "ball_radius_mm": a.radius, "reference": ref,
-                                                    "far_field": [{k: r[k] for k in ("outer_factor", "h_ball_mm", "dofs", "surface_peak_MPa")}
-                                                                  for r in far_field],
-                                                    "sequences": fits, "points": rows}, indent=1) + "\n")
-    for order, fit in fits.items():
-        say(f"P{order}: finest three {fit['finest_three_mean_MPa']:.3f} MPa (spread {fit['finest_three_spread_MPa']:.3f}), "
-            f"all levels {fit['min_MPa']:.3f}..{fit['max_MPa']:.3f} MPa; Richardson {fit['richardson']}")
-    if ref:
-        say(f"reference: {ref['value_MPa']:.2f} ± {ref['band_MPa']:.2f} MPa ({100 * ref['band_MPa'] / ref['value_MPa']:.2f} %), "
-            f"{ref['how']}")
-    return 0
+
+
+def _write_reference(path: Path, centre: tuple[float, ...], outer: float, radius: float, ref: dict | None,
+                     far_field: list[dict], fits: dict[int, dict], rows: list[dict]) -> None:
+    """reference.json: the ball (centre and radius, mm), the outer mesh factor, the
+    reference value, the far-field checks, each order's sequence and every point's row."""
+    path.write_text(json.dumps({"centre_mm": centre, "outer_factor": outer,
+                                "ball_radius_mm": radius, "reference": ref,
+                                "far_field": [{k: r[k] for k in ("outer_factor", "h_ball_mm", "dofs", "surface_peak_MPa")}
+                                              for r in far_field],
+                                "sequences": fits, "points": rows}, indent=1) + "\n")
 
 
 if __name__ == "__main__":
