@@ -16,12 +16,18 @@ from pipeline.environment import configure  # noqa: E402
 
 configure()  # the pipeline's form cache and PETSc options in every point process
 
+import importlib
 import json  # noqa: E402
 import os  # noqa: E402
 import shutil  # noqa: E402
 import subprocess  # noqa: E402
 import sys  # noqa: E402
 from pathlib import Path  # noqa: E402
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:  # for annotations only: a point imports its modules when it runs (timed)
+    from pipeline.case import Case
+    from pipeline.meshing import Mesher
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -35,20 +41,12 @@ MARK = "BENCH_POINT "
 
 def run_point(spec: dict) -> dict | None:
     """Solve one point once in this process; the result dict on rank 0, None elsewhere."""
-    import resource
-    t_imp = time.perf_counter()
+    imports = _import_modules(spec["kind"])
     from mpi4py import MPI
 
     from pipeline.case import resolve
-    comm = MPI.COMM_WORLD
     from pipeline.meshing import Mesher
-    from pipeline.pilot import pilot
-    if spec["kind"] == "dolfinx":
-        from pipeline.level import solve_level
-    else:
-        from bench.calculix import solve_ccx
-        from pipeline.level import peaks_of, set_up
-    imports = time.perf_counter() - t_imp
+    comm = MPI.COMM_WORLD
     if comm.rank == 0:  # a bench stopped while compiling left a claim that would fail every point
         from pipeline.formcache import jit_cache_dir, remove_interrupted
         remove_interrupted(jit_cache_dir())
@@ -61,53 +59,98 @@ def run_point(spec: dict) -> dict | None:
     t0 = time.perf_counter()
     # The pipeline's default mesh is refined where a pilot solve finds the peaks; both
     # kinds get that mesh and pay the pilot's time.
-    hotspots, t_pilot = (), None
     mesher = Mesher(case.dims, case.model)  # the pilot's geometry serves the point's mesh too
-    if spec.get("pilot"):
-        pl = pilot(case, comm=comm, mesher=mesher)
-        hotspots, t_pilot = pl.hotspots, pl.time_s
-    if spec["kind"] == "dolfinx":
-        lv = solve_level(case, spec["factor"], comm=comm, hotspots=hotspots, mesher=mesher)
-        mesher.close()
-        total = time.perf_counter() - t0
-        stages = dict(lv.timings)
-        out.update(dofs=lv.dofs, cells=lv.cells, iterations=lv.iterations,
-                   peak_MPa=lv.peak.value_MPa, critical_MPa=lv.critical.value_MPa,
-                   peak_location_mm=list(lv.peak.location_mm),
-                   critical_location_mm=list(lv.critical.location_mm))
-    else:
-        if comm.size != 1:
-            raise SystemExit("CalculiX points run on one rank (use threads)")
-        prob = set_up(case, spec["factor"], comm=comm, hotspots=hotspots, mesher=mesher)
-        mesher.close()
-        m, mat = prob.mesh, prob.material
-        cx = solve_ccx(m.mesh, m.facet_tags, prob.loads, mat, threads=int(spec.get("threads", 1)),
-                       solver=spec.get("ccx_solver", "spooles"))
-        t1 = time.perf_counter()
-        _, pk, cr = peaks_of(case, cx.u, mat)
-        t_post = time.perf_counter() - t1
-        total = time.perf_counter() - t0
-        stages = dict(m.timings, **cx.timings, post=t_post)
-        stages["loads"] += prob.loads_s
-        n_nodes = cx.model.nodes.shape[0]
-        out.update(dofs=3 * n_nodes, cells=cx.model.elements.shape[0], iterations=None,
-                   peak_MPa=pk.value_MPa, critical_MPa=cr.value_MPa,
-                   peak_location_mm=list(pk.location_mm),
-                   critical_location_mm=list(cr.location_mm),
-                   ccx_maxrss_MiB=cx.ccx_maxrss_kib / 1024)
+    hotspots, t_pilot = _pilot_hotspots(spec, case, comm, mesher)
+    solve = _solve_dolfinx if spec["kind"] == "dolfinx" else _solve_calculix
+    total, stages, fields = solve(spec, case, comm, hotspots, mesher, t0)
+    out.update(fields)
+    out.update(_totals(stages, total, t_pilot, comm))
+    return out if comm.rank == 0 else None
+
+
+def _import_modules(kind: str) -> float:
+    """Import the modules a point of ``kind`` runs on (MPI, the case, the mesher, the pilot,
+    the solver's); the time this takes (s), which the point reports apart from its stages
+    as ``imports_s``."""
+    t_imp = time.perf_counter()
+    solver = ("pipeline.level",) if kind == "dolfinx" else ("bench.calculix", "pipeline.level")
+    for name in ("mpi4py.MPI", "pipeline.case", "pipeline.meshing", "pipeline.pilot", *solver):
+        importlib.import_module(name)
+    return time.perf_counter() - t_imp
+
+
+def _pilot_hotspots(spec: dict, case: Case, comm, mesher: Mesher) -> tuple[tuple, float | None]:
+    """The places (mm) the pipeline's pilot solve refines the mesh at, and its time (s),
+    when the spec asks for the pilot; else no places and None."""
+    if not spec.get("pilot"):
+        return (), None
+    from pipeline.pilot import pilot
+    pl = pilot(case, comm=comm, mesher=mesher)
+    return pl.hotspots, pl.time_s
+
+
+def _solve_dolfinx(spec: dict, case: Case, comm, hotspots: tuple, mesher: Mesher,
+                   t0: float) -> tuple[float, dict[str, float], dict]:
+    """Solve the point with the pipeline: its wall time since t0 (s), its stage times (s)
+    and its result fields (size, iterations, both peaks in MPa and where they are, mm)."""
+    from pipeline.level import solve_level
+    lv = solve_level(case, spec["factor"], comm=comm, hotspots=hotspots, mesher=mesher)
+    mesher.close()
+    total = time.perf_counter() - t0
+    stages = dict(lv.timings)
+    fields = {"dofs": lv.dofs, "cells": lv.cells, "iterations": lv.iterations,
+              "peak_MPa": lv.peak.value_MPa, "critical_MPa": lv.critical.value_MPa,
+              "peak_location_mm": list(lv.peak.location_mm),
+              "critical_location_mm": list(lv.critical.location_mm)}
+    return total, stages, fields
+
+
+def _solve_calculix(spec: dict, case: Case, comm, hotspots: tuple, mesher: Mesher,
+                    t0: float) -> tuple[float, dict[str, float], dict]:
+    """Solve the point with CalculiX on the pipeline's mesh, loads and supports, the peaks
+    from its displacement as in the pipeline: wall time since t0 (s), stage times (s) and
+    result fields (as :func:`_solve_dolfinx`'s, plus ccx's own peak memory, MiB)."""
+    from bench.calculix import solve_ccx
+    from pipeline.level import peaks_of, set_up
+    if comm.size != 1:
+        raise SystemExit("CalculiX points run on one rank (use threads)")
+    prob = set_up(case, spec["factor"], comm=comm, hotspots=hotspots, mesher=mesher)
+    mesher.close()
+    m, mat = prob.mesh, prob.material
+    cx = solve_ccx(m.mesh, m.facet_tags, prob.loads, mat, threads=int(spec.get("threads", 1)),
+                   solver=spec.get("ccx_solver", "spooles"))
+    t1 = time.perf_counter()
+    _, pk, cr = peaks_of(case, cx.u, mat)
+    t_post = time.perf_counter() - t1
+    total = time.perf_counter() - t0
+    stages = dict(m.timings, **cx.timings, post=t_post)
+    stages["loads"] += prob.loads_s
+    n_nodes = cx.model.nodes.shape[0]
+    fields = {"dofs": 3 * n_nodes, "cells": cx.model.elements.shape[0], "iterations": None,
+              "peak_MPa": pk.value_MPa, "critical_MPa": cr.value_MPa,
+              "peak_location_mm": list(pk.location_mm),
+              "critical_location_mm": list(cr.location_mm),
+              "ccx_maxrss_MiB": cx.ccx_maxrss_kib / 1024}
+    return total, stages, fields
+
+
+def _totals(stages: dict[str, float], total: float, t_pilot: float | None, comm) -> dict:
+    """The point's times and memory over the ranks: stage times (s, the slowest rank's,
+    with the pilot's, and "other" for what no stage accounts for), the total (s), the peak
+    memory (MiB, largest and summed) and the process's time since it started (s)."""
+    import resource
+
+    from mpi4py import MPI
     if t_pilot is not None:
         stages["pilot"] = t_pilot
-    # Stage times: the slowest rank's; "other" is what no stage accounts for.
     stages = {k: comm.allreduce(float(v), op=MPI.MAX) for k, v in stages.items()}
     total = comm.allreduce(total, op=MPI.MAX)
     stages["other"] = max(total - sum(stages.values()), 0.0)
-    out["stages_s"] = stages
-    out["total_s"] = total
     rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024  # KiB → MiB (Linux)
-    out["maxrss_MiB"] = comm.allreduce(rss, op=MPI.MAX)
-    out["maxrss_sum_MiB"] = comm.allreduce(rss, op=MPI.SUM)
-    out["process_s"] = time.perf_counter() - T_START
-    return out if comm.rank == 0 else None
+    return {"stages_s": stages, "total_s": total,
+            "maxrss_MiB": comm.allreduce(rss, op=MPI.MAX),
+            "maxrss_sum_MiB": comm.allreduce(rss, op=MPI.SUM),
+            "process_s": time.perf_counter() - T_START}
 
 
 def point_env(threads: int) -> dict:
