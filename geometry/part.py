@@ -89,25 +89,53 @@ def build(d: Dimensions, model: str = "quarter") -> BuiltGeometry:
     """
     if model not in MODELS:
         raise ValueError(f"model must be one of {MODELS}, got {model!r}")
-    occ = gmsh.model.occ
     quarter = model == "quarter"
+    body = _body(d, quarter)
+    pieces = _journals(d, quarter)
+    seat = _seat(d, quarter)
+    cpts = _constraint_points(d, quarter)
+    seat_surfs, cpt_tags = _fragment(body + [(3, t) for t in pieces], seat, cpts)
+    volumes = [t for dim, t in gmsh.model.getEntities(3)]
+    vol = _checked_volume(d, model, volumes, seat_surfs)
+    if len(cpt_tags) != len(cpts):
+        raise GeometryError("constraint points were not imprinted on the part")
+    _name_groups(d, quarter, seat_surfs, volumes, cpt_tags)
+    return BuiltGeometry(model=model, volume=vol, constraint_points=cpts)
+
+
+def _body(d: Dimensions, quarter: bool) -> list[tuple[int, int]]:
+    """The body block b1 × b1 × h3 (its x, y >= 0 quarter for the quarter model) less the
+    bore of diameter d2 (mm); OCC (dim, tag) pairs."""
+    occ = gmsh.model.occ
     a, h = d.b1 / 2, d.h3
     if quarter:
         box = occ.addBox(0, 0, 0, a, a, h)
-        bore = occ.addCylinder(0, 0, -1, 0, 0, h + 2, d.d2 / 2)
     else:
         box = occ.addBox(-a, -a, 0, 2 * a, 2 * a, h)
-        bore = occ.addCylinder(0, 0, -1, 0, 0, h + 2, d.d2 / 2)
+    bore = occ.addCylinder(0, 0, -1, 0, 0, h + 2, d.d2 / 2)
     body, _ = occ.cut([(3, box)], [(3, bore)])
+    return body
+
+
+def _journals(d: Dimensions, quarter: bool) -> list[int]:
+    """The journals with their fillets as OCC volume tags, in angular pieces: the lower
+    (loaded) half of each bearing surface is then a face of its own (journal_bearing)."""
     if quarter:
         # Quarter journals: the lower quarter (phi 0..90°, the loaded half) and the upper.
-        pieces = [_journal_piece(d, +1, 0.0, math.pi / 2),
-                  _journal_piece(d, +1, math.pi / 2, math.pi / 2)]
-    else:
-        pieces = []
-        for side in (+1, -1):
-            pieces.append(_journal_piece(d, side, -math.pi / 2, math.pi))   # lower half
-            pieces.append(_journal_piece(d, side, math.pi / 2, math.pi))    # upper half
+        return [_journal_piece(d, +1, 0.0, math.pi / 2),
+                _journal_piece(d, +1, math.pi / 2, math.pi / 2)]
+    pieces = []
+    for side in (+1, -1):
+        pieces.append(_journal_piece(d, side, -math.pi / 2, math.pi))   # lower half
+        pieces.append(_journal_piece(d, side, math.pi / 2, math.pi))    # upper half
+    return pieces
+
+
+def _seat(d: Dimensions, quarter: bool) -> list[tuple[int, int]]:
+    """The seat annulus (diameters seat_inner..seat_outer, mm) in the top face z = h3, its
+    x, y >= 0 quarter for the quarter model; OCC (dim, tag) pairs of its surfaces."""
+    occ = gmsh.model.occ
+    h = d.h3
     ro, ri = d.seat_outer / 2, d.seat_inner / 2
     outer = occ.addDisk(0, 0, h, ro, ro)
     inner = occ.addDisk(0, 0, h, ri, ri)
@@ -115,32 +143,55 @@ def build(d: Dimensions, model: str = "quarter") -> BuiltGeometry:
     if quarter:
         clip = occ.addRectangle(0, 0, h, ro + 1, ro + 1)
         seat, _ = occ.intersect(seat, [(2, clip)])
-    # Points for the constraints that remove rigid-body motion (see pipeline.solve).
-    if quarter:
-        cpts = ((0.0, a, 0.0),)
-    else:
-        cpts = ((0.0, a, 0.0), (0.0, -a, 0.0), (a, 0.0, 0.0))
-    point_tags = [occ.addPoint(*p) for p in cpts]
-    objects = body + [(3, t) for t in pieces]
-    out, out_map = occ.fragment(objects, seat + [(0, t) for t in point_tags])
-    occ.synchronize()
+    return seat
 
+
+def _constraint_points(d: Dimensions, quarter: bool) -> tuple[tuple[float, float, float], ...]:
+    """Points (mm) for the constraints that remove rigid-body motion (see pipeline.solve), at
+    the middles of the body's bottom edges: one for the quarter (on its plane x = 0), three
+    for the full part."""
+    a = d.b1 / 2
+    if quarter:
+        return ((0.0, a, 0.0),)
+    return ((0.0, a, 0.0), (0.0, -a, 0.0), (a, 0.0, 0.0))
+
+
+def _fragment(objects: list[tuple[int, int]], seat: list[tuple[int, int]],
+              cpts: tuple[tuple[float, float, float], ...]) -> tuple[list[int], list[int]]:
+    """Fragment the volumes with the seat and the constraint points, so that the mesh
+    conforms to both and they can carry physical groups; the seat's surface tags and the
+    points' tags in the fragmented model (both sorted)."""
+    occ = gmsh.model.occ
+    point_tags = [occ.addPoint(*p) for p in cpts]
+    _, out_map = occ.fragment(objects, seat + [(0, t) for t in point_tags])
+    occ.synchronize()
     n_obj = len(objects)
     seat_surfs = sorted({t for i in range(len(seat)) for dim, t in out_map[n_obj + i] if dim == 2})
     cpt_tags = sorted({t for i in range(len(point_tags))
                        for dim, t in out_map[n_obj + len(seat) + i] if dim == 0})
-    volumes = [t for dim, t in gmsh.model.getEntities(3)]
+    return seat_surfs, cpt_tags
+
+
+def _checked_volume(d: Dimensions, model: str, volumes: list[int], seat_surfs: list[int]) -> float:
+    """The part's volume (mm³) after checking it and the seat's area (mm²) against their
+    closed forms to 1e-6 relative: a failed boolean can leave a part without an error."""
+    occ = gmsh.model.occ
     vol = sum(occ.getMass(3, t) for t in volumes)
     expected = analytic_volume(d, model)
     if abs(vol - expected) > 1e-6 * expected:
         raise GeometryError(f"CAD volume {vol:.6g} mm³ differs from closed form {expected:.6g} mm³")
+    ro, ri = d.seat_outer / 2, d.seat_inner / 2
     seat_area = sum(occ.getMass(2, t) for t in seat_surfs)
-    seat_expected = math.pi * (ro ** 2 - ri ** 2) / (4 if quarter else 1)
+    seat_expected = math.pi * (ro ** 2 - ri ** 2) / (4 if model == "quarter" else 1)
     if abs(seat_area - seat_expected) > 1e-6 * seat_expected:
         raise GeometryError(f"seat area {seat_area:.6g} mm² differs from {seat_expected:.6g} mm²")
-    if len(cpt_tags) != len(cpts):
-        raise GeometryError("constraint points were not imprinted on the part")
+    return vol
 
+
+def _name_groups(d: Dimensions, quarter: bool, seat_surfs: list[int], volumes: list[int],
+                 cpt_tags: list[int]) -> None:
+    """The physical groups the loads and supports are put on: the seat, the journal
+    bearings, the symmetry planes (quarter), the body and the constraint points."""
     groups = {"seat": seat_surfs, "journal_bearing": _bearing_surfaces(d)}
     if quarter:
         groups["symmetry_x"] = _planar_surfaces(axis=0, value=0.0, tol=geometric_tolerance(d))
@@ -151,7 +202,6 @@ def build(d: Dimensions, model: str = "quarter") -> BuiltGeometry:
         gmsh.model.setPhysicalName(2, gmsh.model.addPhysicalGroup(2, tags), name)
     gmsh.model.setPhysicalName(3, gmsh.model.addPhysicalGroup(3, volumes), "body")
     gmsh.model.setPhysicalName(0, gmsh.model.addPhysicalGroup(0, cpt_tags), "constraint_points")
-    return BuiltGeometry(model=model, volume=vol, constraint_points=cpts)
 
 
 def geometric_tolerance(d: Dimensions) -> float:
