@@ -61,43 +61,9 @@ def mesh(d: Dimensions, spec: MeshSpec) -> float:
     """
     f = spec.factor
     hmax = spec.size_body * f
-    edges, fillets = _feature_curves(d)
-    field = gmsh.model.mesh.field
-
-    def threshold(curves: list[int], size: float, dist_min: float, dist_max: float) -> int:
-        return size_field(curves, size, hmax, dist_min, dist_max)
-
-    fields_ = [threshold(edges, spec.size_feature * f, 0.25 * spec.grading * f, spec.grading)]
-    if fillets:
-        # Fine only on the fillet, then sizes grow with slope <= 0.5: steeper growth gave
-        # slivers that curve into inverted P2 elements (seen at rf/6 on No. 05). (Distance
-        # from the fillet surface instead of its edge curves was tried: its curved meshes
-        # changed from run to run at coarse factors, peaks by up to 3 %.)
-        h_f = spec.size_fillet * f
-        fields_.append(threshold(fillets, h_f, 0.5 * d.rf, 0.5 * d.rf + (hmax - h_f) / GRADE))
-    for point in spec.hotspots:
-        # The radius is a region, not a size: it stays put while the sizes are scaled, so
-        # the DOFs grow with refinement like everywhere else (a scaled radius kept the
-        # number of elements in the ball constant and stalled the error-bar ratios).
-        h_s, r_s = spec.size_hotspot * f, spec.hotspot_radius
-        fields_ += _balls(point, h_s, hmax, r_s, (hmax - h_s) / GRADE)
-    fmin = field.add("Min")
-    field.setNumbers(fmin, "FieldsList", fields_)
-    field.setAsBackgroundMesh(fmin)
+    fmin = _background_field(_size_fields(d, spec, hmax))
     hmin = min([spec.size_feature, spec.size_fillet] + ([spec.size_hotspot] if spec.hotspots else [])) * f
-    opt = gmsh.option.setNumber
-    opt("Mesh.MeshSizeExtendFromBoundary", 0)
-    opt("Mesh.MeshSizeFromPoints", 0)
-    opt("Mesh.MeshSizeFromCurvature", 0)
-    opt("Mesh.MeshSizeMax", hmax)
-    opt("Mesh.MeshSizeMin", 0.5 * hmin)
-    opt("Mesh.Algorithm", 6)
-    opt("Mesh.Algorithm3D", 1)
-    opt("Mesh.ElementOrder", spec.order)
-    # gmsh's own high-order optimiser is off: it spent most of the meshing time repairing a
-    # few hundred curved tets; geometry/curved.py does it in a fraction (docs/decisions.md).
-    opt("Mesh.HighOrderOptimize", 0)
-    opt("General.NumThreads", 1)
+    _set_mesh_options(spec.order, hmax, hmin)
     try:
         gmsh.model.mesh.generate(3)
     except Exception as exc:
@@ -111,8 +77,59 @@ def mesh(d: Dimensions, spec: MeshSpec) -> float:
     # after the largest, and there were none before this call (a new session, or the last
     # call removed its own).
     for tag in range(1, fmin + 1):
-        field.remove(tag)
+        gmsh.model.mesh.field.remove(tag)
     return quality
+
+
+def _size_fields(d: Dimensions, spec: MeshSpec, hmax: float) -> list[int]:
+    """The gmsh size fields of the part (mm, sizes times spec.factor, growing to ``hmax``):
+    at the bore and seat edges, at the fillets, and in a ball around each hot spot."""
+    f = spec.factor
+    edges, fillets = _feature_curves(d)
+    fields_ = [size_field(edges, spec.size_feature * f, hmax, 0.25 * spec.grading * f, spec.grading)]
+    if fillets:
+        # Fine only on the fillet, then sizes grow with slope <= 0.5: steeper growth gave
+        # slivers that curve into inverted P2 elements (seen at rf/6 on No. 05). (Distance
+        # from the fillet surface instead of its edge curves was tried: its curved meshes
+        # changed from run to run at coarse factors, peaks by up to 3 %.)
+        h_f = spec.size_fillet * f
+        fields_.append(size_field(fillets, h_f, hmax, 0.5 * d.rf, 0.5 * d.rf + (hmax - h_f) / GRADE))
+    for point in spec.hotspots:
+        # The radius is a region, not a size: it stays put while the sizes are scaled, so
+        # the DOFs grow with refinement like everywhere else (a scaled radius kept the
+        # number of elements in the ball constant and stalled the error-bar ratios).
+        h_s, r_s = spec.size_hotspot * f, spec.hotspot_radius
+        fields_ += _balls(point, h_s, hmax, r_s, (hmax - h_s) / GRADE)
+    return fields_
+
+
+def _background_field(fields_: list[int]) -> int:
+    """Make the smallest of the size fields gmsh's element size; the tag of that Min
+    field, the largest field tag."""
+    field = gmsh.model.mesh.field
+    fmin = field.add("Min")
+    field.setNumbers(fmin, "FieldsList", fields_)
+    field.setAsBackgroundMesh(fmin)
+    return fmin
+
+
+def _set_mesh_options(order: int, hmax: float, hmin: float) -> None:
+    """gmsh's options for the part's mesh: element sizes from the background field only,
+    within 0.5 hmin..hmax (mm); Frontal-Delaunay surfaces, Delaunay volumes; elements of
+    ``order``; one thread."""
+    opt = gmsh.option.setNumber
+    opt("Mesh.MeshSizeExtendFromBoundary", 0)
+    opt("Mesh.MeshSizeFromPoints", 0)
+    opt("Mesh.MeshSizeFromCurvature", 0)
+    opt("Mesh.MeshSizeMax", hmax)
+    opt("Mesh.MeshSizeMin", 0.5 * hmin)
+    opt("Mesh.Algorithm", 6)
+    opt("Mesh.Algorithm3D", 1)
+    opt("Mesh.ElementOrder", order)
+    # gmsh's own high-order optimiser is off: it spent most of the meshing time repairing a
+    # few hundred curved tets; geometry/curved.py does it in a fraction (docs/decisions.md).
+    opt("Mesh.HighOrderOptimize", 0)
+    opt("General.NumThreads", 1)
 
 
 def _feature_curves(d: Dimensions) -> tuple[list[int], list[int]]:
