@@ -84,19 +84,33 @@ def build_model(mesh, facet_tags, lc: LoadCase) -> CcxModel:
     """
     if mesh.comm.size != 1:
         raise NumericalError("the CalculiX peer runs on one MPI rank only")
-    geo = mesh.geometry
+    nodes, cells = _used_nodes(mesh.geometry)
+    V = fem.VectorFunctionSpace(mesh, ("Lagrange", 2))
+    dof_node = _dof_nodes(V, cells, nodes)
+    elems, flipped = _c3d10_elements(cells, nodes)
+    fixed_ids = _fixed_nodes(V, facet_tags, lc, dof_node)
+    loads = _nodal_loads(mesh, V, facet_tags, lc, dof_node, nodes)
+    return CcxModel(nodes=nodes, elements=elems + 1, fixed=fixed_ids, loads=loads,
+                    dof_node=dof_node, V=V, flipped=flipped)
+
+
+def _used_nodes(geo) -> tuple[np.ndarray, np.ndarray]:
+    """The geometry nodes the cells use (N × 3, mm), renumbered 0..N-1 (an unused node
+    would be an orphan in CalculiX), and the cells' tetra10 connectivity in that numbering
+    (DOLFINx node order)."""
     gdm = geo.dofmap.array.reshape(-1, geo.dofmap.offsets[1])
     if gdm.shape[1] != 10:
         raise ValueError(f"CalculiX C3D10 needs a second-order tetrahedral mesh, got {gdm.shape[1]} nodes per cell")
     used = np.unique(gdm)
     x = geo.x[:, :3]
-    # Renumber used nodes 0..N-1 (an unused node would be an orphan in CalculiX).
     new = np.full(x.shape[0], -1, dtype=np.int64)
     new[used] = np.arange(used.size)
-    nodes = x[used]
-    cells = new[gdm]
+    return x[used], new[gdm]
 
-    V = fem.VectorFunctionSpace(mesh, ("Lagrange", 2))
+
+def _dof_nodes(V, cells: np.ndarray, nodes: np.ndarray) -> np.ndarray:
+    """The node (0-based) of each DOF block of the vector P2 space V, checked to sit at
+    that node (to 1e-9 relative): nodal values then map to DOF values one to one."""
     vdm = V.dofmap.list.array.reshape(-1, 10)
     n_blocks = V.dofmap.index_map.size_local + V.dofmap.index_map.num_ghosts
     dof_node = np.full(n_blocks, -1, dtype=np.int64)
@@ -106,15 +120,23 @@ def build_model(mesh, facet_tags, lc: LoadCase) -> CcxModel:
     mismatch = np.abs(V.tabulate_dof_coordinates() - nodes[dof_node]).max()
     if mismatch > 1e-9 * max(1.0, np.abs(nodes).max()):
         raise NumericalError(f"P2 DOF coordinates differ from the geometry nodes by {mismatch:.3g} mm")
+    return dof_node
 
+
+def _c3d10_elements(cells: np.ndarray, nodes: np.ndarray) -> tuple[np.ndarray, int]:
+    """The cells in C3D10 node order (0-based), each turned to a positive signed corner
+    volume (CalculiX stops on a negative Jacobian), and how many had to be turned."""
     elems = cells[:, DOLFINX_TO_C3D10]
-    # Positive orientation (CalculiX stops on a negative Jacobian): signed corner volume.
     p = nodes[elems[:, :4]]
     vol = np.einsum("ij,ij->i", np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]), p[:, 3] - p[:, 0])
     neg = vol < 0
     elems[neg] = elems[neg][:, C3D10_FLIP]
+    return elems, int(neg.sum())
 
-    # Supports: exactly the DOFs the pipeline's Dirichlet conditions fix (all values 0 here).
+
+def _fixed_nodes(V, facet_tags, lc: LoadCase, dof_node: np.ndarray) -> dict[int, np.ndarray]:
+    """Per component (0..2), the nodes (1-based) whose displacement is held at 0: exactly
+    the DOFs the pipeline's Dirichlet conditions fix."""
     fixed: dict[int, list[np.ndarray]] = {0: [], 1: [], 2: []}
     for c in lc.constraints:
         if c.value != 0.0:
@@ -126,9 +148,13 @@ def build_model(mesh, facet_tags, lc: LoadCase) -> CcxModel:
             d_ = np.asarray(d_)
             assert np.all(d_ % 3 == comp)
             fixed[comp].append(dof_node[d_ // 3])
-    fixed_ids = {k: np.unique(np.concatenate(v)) + 1 for k, v in fixed.items() if v}
+    return {k: np.unique(np.concatenate(v)) + 1 for k, v in fixed.items() if v}
 
-    # Consistent nodal loads: the same linear form the pipeline assembles.
+
+def _nodal_loads(mesh, V, facet_tags, lc: LoadCase, dof_node: np.ndarray,
+                 nodes: np.ndarray) -> np.ndarray:
+    """Consistent nodal forces (N × 3, N): the load vector of the same linear form the
+    pipeline assembles for the tractions, moved from DOF blocks to their nodes."""
     v = ufl.TestFunction(V)
     ds = ufl.Measure("ds", domain=mesh, subdomain_data=facet_tags)
     L = ufl.inner(fem.Constant(mesh, PETSc.ScalarType((0.0, 0.0, 0.0))), v) * ufl.dx
@@ -140,8 +166,7 @@ def build_model(mesh, facet_tags, lc: LoadCase) -> CcxModel:
     np.add.at(loads, dof_node[:V.dofmap.index_map.size_local],
               b.array_r.reshape(-1, 3)[:V.dofmap.index_map.size_local])
     b.destroy()
-    return CcxModel(nodes=nodes, elements=elems + 1, fixed=fixed_ids, loads=loads,
-                    dof_node=dof_node, V=V, flipped=int(neg.sum()))
+    return loads
 
 
 def _id_lines(ids: np.ndarray, per_line: int = 10) -> list[str]:
