@@ -9,7 +9,7 @@ import os
 import subprocess
 import sys
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 from mpi4py import MPI
@@ -25,7 +25,7 @@ from .level import Level, Progress
 from .analysis import analyse
 from .results import build_results, sum_timings
 from .features import describe_location
-from .pilot import pilot
+from .pilot import Pilot, pilot
 
 
 def execute_run(case: Case, out_dir: Path, levels: int = 3, ratio: float = 1.3,
@@ -43,57 +43,95 @@ def execute_run(case: Case, out_dir: Path, levels: int = 3, ratio: float = 1.3,
     with staged_dir(out_dir, comm, say) as stage, Mesher(case.dims, case.model, say) as mesher, \
             contextlib.ExitStack() as stack:
         pl = pilot(case, comm=comm, progress=say, mesher=mesher)
-        files = {"results": "results.json", "mesh": "mesh.msh"}
-        picture: Picture | None = None
-        t_output = 0.0
-
-        def fields_and_picture(fine: Level) -> None:
-            nonlocal picture, t_output
-            if not write_fields:
-                return
-            t0 = time.perf_counter()
-            files.update(write_field_files(stage, *fine.fields,
-                                           whole_part=case.model == "quarter" and not quarter_fields))
-            # The picture process reads results.json: the requested mesh's peaks for now,
-            # the full results (same peaks) replace it below.
-            write_json(stage / "results.json", build_results(case, [fine], {}, comm, pl), comm)
-            t_output = time.perf_counter() - t0
-            if comm.rank == 0:
-                picture = start_picture(stage)
-                stack.enter_context(on_stop(picture.kill))  # a stopped run draws nothing
-
+        requested = _RequestedOutput(case=case, stage=stage, comm=comm, pl=pl, write_fields=write_fields,
+                                 quarter_fields=quarter_fields, stack=stack)
         try:
             lv, pl = analyse(case, levels=levels, ratio=ratio, msh_path=stage / "mesh.msh",
-                             progress=say, comm=comm, pl=pl, on_requested=fields_and_picture,
+                             progress=say, comm=comm, pl=pl, on_requested=requested.write,
                              mesher=mesher)
         except BaseException:
-            if picture is not None:  # the run failed: no picture either
-                picture.kill()
-                for proc in picture.procs:
-                    proc.wait()
+            requested.abandon()  # the run failed: no picture either
             raise
-        timings = sum_timings(lv, pl)
-        res = build_results(case, lv, timings, comm, pl)
-        if loads:
-            res["load_sweep"] = load_sweep(res, case, loads)
-        if write_fields:
-            files["picture"] = "von_mises.png"
-            files["report"] = "report.md"
-            files["report_html"] = "report.html"
-        res["files"] = files
-        res["timings_s"]["output"] = t_output
-        if picture is not None:
-            write_json(stage / "results.json", res, comm)  # every mesh's peaks, for peaks.png
-            res["timings_s"]["picture"] = finish_picture(picture, stage)
-            for key, name in (("sections_plot", "sections.png"), ("peaks_plot", "peaks.png")):
-                if (stage / name).exists():  # drawn by the plots process
-                    files[key] = name
+        res = _run_results(case, lv, pl, comm, loads, write_fields, requested.files, requested.t_output)
+        requested.finish(res)
         res["timings_s"]["total"] = time.perf_counter() - t_all
         write_json(stage / "results.json", res, comm)
         if write_fields and comm.rank == 0:
             write_report(stage)
-        say(f"output: {', '.join(files.values())} ({res['timings_s']['output']:.2f} s"
-            + (f"; picture {res['timings_s']['picture']:.2f} s, beside the error-bar solves)" if picture else ")"))
+        say(f"output: {', '.join(requested.files.values())} ({res['timings_s']['output']:.2f} s"
+            + (f"; picture {res['timings_s']['picture']:.2f} s, beside the error-bar solves)" if requested.picture else ")"))
+    return res
+
+
+@dataclass
+class _RequestedOutput:
+    """What a run writes from the requested mesh as soon as it is solved, while the
+    error-bar meshes are still being solved: the field files, a first results.json and
+    the drawing processes (rank 0). ``files`` maps results.json's file keys to names;
+    ``t_output`` is the time the files took (s)."""
+
+    case: Case
+    stage: Path
+    comm: MPI.Comm
+    pl: Pilot
+    write_fields: bool
+    quarter_fields: bool
+    stack: contextlib.ExitStack  # the run's: a stop signal kills the drawing while it is open
+    files: dict[str, str] = field(default_factory=lambda: {"results": "results.json", "mesh": "mesh.msh"})
+    picture: Picture | None = None
+    t_output: float = 0.0
+
+    def write(self, fine: Level) -> None:
+        """analyse's ``on_requested``: write the fields of the requested mesh's level and
+        the results.json the drawing reads, then start the drawing (rank 0)."""
+        if not self.write_fields:
+            return
+        t0 = time.perf_counter()
+        self.files.update(write_field_files(self.stage, *fine.fields,
+                                            whole_part=self.case.model == "quarter" and not self.quarter_fields))
+        # The picture process reads results.json: the requested mesh's peaks for now,
+        # the full results (same peaks) replace it below.
+        write_json(self.stage / "results.json", build_results(self.case, [fine], {}, self.comm, self.pl), self.comm)
+        self.t_output = time.perf_counter() - t0
+        if self.comm.rank == 0:
+            self.picture = start_picture(self.stage)
+            self.stack.enter_context(on_stop(self.picture.kill))  # a stopped run draws nothing
+
+    def abandon(self) -> None:
+        """Kill the drawing processes, if started, and wait for them to end."""
+        if self.picture is not None:
+            self.picture.kill()
+            for proc in self.picture.procs:
+                proc.wait()
+
+    def finish(self, res: dict) -> None:
+        """If the drawing was started: write the full results (every mesh's peaks, for
+        peaks.png), wait for the drawing, and add its time (s) and the plots it made to
+        ``res``."""
+        if self.picture is None:
+            return
+        write_json(self.stage / "results.json", res, self.comm)
+        res["timings_s"]["picture"] = finish_picture(self.picture, self.stage)
+        for key, name in (("sections_plot", "sections.png"), ("peaks_plot", "peaks.png")):
+            if (self.stage / name).exists():  # drawn by the plots process
+                self.files[key] = name
+
+
+def _run_results(case: Case, lv: list[Level], pl: Pilot, comm: MPI.Comm, loads: list[float] | None,
+                 write_fields: bool, files: dict[str, str], t_output: float) -> dict:
+    """The run's results from its levels and pilot, with the load sweep (loads in N) if
+    asked for, the output files (``files``, completed with the picture and reports when
+    fields are written) and the output time (s); the picture's and total time come later."""
+    timings = sum_timings(lv, pl)
+    res = build_results(case, lv, timings, comm, pl)
+    if loads:
+        res["load_sweep"] = load_sweep(res, case, loads)
+    if write_fields:
+        files["picture"] = "von_mises.png"
+        files["report"] = "report.md"
+        files["report_html"] = "report.html"
+    res["files"] = files
+    res["timings_s"]["output"] = t_output
     return res
 
 
