@@ -25,14 +25,12 @@ def estimate_levels(levels: list[Level], case: Case, attr: str) -> Estimate:
     peaks = [getattr(lv, attr) for lv in levels]
     h = [representative_size(lv.dofs) for lv in levels]
     fine = peaks[0]
-    if fine.rule != MIDPOINT:
-        return estimate([p.value_MPa for p in peaks], h, p_formal=float(case.order))
-    if len(levels) >= 4:
+    if fine.rule == MIDPOINT and len(levels) >= 4:
         est = two_reading_estimate([p.unaveraged.value_MPa for p in peaks], [p.averaged.value_MPa for p in peaks],
                                    h, p_formal=float(case.order))
     else:
         est = estimate([p.value_MPa for p in peaks], h, p_formal=float(case.order))
-    return with_bracket(est, fine.half_width_MPa)
+    return with_bracket(est, fine.half_width_MPa) if fine.rule == MIDPOINT else est
 
 
 def analyse(case: Case, levels: int = 3, ratio: float = 1.3, msh_path: Path | None = None,

@@ -101,29 +101,30 @@ def set_up(case: Case, factor: float, msh_path: Path | None = None, comm=MPI.COM
     return Problem(m, Material(E=case.E_MPa, nu=case.nu), lc, time.perf_counter() - t0)
 
 
-def solve_or_scale(case: Case, prob: Problem) -> Solution:
-    """The displacement of the problem: an earlier solve of the same mesh and problem at
-    another load or E, scaled (pipeline/solvecache.py: exact in linear elasticity), or a
-    new solve, which is then kept for the next run. With the run cache off, a new solve."""
+def solve_or_scale(case: Case, prob: Problem, reuse: bool = True) -> Solution:
+    """The displacement of the problem: with ``reuse`` and the run cache on, an earlier
+    solve of the same mesh and problem at another load or E, scaled
+    (pipeline/solvecache.py: exact in linear elasticity), or else a new solve, which is
+    then kept for the next run; without them, a new solve."""
     m, lc = prob.mesh, prob.loads
-    V = fem.VectorFunctionSpace(m.mesh, ("Lagrange", case.order)) if runcache.enabled() else None
+    V = fem.VectorFunctionSpace(m.mesh, ("Lagrange", case.order)) if reuse and runcache.enabled() else None
     ids = None if V is None else solvecache.node_ids(V, m)
-    if not m.mesh.comm.allreduce(ids is not None, op=MPI.LAND):
-        return solve(m.mesh, m.facet_tags, case.order, prob.material, lc.tractions, lc.constraints,
-                     solver=case.solver, rtol=case.rtol)
+    keep = m.mesh.comm.allreduce(ids is not None, op=MPI.LAND)
     t0 = time.perf_counter()
-    name = solvecache.key(case, m, V)
-    entry = solvecache.earlier(name, m.mesh.comm)
-    sol = None if entry is None else solvecache.scaled(entry, m, V, ids, lc, case)
-    if sol is not None:
-        sol.timings = {"assemble": 0.0, "solve": time.perf_counter() - t0}
-        return sol
+    if keep:
+        name = solvecache.key(case, m, V)
+        entry = solvecache.earlier(name, m.mesh.comm)
+        sol = None if entry is None else solvecache.scaled(entry, m, V, ids, lc, case)
+        if sol is not None:
+            sol.timings = {"assemble": 0.0, "solve": time.perf_counter() - t0}
+            return sol
     t_key = time.perf_counter() - t0
     sol = solve(m.mesh, m.facet_tags, case.order, prob.material, lc.tractions, lc.constraints,
-                solver=case.solver, rtol=case.rtol)
-    t0 = time.perf_counter()
-    solvecache.store(name, sol, ids, case)
-    sol.timings["solve"] += t_key + time.perf_counter() - t0
+                solver=case.solver, rtol=case.rtol, V=V)
+    if keep:
+        t0 = time.perf_counter()
+        solvecache.store(name, sol, ids, case)
+        sol.timings["solve"] += t_key + time.perf_counter() - t0
     return sol
 
 
@@ -149,8 +150,7 @@ def solve_level(case: Case, factor: float, msh_path: Path | None = None,
     say(f"mesh ×{factor:.3g}: {m.mesh.topology.index_map(3).size_global} tets, "
         f"geometry {m.timings['geometry']:.2f} s, mesh {m.timings['mesh']:.2f} s, "
         f"import {m.timings['import']:.2f} s")
-    sol = solve_or_scale(case, prob) if reuse else solve(
-        m.mesh, m.facet_tags, case.order, mat, lc.tractions, lc.constraints, solver=case.solver, rtol=case.rtol)
+    sol = solve_or_scale(case, prob, reuse)
     support, eq_err, point_r = equilibrium(lc, sol.reactions)
     limit = 1e-6 * case.load_N
     if not (eq_err <= limit and point_r <= limit):

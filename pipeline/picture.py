@@ -278,13 +278,12 @@ def _peak_marks(fe: dict, points0: np.ndarray, points: np.ndarray, tri: np.ndarr
     None), see :func:`mark_places`; and a line for each peak that no panel sees, so that the
     title names it rather than a label pointing at a hidden place. ``length`` (b6, mm) sets
     the tolerance of the line-of-sight test."""
+    peaks = (("global peak", fe["peak_MPa"], fe["peak_location_mm"], "black"),
+             ("critical peak", fe["critical_peak_MPa"], fe["critical_location_mm"], "magenta"))
     marks = [(label, value, colour, mark_places(points0, points, tri, loc, mirrored, eyes, 1e-3 * length))
-             for label, value, loc, colour in (
-                 ("global peak", fe["peak_MPa"], fe["peak_location_mm"], "black"),
-                 ("critical peak", fe["critical_peak_MPa"], fe["critical_location_mm"], "magenta"))]
+             for label, value, loc, colour in peaks]
     unseen = [f"{label} ({value:.1f} MPa) at ({', '.join(f'{c:.1f}' for c in loc)}) mm is not in view"
-              for (label, value, _, places), loc in zip(marks, (fe["peak_location_mm"], fe["critical_location_mm"]))
-              if all(p is None for p in places)]
+              for (label, value, loc, _), (*_, places) in zip(peaks, marks) if all(p is None for p in places)]
     return marks, unseen
 
 

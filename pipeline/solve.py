@@ -122,8 +122,9 @@ class _System:
 
 def solve(mesh, facet_tags, order: int, mat: Material, tractions: Sequence[Traction],
           constraints: Sequence[Constraint], solver: str = "pmg", rtol: float = 1e-10,
-          progress: Callable[[str], None] | None = None) -> Solution:
-    """Solve div σ(u) = 0 with the given tractions and constraints.
+          progress: Callable[[str], None] | None = None, V: fem.FunctionSpace | None = None) -> Solution:
+    """Solve div σ(u) = 0 with the given tractions and constraints (on the vector Lagrange
+    space V of that order, if the caller has made it already).
 
     Checks the solver's converged reason and the true relative residual ‖b − A u‖/‖b‖
     (below max(1000·rtol, 1e-6) for iterative solvers, 1e-8 for MUMPS) and that u is finite.
@@ -133,7 +134,7 @@ def solve(mesh, facet_tags, order: int, mat: Material, tractions: Sequence[Tract
     if solver == "pmg" and order == 1:
         solver = "gamg"
     t0 = time.perf_counter()
-    system = _assemble(mesh, facet_tags, order, mat, tractions, constraints, solver)
+    system = _assemble(mesh, facet_tags, order, mat, tractions, constraints, solver, V)
     t_assemble = time.perf_counter() - t0
     t0 = time.perf_counter()
     uh, reason, its, res_rel = _krylov(system, mat, facet_tags, constraints, solver, rtol)
@@ -150,9 +151,9 @@ def solve(mesh, facet_tags, order: int, mat: Material, tractions: Sequence[Tract
 
 
 def _assemble(mesh, facet_tags, order: int, mat: Material, tractions: Sequence[Traction],
-              constraints: Sequence[Constraint], solver: str) -> _System:
+              constraints: Sequence[Constraint], solver: str, V: fem.FunctionSpace | None = None) -> _System:
     """Stiffness matrix (MPa·mm) and load vector (N) of the problem, constraints applied."""
-    V = fem.VectorFunctionSpace(mesh, ("Lagrange", order))
+    V = V or fem.VectorFunctionSpace(mesh, ("Lagrange", order))
     u, v = ufl.TrialFunction(V), ufl.TestFunction(V)
     ds = ufl.Measure("ds", domain=mesh, subdomain_data=facet_tags)
     dx_split = volume_measures(mesh, order)  # once, for the stiffness and for the reactions
