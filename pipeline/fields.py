@@ -10,6 +10,7 @@ from mpi4py import MPI
 
 from .jsonio import json_safe
 from .mirror import mirror_quarter
+from .vtu import write_vtu
 
 
 def write_json(path: Path, data: dict, comm=MPI.COMM_WORLD) -> None:
@@ -29,20 +30,18 @@ def write_fields(folder: Path, u, vm, whole_part: bool = False) -> dict[str, str
     displacement.vtu: the displacement at the nodes of 10-node curved tets (P2 exactly;
     a P1 or P3 solution interpolated into P2). von_mises.vtu: the element-node von Mises
     values the peaks were taken from and the displacement at the same nodes (use Warp By
-    Vector). Uncompressed: zlib on the whole part's four copies is slow
-    (docs/performance.md). VTK, not XDMF: DOLFINx 0.5.2's XDMF writer drops P2 mid-edge
+    Vector). Raw binary, uncompressed: zlib on the whole part's four copies is slow and
+    base64 slows the reader (docs/performance.md). VTK, not XDMF: DOLFINx 0.5.2's XDMF writer drops P2 mid-edge
     values and cannot place DG values on this curved mesh.
     """
     comm = u.function_space.mesh.comm
     files = {"displacement": "displacement.vtu", "von_mises": "von_mises.vtu"}
     grids = {"displacement": _gather_p2_grid(u), "von_mises": _gather_dg_grid(vm, u)}
     if comm.rank == 0:
-        import meshio
         for key, kind in (("displacement", "tetra10"), ("von_mises", "tetra")):
             points, cells, vals, disp = mirror_quarter(*grids[key]) if whole_part else grids[key]
             data = {"displacement_mm": disp} if vals is None else {"von_mises_MPa": vals, "displacement_mm": disp}
-            meshio.write(Path(folder) / files[key], meshio.Mesh(points, [(kind, cells)], point_data=data),
-                         binary=True, compression=None)
+            write_vtu(Path(folder) / files[key], points, cells, kind, data)
     return files
 
 

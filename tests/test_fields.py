@@ -47,3 +47,42 @@ def test_displacement_file_holds_the_p2_field(tmp_path, whole):
     expected = field((x * sign).T).T * sign
     np.testing.assert_allclose(d, expected, atol=1e-12)
     assert len(x) == (4 if whole else 1) * n_nodes      # shared nodes written once per copy
+
+
+@pytest.mark.parametrize("kind, k", [("tetra", 4), ("tetra10", 10)])
+def test_vtu_file_reads_back_in_vtk_and_meshio(tmp_path, kind, k):
+    """The raw-appended .vtu (pipeline/vtu.py) read by two independent readers, VTK's own
+    (what ParaView and the picture use) and meshio's, gives back every array bit for bit."""
+    from vtkmodules.util.numpy_support import vtk_to_numpy
+    from vtkmodules.vtkIOXML import vtkXMLUnstructuredGridReader
+
+    from pipeline.vtu import VTK_CELL_TYPES, write_vtu
+    rng = np.random.default_rng(7)
+    points = rng.normal(size=(40, 3)) * 25.0
+    cells = rng.integers(0, 40, size=(9, k))
+    data = {"von_mises_MPa": rng.random(40) * 100.0, "displacement_mm": rng.normal(size=(40, 3)) * 1e-3}
+    path = tmp_path / "grid.vtu"
+    write_vtu(path, points, cells, kind, data)
+
+    m = meshio.read(path)
+    np.testing.assert_array_equal(m.points, points)
+    np.testing.assert_array_equal(m.cells_dict[kind], cells)
+    for name, a in data.items():
+        np.testing.assert_array_equal(m.point_data[name], a)
+
+    reader = vtkXMLUnstructuredGridReader()
+    reader.SetFileName(str(path))
+    reader.Update()
+    grid = reader.GetOutput()
+    np.testing.assert_array_equal(vtk_to_numpy(grid.GetPoints().GetData()), points)
+    np.testing.assert_array_equal(vtk_to_numpy(grid.GetCells().GetConnectivityArray()).reshape(-1, k), cells)
+    assert set(vtk_to_numpy(grid.GetCellTypesArray()).tolist()) == {VTK_CELL_TYPES[kind][0]}
+    for name, a in data.items():
+        np.testing.assert_array_equal(vtk_to_numpy(grid.GetPointData().GetArray(name)), a)
+
+
+def test_vtu_writer_refuses_a_mismatched_array(tmp_path):
+    from pipeline.vtu import write_vtu
+    with pytest.raises(ValueError, match="von_mises_MPa"):
+        write_vtu(tmp_path / "bad.vtu", np.zeros((4, 3)), np.array([[0, 1, 2, 3]]), "tetra",
+                  {"von_mises_MPa": np.zeros(3)})
