@@ -3,8 +3,8 @@
 
     CROSSHEAD_NO_CACHE=1 mpirun -n 2 .venv/bin/python -m bench.raisers --sizes all
 
-For every size: the default run's analysis (three meshes ×1, ×1.3, ×1.69, both peaks) once
-with the pilot and once with the known places, on the same ranks, one after the other.
+For every size: the default run's analysis (three meshes ×1, ×1.3, ×1.69; both peaks, or
+those ``--want`` names) once with the pilot and once with the known places, on the same ranks, one after the other.
 Prints one line per size and the largest differences (MPa, %, s); ``--out FILE`` keeps
 the rows as JSON. Run with the run cache off, so neither side reuses the other's meshes.
 """
@@ -19,15 +19,16 @@ from pathlib import Path
 from mpi4py import MPI
 
 
-def analyse_both(size: str, comm) -> dict:
-    """Both analyses of one size: peaks and bands (MPa), finest DOFs, places, wall time (s)."""
+def analyse_both(size: str, comm, want: str = "both") -> dict:
+    """Both analyses of one size for the peaks ``want`` asks for (the case's scene): peaks
+    and bands (MPa), finest DOFs, places, wall time (s)."""
     from pipeline.analysis import analyse, estimate_levels
     from pipeline.case import resolve
     from pipeline.features import known_raisers
     from pipeline.pilot import Pilot, pilot_factor
 
-    case = resolve(size)
-    row: dict = {"size": size}
+    case = resolve(size, overrides={"want": want})
+    row: dict = {"size": size, "want": want}
     for name in ("pilot", "known"):
         comm.barrier()
         t0 = time.perf_counter()
@@ -63,12 +64,14 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="python -m bench.raisers", description=__doc__.splitlines()[0])
     ap.add_argument("--sizes", default="all", help="hook numbers, e.g. 05,1.6, or 'all' rows (default)")
     ap.add_argument("--out", type=Path, help="write the rows as JSON here")
+    ap.add_argument("--want", choices=("both", "critical", "global"), default="both",
+                    help="the peaks the runs are asked for (default both)")
     args = ap.parse_args(argv)
     comm = MPI.COMM_WORLD
     sizes = list(load_table()) if args.sizes == "all" else [s.strip() for s in args.sizes.split(",") if s.strip()]
     rows = []
     for size in sizes:
-        row = analyse_both(size, comm)
+        row = analyse_both(size, comm, args.want)
         rows.append(row)
         if comm.rank == 0:
             print(summary_line(row), flush=True)
