@@ -44,6 +44,18 @@ def test_growing_values_are_singular_and_not_extrapolated():
     assert est.status == "singular" and est.extrapolated is None and not est.trustworthy
 
 
+def test_values_growing_by_mesh_noise_are_not_singular():
+    """Growth of 0.05 % per mesh (a nodal peak's mesh-to-mesh noise, above the 0.1 % spread
+    that counts as settled) is not a singularity: the band is the largest change."""
+    f = [65.0 * (1 + 7e-4) ** -k for k in range(3)]    # finest first: 65.0, 64.95, 64.91
+    est = estimate(f, H, p_formal=2.0)
+    assert est.status == "unsettled" and est.band == pytest.approx(f[0] - f[1])
+    assert est.trustworthy
+    f4 = [65.0 * (1 + 7e-4) ** -k for k in range(4)]
+    assert estimate(f4, H4, p_formal=2.0).status != "singular"
+    assert two_reading_estimate([v + 0.1 for v in f4], [v - 0.1 for v in f4], H4, p_formal=2.0).status != "singular"
+
+
 def test_oscillating_values_get_a_band_not_an_order():
     est = estimate([10.0, 10.2, 9.9], H, p_formal=2.0)
     assert est.status == "oscillatory" and est.band == pytest.approx(0.3)
