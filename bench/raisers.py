@@ -4,7 +4,8 @@
     CROSSHEAD_NO_CACHE=1 mpirun -n 2 .venv/bin/python -m bench.raisers --sizes all
 
 For every size: the default run's analysis (three meshes ×1, ×1.3, ×1.69; both peaks, or
-those ``--want`` names) once with the pilot and once with the known places, on the same ranks, one after the other.
+those ``--want`` names) once with the pilot and once with the known places, on the same
+ranks, one after the other.
 Prints one line per size and the largest differences (MPa, %, s); ``--out FILE`` keeps
 the rows as JSON. Run with the run cache off, so neither side reuses the other's meshes.
 """
@@ -25,17 +26,20 @@ def analyse_both(size: str, comm, want: str = "both") -> dict:
     from pipeline.analysis import analyse, estimate_levels
     from pipeline.case import resolve
     from pipeline.features import known_raisers
-    from pipeline.pilot import Pilot, pilot_factor
+    from pipeline.pilot import KNOWN, Pilot, pilot, pilot_factor
 
     case = resolve(size, overrides={"want": want})
     row: dict = {"size": size, "want": want}
     for name in ("pilot", "known"):
         comm.barrier()
         t0 = time.perf_counter()
-        given = None if name == "pilot" else Pilot(factor=pilot_factor(case), hotspots=known_raisers(case), time_s=0.0)
+        # The known places as a run of the critical scene takes them (KNOWN: analyse falls
+        # back to the pilot if the critical peak lands outside them; "source" says if it did).
+        given = (pilot(case, comm=comm) if name == "pilot" else
+                 Pilot(factor=pilot_factor(case), hotspots=known_raisers(case), time_s=0.0, source=KNOWN))
         levels, pl = analyse(case, comm=comm, pl=given)
         wall = comm.allreduce(time.perf_counter() - t0, op=MPI.MAX)
-        out = {"places": len(pl.hotspots), "dofs": levels[0].dofs, "wall_s": wall}
+        out = {"places": len(pl.hotspots), "source": pl.source, "dofs": levels[0].dofs, "wall_s": wall}
         for key in ("peak", "critical"):
             est = estimate_levels(levels, case, key)
             out[key] = {"value_MPa": getattr(levels[0], key).value_MPa, "band_MPa": est.band, "status": est.status}

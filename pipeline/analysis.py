@@ -14,7 +14,7 @@ from .errorbar import Estimate, estimate, representative_size, two_reading_estim
 from .level import Level, Progress, solve_level
 from .meshing import Mesher, given_or_new, make_meshes, owners
 from .peaks import MIDPOINT
-from .pilot import Pilot, pilot
+from .pilot import KNOWN, Pilot, inside_refinement, pilot, refinement_places
 
 
 def estimate_levels(levels: list[Level], case: Case, attr: str) -> Estimate:
@@ -36,20 +36,23 @@ def estimate_levels(levels: list[Level], case: Case, attr: str) -> Estimate:
 def analyse(case: Case, levels: int = 3, ratio: float = 1.3, msh_path: Path | None = None,
             progress: Progress | None = None, comm=MPI.COMM_WORLD,
             pl: Pilot | None = None,
-            on_requested: Callable[[Level], None] | None = None,
+            on_requested: Callable[[Level, Pilot], None] | None = None,
             mesher: Mesher | None = None) -> tuple[list[Level], Pilot]:
     """Solve on ``levels`` meshes, the requested one and coarser by ``ratio`` each; finest first.
 
-    A pilot solve first puts refinement where the peaks are (see :func:`pilot`). Then all
+    The refinement goes where the peaks are (:func:`pilot.refinement_places`: a pilot
+    solve, or for the critical peak alone the known bore edges). Then all
     meshes are made at once, one per rank (gmsh is serial; see meshing.make_meshes). The
     requested mesh is solved on every rank and handed to ``on_requested`` (which may start
     work that runs beside what follows: the picture). The coarser meshes are then solved
     side by side, each on one rank (see :func:`error_bar_ranks`). ``mesher``: this
     process's meshing.Mesher of the case's part, if it has one (else one for the pilot
-    and the meshes).
+    and the meshes). If places known from the dimensions were refined and the critical
+    peak of the requested mesh lies outside them, the analysis starts again with the
+    pilot's places, before anything is handed on.
     """
     with given_or_new(mesher, case.dims, case.model) as m:
-        pl = pl or pilot(case, comm=comm, progress=progress, mesher=m)
+        pl = pl or refinement_places(case, comm=comm, progress=progress, mesher=m)
         factors = [case.mesh_factor * ratio ** k for k in range(levels)]
         on = error_bar_ranks(factors, comm.size)
         t0 = time.perf_counter()
@@ -61,8 +64,14 @@ def analyse(case: Case, levels: int = 3, ratio: float = 1.3, msh_path: Path | No
         say(f"meshes ×{', ×'.join(f'{f:.3g}' for f in factors)} made on {min(comm.size, levels)} ranks at once "
             f"({time.perf_counter() - t0:.2f} s)")
     fine = solve_level(case, factors[0], keep_fields=True, with_sections=True, comm=comm, progress=progress, load_mesh=loaders[0])
+    radius = case.mesh_spec(factors[0]).hotspot_radius
+    if pl.source == KNOWN and not inside_refinement(case, fine.critical.location_mm, pl, radius):
+        say(f"the critical peak at ({', '.join(f'{c:.2f}' for c in fine.critical.location_mm)}) mm lies outside "
+            f"the known places' refinement: finding the places by a pilot solve instead")
+        return analyse(case, levels, ratio, msh_path, progress, comm, pilot(case, comm=comm, progress=progress),
+                       on_requested, mesher)
     if on_requested is not None:
-        on_requested(fine)
+        on_requested(fine, pl)
     mine: list[tuple[int, Level]] = []
     error = None
     for k in range(1, levels):

@@ -360,7 +360,8 @@ def _announce(args: argparse.Namespace, case: Case, say: Callable[[str], None], 
     if case.want != "both":
         other = "global (fillet)" if case.want == "critical" else "critical (bore ligament)"
         say(f"want = {case.want}: skipping the refinement for the {other} peak"
-            + (" (fillet elements at the bore edges' size; the pilot refines the ligaments only)"
+            + (" (fillet elements at the bore edges' size; the bore edges refined where the dimensions put them, "
+               "no pilot solve)"
                if case.want == "critical" else " (the pilot refines the fillet only)")
             + "; that peak is shown without a verdict")
     _progress(f"imports {time.perf_counter() - T_START:.2f} s; case {case.name}: hook No. {case.size}, "

@@ -25,7 +25,7 @@ from .level import Level, Progress
 from .analysis import analyse
 from .results import build_results, sum_timings
 from .features import describe_location
-from .pilot import Pilot, pilot
+from .pilot import Pilot, refinement_places
 
 
 def execute_run(case: Case, out_dir: Path, levels: int = 3, ratio: float = 1.3,
@@ -42,7 +42,7 @@ def execute_run(case: Case, out_dir: Path, levels: int = 3, ratio: float = 1.3,
     t_all = time.perf_counter()
     with staged_dir(out_dir, comm, say) as stage, Mesher(case.dims, case.model, say) as mesher, \
             contextlib.ExitStack() as stack:
-        pl = pilot(case, comm=comm, progress=say, mesher=mesher)
+        pl = refinement_places(case, comm=comm, progress=say, mesher=mesher)
         requested = _RequestedOutput(case=case, stage=stage, comm=comm, pl=pl, write_fields=write_fields,
                                  quarter_fields=quarter_fields, stack=stack)
         try:
@@ -81,9 +81,11 @@ class _RequestedOutput:
     picture: Picture | None = None
     t_output: float = 0.0
 
-    def write(self, fine: Level) -> None:
+    def write(self, fine: Level, pl: Pilot) -> None:
         """analyse's ``on_requested``: write the fields of the requested mesh's level and
-        the results.json the drawing reads, then start the drawing (rank 0)."""
+        the results.json the drawing reads (with ``pl``, the places the meshes were refined
+        at), then start the drawing (rank 0)."""
+        self.pl = pl
         if not self.write_fields:
             return
         t0 = time.perf_counter()
@@ -210,9 +212,9 @@ def execute_converge(case: Case, out_dir: Path, levels: int = 5, ratio: float = 
     from dataclasses import replace
     fine_case = replace(case, mesh_factor=finest)
     with staged_dir(out_dir, comm, say) as stage, Mesher(case.dims, case.model, say) as mesher:
-        # The pilot of the case itself, so the case's own mesh is one of the study's levels.
+        # The refinement places of the case itself, so the case's own mesh is one of the study's levels.
         lv, pl = analyse(fine_case, levels=levels, ratio=ratio, msh_path=stage / "mesh.msh",
-                         progress=say, comm=comm, pl=pilot(case, comm=comm, progress=say, mesher=mesher),
+                         progress=say, comm=comm, pl=refinement_places(case, comm=comm, progress=say, mesher=mesher),
                          mesher=mesher)
         timings = sum_timings(lv, pl)
         res = build_results(fine_case, lv, timings, comm, pl)

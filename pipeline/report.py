@@ -235,10 +235,14 @@ def _inputs_lines(res: dict) -> list[str]:
         f"{_f(ms['size_feature'], 3)}, fillets {_f(ms['size_fillet'], 3)}, grading distance {_f(ms['grading'], 3)}.\n")
     spots = fe.get("refined_at_mm") or []
     if spots and "size_hotspot" in ms:
+        if fe.get("refined_places_from") == "known":
+            where = (f"{len(spots)} places known from the dimensions, the bore edges in x = 0 (no pilot solve: "
+                     f"only the critical peak is asked for, and it fell inside their refinement)")
+        else:
+            where = (f"{len(spots)} places where a pilot solve (mesh × {fe['pilot_mesh_factor']:.3g}) found von Mises "
+                     f"within {100 * (1 - fe['pilot_fraction']):.0f} % of the global or critical peak")
         add(f"Refined to {_f(ms['size_hotspot'], 3)} mm (× factor) within {_f(ms['hotspot_radius'], 3)} mm of "
-            f"{len(spots)} places where a pilot solve (mesh × {fe['pilot_mesh_factor']:.3g}) found von Mises "
-            f"within {100 * (1 - fe['pilot_fraction']):.0f} % of the global or critical peak: "
-            f"{', '.join(_loc(p) for p in spots)} (and their mirror images).\n")
+            f"{where}: {', '.join(_loc(p) for p in spots)} (and their mirror images).\n")
     return L
 
 

@@ -78,6 +78,11 @@ def test_want_critical_skips_the_fillet_and_keeps_the_critical_peak(tmp_path):
     assert fe["verdict"]["global_peak"]["verdict"] == "none"
     assert fe["critical_peak_MPa"] == pytest.approx(both["fe"]["critical_peak_MPa"], rel=5e-3)
     assert fe["cells"] < both["fe"]["cells"]
+    # No pilot: the bore edges in x = 0 (di/2 = 10.5 mm, h = 25 mm) are refined as the
+    # dimensions put them, and the critical peak lies at one of them.
+    assert fe["refined_places_from"] == "known" and crit["timings_s"]["pilot"] == 0.0
+    assert sorted(map(tuple, fe["refined_at_mm"])) == [(0.0, 10.5, 0.0), (0.0, 10.5, 25.0)]
+    assert both["fe"]["refined_places_from"] == "pilot"
 
 
 @pytest.mark.parametrize("study", STUDIES, ids=[s.stem for s in STUDIES])

@@ -33,3 +33,27 @@ def test_known_places_follow_the_wanted_peaks_and_the_fillet():
     assert all(p[0] == 0.0 for p in known_raisers(resolve("05", overrides={"want": "critical"})))
     assert all(p[0] > 0.0 for p in known_raisers(resolve("05", overrides={"want": "global"})))
     assert len(known_raisers(resolve("05", overrides={"dims.rf": 0.0}))) == 2
+
+
+def test_inside_refinement_counts_the_mirror_images():
+    from pipeline.pilot import KNOWN, Pilot, inside_refinement
+    case = resolve("05")
+    pl = Pilot(factor=None, hotspots=((0.0, 10.5, 0.0),), time_s=0.0, source=KNOWN)
+    assert inside_refinement(case, (0.0, 10.5, 0.0), pl, 0.6)
+    assert inside_refinement(case, (-0.3, -10.2, 0.1), pl, 0.6)     # mirrored in x = 0 and y = 0: 0.5 mm away
+    assert not inside_refinement(case, (0.0, 10.5, 0.7), pl, 0.6)
+
+
+def test_misplaced_known_places_fall_back_to_the_pilot():
+    """Known places that miss the critical peak (here one place on the top face, far from
+    both bore edges) make the analysis find the places by a pilot solve instead: the result
+    is the pilot route's own, the same meshes and the same critical peak."""
+    from pipeline.analysis import analyse
+    from pipeline.pilot import KNOWN, PILOT, Pilot, pilot
+    case = resolve("05", overrides={"want": "critical", "mesh_factor": 3.0})
+    wrong = Pilot(factor=None, hotspots=((5.0, 20.0, 25.0),), time_s=0.0, source=KNOWN)
+    levels, used = analyse(case, levels=1, pl=wrong)
+    assert used.source == PILOT and used.hotspots != wrong.hotspots
+    direct, _ = analyse(case, levels=1, pl=pilot(case))
+    assert levels[0].dofs == direct[0].dofs
+    assert levels[0].critical.value_MPa == pytest.approx(direct[0].critical.value_MPa, rel=1e-8)
