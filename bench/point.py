@@ -53,7 +53,7 @@ def run_point(spec: dict) -> dict | None:
     order = int(spec.get("order", 2))
     case = resolve(spec.get("size", "05"),
                    overrides={"mesh_factor": spec["factor"], "order": order,
-                              "solver": spec.get("solver") or "pmg"})
+                              "solver": spec.get("solver") or "pmg", "want": spec.get("want", "both")})
     out: dict = {"spec": spec, "ranks": comm.size, "imports_s": imports}
     comm.barrier()
     t0 = time.perf_counter()
@@ -80,12 +80,13 @@ def _import_modules(kind: str) -> float:
 
 
 def _pilot_hotspots(spec: dict, case: Case, comm, mesher: Mesher) -> tuple[tuple, float | None]:
-    """The places (mm) the pipeline's pilot solve refines the mesh at, and its time (s),
-    when the spec asks for the pilot; else no places and None."""
+    """The places (mm) a run of the case refines the mesh at, and the time finding them
+    took (s), when the spec asks for the pilot: the pilot's, or for the critical peak alone
+    the known bore edges (pipeline.pilot.refinement_places); else no places and None."""
     if not spec.get("pilot"):
         return (), None
-    from pipeline.pilot import pilot
-    pl = pilot(case, comm=comm, mesher=mesher)
+    from pipeline.pilot import refinement_places
+    pl = refinement_places(case, comm=comm, mesher=mesher)
     return pl.hotspots, pl.time_s
 
 

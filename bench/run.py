@@ -123,12 +123,13 @@ def build_matrix(args) -> list[tuple[dict, int, int]]:
                 for s in args.solvers:
                     if order == 1 and s == "pmg" and "gamg" in args.solvers:
                         continue  # the same solver for P1 (pipeline.solve)
-                    pts.append(({"kind": "dolfinx", "order": order, "factor": f, "solver": s, "pilot": pl}, 1, thr))
+                    pts.append(({"kind": "dolfinx", "order": order, "factor": f, "solver": s, "pilot": pl,
+                                 "want": args.want}, 1, thr))
         if args.ccx:
             for f in factors:
                 for cs in args.ccx_solvers:
                     pts.append(({"kind": "calculix", "order": 2, "factor": f, "ccx_solver": cs,
-                                 "threads": thr, "pilot": pl}, 1, thr))
+                                 "threads": thr, "pilot": pl, "want": args.want}, 1, thr))
     # On more cores: the finest P2 mesh (the scaling check, every solver), and with
     # --ranks-at targets also the pipeline's default solver (pmg) on P2 and CalculiX at every
     # mesh level (the time to 1 % with every core in use), or with --ranks-at all every point.
@@ -177,6 +178,9 @@ def make_parser() -> argparse.ArgumentParser:
     p.add_argument("--pilot", choices=("on", "off", "both"), default="both",
                    help="meshes refined where a pilot solve finds the peaks (the pipeline's default), "
                         "plain graded meshes, or both (default; --quick: off)")
+    p.add_argument("--want", choices=("both", "critical"), default="both",
+                   help="the peaks every point's mesh is made for (the run's scene): both (default), or "
+                        "critical (with --pilot on: the known bore edges refined, no pilot solve)")
     p.add_argument("--ranks", type=_csv_list(int), default=[1],
                    help="MPI rank counts for the finest P2 mesh, e.g. 1,2 (default 1)")
     p.add_argument("--ranks-at", choices=("finest", "targets", "all"), default="finest",

@@ -14,7 +14,8 @@ def aggregate(spec: dict, ranks: int, threads: int, runs: list[dict], ref: dict)
     """One row: medians of the stage times over the runs, errors against the reference."""
     row = {"kind": spec["kind"], "order": spec.get("order", 2),
            "solver": spec.get("solver") or f"ccx-{spec.get('ccx_solver', 'spooles')}",
-           "factor": spec["factor"], "pilot": bool(spec.get("pilot")), "ranks": ranks, "threads": threads,
+           "factor": spec["factor"], "pilot": bool(spec.get("pilot")), "want": spec.get("want", "both"),
+           "ranks": ranks, "threads": threads,
            "cores": ranks * threads}
     ok = [r for r in runs if "error" not in r]
     if not ok:
@@ -61,10 +62,11 @@ def time_to_error(rows: list[dict], kinds: set[str], keys: tuple[str, ...], tol:
 
 
 def label(r: dict) -> str:
+    places = (" +bore edges" if r.get("want") == "critical" else " +pilot") if r.get("pilot") else ""
     if r["kind"] == "calculix":
-        s = f"CalculiX C3D10 {r['solver'][4:]}" + (" +pilot" if r.get("pilot") else "")
+        s = f"CalculiX C3D10 {r['solver'][4:]}" + places
         return s + (f" {r['threads']}thr" if r.get("threads", 1) != 1 else "")
-    s = f"P{r['order']} {r['solver']}" + (" +pilot" if r.get("pilot") else "")
+    s = f"P{r['order']} {r['solver']}" + places
     return s + (f" x{r['ranks']}ranks" if r.get("ranks", 1) != 1 else "")
 
 

@@ -223,6 +223,21 @@ def test_bench_ranks_at_targets_adds_the_default_solver_and_calculix_on_every_le
     assert all(s["threads"] == 2 for s, r, t in pts if s["kind"] == "calculix" and t == 2)
 
 
+def test_bench_want_critical_gives_both_kinds_the_known_places():
+    """--want critical: every point, the pipeline's and CalculiX's, is made for the critical
+    peak alone, so both mesh the known bore edges instead of a pilot's places (the run's
+    scene); the places are those of pipeline.features for No. 05. (Matrix and places only.)"""
+    from bench import run as bench
+    from bench.point import _pilot_hotspots
+    from pipeline.case import resolve
+    argv = ["--orders", "2", "--solvers", "pmg", "--factors", "4.0", "--ccx-solvers", "iterative",
+            "--pilot", "on", "--want", "critical"]
+    pts = bench.build_matrix(bench.make_parser().parse_args(argv))
+    assert {(s["kind"], s["want"]) for s, _, _ in pts} == {("dolfinx", "critical"), ("calculix", "critical")}
+    spots, t = _pilot_hotspots(pts[0][0], resolve("05", overrides={"want": "critical"}), None, None)
+    assert sorted(spots) == [(0.0, 10.5, 0.0), (0.0, 10.5, 25.0)] and t == 0.0
+
+
 def test_reference_staleness_watches_files_that_exist():
     """bench.run warns when a reference study is older than the code that made its numbers;
     a renamed module would silence that warning, so every watched file must exist."""
