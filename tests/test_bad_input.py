@@ -69,13 +69,13 @@ def listing(folder: Path) -> set[str]:
 def tripwire(monkeypatch):
     """Meshing or solving anything fails the test: validation must stop bad input first.
 
-    ``analyse`` and ``pilot`` are what ``execute_run``/``execute_converge`` call inside
-    ``staged_dir``, so the real output-folder checks still run before the wire.
+    ``analyse`` and ``refinement_places`` are what ``execute_run``/``execute_converge`` call
+    inside ``staged_dir``, so the real output-folder checks still run before the wire.
     """
     def boom(*a, **k):
         raise AssertionError("bad input reached the mesher/solver")
     monkeypatch.setattr(pipeline.commands, "analyse", boom)
-    monkeypatch.setattr(pipeline.commands, "pilot", boom)
+    monkeypatch.setattr(pipeline.commands, "refinement_places", boom)
 
 
 # --------------------------------------------------------------------------- corpus
