@@ -25,8 +25,7 @@ def analyse_both(size: str, comm, want: str = "both") -> dict:
     and bands (MPa), finest DOFs, places, wall time (s)."""
     from pipeline.analysis import analyse, estimate_levels
     from pipeline.case import resolve
-    from pipeline.features import known_raisers
-    from pipeline.pilot import KNOWN, Pilot, pilot, pilot_factor
+    from pipeline.pilot import known_places, pilot
 
     case = resolve(size, overrides={"want": want})
     row: dict = {"size": size, "want": want}
@@ -35,8 +34,7 @@ def analyse_both(size: str, comm, want: str = "both") -> dict:
         t0 = time.perf_counter()
         # The known places as a run of the critical scene takes them (KNOWN: analyse falls
         # back to the pilot if the critical peak lands outside them; "source" says if it did).
-        given = (pilot(case, comm=comm) if name == "pilot" else
-                 Pilot(factor=pilot_factor(case), hotspots=known_raisers(case), time_s=0.0, source=KNOWN))
+        given = pilot(case, comm=comm) if name == "pilot" else known_places(case)
         levels, pl = analyse(case, comm=comm, pl=given)
         wall = comm.allreduce(time.perf_counter() - t0, op=MPI.MAX)
         out = {"places": len(pl.hotspots), "source": pl.source, "dofs": levels[0].dofs, "wall_s": wall}

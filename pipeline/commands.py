@@ -43,8 +43,8 @@ def execute_run(case: Case, out_dir: Path, levels: int = 3, ratio: float = 1.3,
     with staged_dir(out_dir, comm, say) as stage, Mesher(case.dims, case.model, say) as mesher, \
             contextlib.ExitStack() as stack:
         pl = refinement_places(case, comm=comm, progress=say, mesher=mesher)
-        requested = _RequestedOutput(case=case, stage=stage, comm=comm, pl=pl, write_fields=write_fields,
-                                 quarter_fields=quarter_fields, stack=stack)
+        requested = _RequestedOutput(case=case, stage=stage, comm=comm, write_fields=write_fields,
+                                     quarter_fields=quarter_fields, stack=stack)
         try:
             lv, pl = analyse(case, levels=levels, ratio=ratio, msh_path=stage / "mesh.msh",
                              progress=say, comm=comm, pl=pl, on_requested=requested.write,
@@ -73,7 +73,6 @@ class _RequestedOutput:
     case: Case
     stage: Path
     comm: MPI.Comm
-    pl: Pilot
     write_fields: bool
     quarter_fields: bool
     stack: contextlib.ExitStack  # the run's: a stop signal kills the drawing while it is open
@@ -85,7 +84,6 @@ class _RequestedOutput:
         """analyse's ``on_requested``: write the fields of the requested mesh's level and
         the results.json the drawing reads (with ``pl``, the places the meshes were refined
         at), then start the drawing (rank 0)."""
-        self.pl = pl
         if not self.write_fields:
             return
         t0 = time.perf_counter()
@@ -93,7 +91,7 @@ class _RequestedOutput:
                                             whole_part=self.case.model == "quarter" and not self.quarter_fields))
         # The picture process reads results.json: the requested mesh's peaks for now,
         # the full results (same peaks) replace it below.
-        write_json(self.stage / "results.json", build_results(self.case, [fine], {}, self.comm, self.pl), self.comm)
+        write_json(self.stage / "results.json", build_results(self.case, [fine], {}, self.comm, pl), self.comm)
         self.t_output = time.perf_counter() - t0
         if self.comm.rank == 0:
             self.picture = start_picture(self.stage)

@@ -69,14 +69,20 @@ def refinement_places(case: Case, comm=MPI.COMM_WORLD, progress: Progress | None
     """
     if case.want != "critical":
         return pilot(case, comm=comm, progress=progress, mesher=mesher)
-    spots = known_raisers(case)
+    known = known_places(case)
     (progress or (lambda s: None))(
-        f"no pilot: refining near the {len(spots)} bore edges in x = 0, known from the dimensions: "
-        f"{', '.join(_fmt(q) for q in spots)} mm")
-    return Pilot(factor=None, hotspots=spots, time_s=0.0, source=KNOWN)
+        f"no pilot: refining near the {len(known.hotspots)} bore edges in x = 0, known from the dimensions: "
+        f"{', '.join(_fmt(q) for q in known.hotspots)} mm")
+    return known
 
 
-def inside_refinement(case: Case, place_mm: Sequence[float], pl: Pilot, radius_mm: float) -> bool:
+def known_places(case: Case) -> Pilot:
+    """The places the case's wanted peaks are known to sit at, from the dimensions alone
+    (features.known_raisers), as refinement places found without a solve."""
+    return Pilot(factor=None, hotspots=known_raisers(case), time_s=0.0, source=KNOWN)
+
+
+def inside_refinement(place_mm: Sequence[float], pl: Pilot, radius_mm: float) -> bool:
     """Whether a point (mm) lies within ``radius_mm`` of one of the refined places or of
     their mirror images in x = 0 and y = 0 (the meshes refine all four quadrants)."""
     x, y, z = place_mm

@@ -17,6 +17,7 @@ geometry and meshing source code, so a changed mesher never reuses an old mesh.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import hashlib
 import json
 import os
@@ -36,8 +37,10 @@ def enabled() -> bool:
     return os.environ.get("CROSSHEAD_NO_CACHE", "") in ("", "0")
 
 
+@functools.cache
 def source_hash(files: tuple[str, ...]) -> str:
-    """A hash of the source files (paths from the repository root) whose code makes an entry."""
+    """A hash of the source files (paths from the repository root) whose code makes an entry;
+    read once per process (its sources do not change while it runs)."""
     repo = Path(__file__).resolve().parents[1]
     h = hashlib.sha1()
     for rel in files:

@@ -37,11 +37,10 @@ def test_known_places_follow_the_wanted_peaks_and_the_fillet():
 
 def test_inside_refinement_counts_the_mirror_images():
     from pipeline.pilot import KNOWN, Pilot, inside_refinement
-    case = resolve("05")
     pl = Pilot(factor=None, hotspots=((0.0, 10.5, 0.0),), time_s=0.0, source=KNOWN)
-    assert inside_refinement(case, (0.0, 10.5, 0.0), pl, 0.6)
-    assert inside_refinement(case, (-0.3, -10.2, 0.1), pl, 0.6)     # mirrored in x = 0 and y = 0: 0.5 mm away
-    assert not inside_refinement(case, (0.0, 10.5, 0.7), pl, 0.6)
+    assert inside_refinement((0.0, 10.5, 0.0), pl, 0.6)
+    assert inside_refinement((-0.3, -10.2, 0.1), pl, 0.6)     # mirrored in x = 0 and y = 0: 0.5 mm away
+    assert not inside_refinement((0.0, 10.5, 0.7), pl, 0.6)
 
 
 def test_misplaced_known_places_fall_back_to_the_pilot():
