@@ -8,6 +8,8 @@ from typing import Callable
 
 import numpy as np
 
+from geometry.places import at_journal_root
+
 from .case import Case
 
 
@@ -45,17 +47,7 @@ def fillet_region(case: Case) -> Callable[[np.ndarray], np.ndarray] | None:
     :func:`describe_location` names "journal shoulder fillet"); None without a fillet."""
     if case.dims.rf <= 0:
         return None
-    return lambda xyz: _at_journal_root(case, xyz)
-
-
-def _at_journal_root(case: Case, xyz: np.ndarray) -> np.ndarray:
-    """Points (n, 3, mm) on the journal's root: the shoulder fillet, or the sharp corner
-    when rf = 0, with a margin of 0.02·h3."""
-    d = case.dims
-    tol = 0.02 * d.h3
-    x = np.abs(xyz[:, 0])
-    r = np.hypot(np.abs(xyz[:, 1]), xyz[:, 2] - d.h3 / 2)
-    return (x >= d.b1 / 2 - tol) & (x <= d.b1 / 2 + d.rf + tol) & (r < d.dj / 2 + d.rf + tol)
+    return lambda xyz: at_journal_root(case.dims, xyz)
 
 
 def describe_location(case: Case, xyz: tuple[float, float, float]) -> str:
@@ -67,7 +59,7 @@ def describe_location(case: Case, xyz: tuple[float, float, float]) -> str:
     vertical = "bottom" if z < tol else "top" if z > d.h3 - tol else "mid-height"
     if abs(r_axis - d.d2 / 2) < tol:
         return f"bore edge ({vertical} face)" if vertical != "mid-height" else "bore wall"
-    if _at_journal_root(case, np.array([xyz], dtype=float))[0]:
+    if at_journal_root(d, np.array([xyz], dtype=float))[0]:
         # Without a fillet the journal meets the end face in a sharp re-entrant circle.
         return "journal shoulder fillet" if d.rf > 0 else "journal root (sharp corner, no fillet)"
     if x > d.b1 / 2 + tol:
