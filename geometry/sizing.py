@@ -4,10 +4,12 @@
 from __future__ import annotations
 
 import gmsh
+import numpy as np
 
 from .curved import ensure_curved_quality
 from .meshspec import MeshSpec
 from .part import GeometryError, geometric_tolerance
+from .places import at_journal_root
 from .table import Dimensions
 
 GRADE = 0.5  # largest growth of the element size per unit distance near the fillets
@@ -62,7 +64,8 @@ def mesh(d: Dimensions, spec: MeshSpec) -> float:
     f = spec.factor
     hmax = spec.size_body * f
     fmin = _background_field(_size_fields(d, spec, hmax))
-    hmin = min([spec.size_feature, spec.size_fillet] + ([spec.size_hotspot] if spec.hotspots else [])) * f
+    hmin = min([spec.size_feature, spec.size_fillet]
+               + ([spec.size_hotspot, spec.size_edge_hotspot] if spec.hotspots else [])) * f
     _set_mesh_options(spec.order, hmax, hmin)
     try:
         gmsh.model.mesh.generate(3)
@@ -83,7 +86,8 @@ def mesh(d: Dimensions, spec: MeshSpec) -> float:
 
 def _size_fields(d: Dimensions, spec: MeshSpec, hmax: float) -> list[int]:
     """The gmsh size fields of the part (mm, sizes times spec.factor, growing to ``hmax``):
-    at the bore and seat edges, at the fillets, and in a ball around each hot spot."""
+    at the bore and seat edges, at the fillets, and in a ball around each hot spot (of the
+    fillet's hot-spot size on the journal root, of the edges' elsewhere: MeshSpec)."""
     f = spec.factor
     edges, fillets = _feature_curves(d)
     fields_ = [size_field(edges, spec.size_feature * f, hmax, 0.25 * spec.grading * f, spec.grading)]
@@ -94,11 +98,12 @@ def _size_fields(d: Dimensions, spec: MeshSpec, hmax: float) -> list[int]:
         # changed from run to run at coarse factors, peaks by up to 3 %.)
         h_f = spec.size_fillet * f
         fields_.append(size_field(fillets, h_f, hmax, 0.5 * d.rf, 0.5 * d.rf + (hmax - h_f) / GRADE))
-    for point in spec.hotspots:
+    on_root = at_journal_root(d, np.array(spec.hotspots, dtype=float).reshape(-1, 3))
+    for point, root in zip(spec.hotspots, on_root):
         # The radius is a region, not a size: it stays put while the sizes are scaled, so
         # the DOFs grow with refinement like everywhere else (a scaled radius kept the
         # number of elements in the ball constant and stalled the error-bar ratios).
-        h_s, r_s = spec.size_hotspot * f, spec.hotspot_radius
+        h_s, r_s = (spec.size_hotspot if root else spec.size_edge_hotspot) * f, spec.hotspot_radius
         fields_ += _balls(point, h_s, hmax, r_s, (hmax - h_s) / GRADE)
     return fields_
 

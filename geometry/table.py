@@ -49,6 +49,9 @@ class Dimensions:
     seat_outer: float
 
 
+RF_PER_H = 0.06  # the assumed fillet radius, × h3 (docs/design.md §2)
+
+
 def default_extras(b1: float, d14: float, h3: float) -> dict[str, float]:
     """The assumed dimensions of docs/design.md §2 that the paper does not give, in mm.
 
@@ -56,7 +59,7 @@ def default_extras(b1: float, d14: float, h3: float) -> dict[str, float]:
     """
     return {
         "dj": 0.8 * h3,
-        "rf": 0.06 * h3,
+        "rf": RF_PER_H * h3,
         "seat_inner": d14 * (1 - 0.19),
         "seat_outer": d14 * (1 + 0.19),
     }

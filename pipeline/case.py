@@ -71,7 +71,8 @@ class Case:
         spec = self.mesh_spec()
         out["mesh_sizes_mm"] = {"size_body": spec.size_body, "size_feature": spec.size_feature,
                                 "size_fillet": spec.size_fillet, "grading": spec.grading,
-                                "size_hotspot": spec.size_hotspot, "hotspot_radius": spec.hotspot_radius}
+                                "size_hotspot": spec.size_hotspot, "size_edge_hotspot": spec.size_edge_hotspot,
+                                "hotspot_radius": spec.hotspot_radius}
         return out
 
 

@@ -64,6 +64,7 @@ def _normalised(d: Dimensions, spec: MeshSpec, scale: float) -> tuple[Dimensions
     sn = replace(spec, size_body=_unit(spec.size_body, scale), size_feature=_unit(spec.size_feature, scale),
                  size_fillet=_unit(spec.size_fillet, scale), grading=_unit(spec.grading, scale),
                  size_hotspot=_unit(spec.size_hotspot, scale), hotspot_radius=_unit(spec.hotspot_radius, scale),
+                 size_edge_hotspot=_unit(spec.size_edge_hotspot, scale),
                  hotspots=tuple(tuple(_unit(c, scale) for c in p) for p in spec.hotspots))
     return dn, sn
 

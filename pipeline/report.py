@@ -241,7 +241,9 @@ def _inputs_lines(res: dict) -> list[str]:
         else:
             where = (f"{len(spots)} places where a pilot solve (mesh × {fe['pilot_mesh_factor']:.3g}) found von Mises "
                      f"within {100 * (1 - fe['pilot_fraction']):.0f} % of the global or critical peak")
-        add(f"Refined to {_f(ms['size_hotspot'], 3)} mm (× factor) within {_f(ms['hotspot_radius'], 3)} mm of "
+        sizes = (f"{_f(ms['size_hotspot'], 3)} mm on the journal root and {_f(ms['size_edge_hotspot'], 3)} mm "
+                 f"elsewhere" if "size_edge_hotspot" in ms else f"{_f(ms['size_hotspot'], 3)} mm")
+        add(f"Refined to {sizes} (× factor) within {_f(ms['hotspot_radius'], 3)} mm of "
             f"{where}: {', '.join(_loc(p) for p in spots)} (and their mirror images).\n")
     return L
 

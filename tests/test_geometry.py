@@ -112,3 +112,34 @@ def test_mesher_meshes_like_a_new_session():
         for key in ("x", "cells", "cell_values", "facets", "facet_values"):
             assert np.array_equal(getattr(new, key), getattr(r, key)), (spec.factor, spec.hotspots, key)
         assert new.quality == r.quality and new.names == r.names
+
+
+@pytest.mark.parametrize("rf, expected_ratio", [(1.5, 1.0), (0.5, 3.0)])
+def test_refined_place_takes_the_size_of_its_feature(rf, expected_ratio):
+    """A refined place on the journal root is meshed at the fillet's hot-spot size (rf/10),
+    one at the bore edge at the size it has on the table's parts (0.006·h3), whatever rf
+    is: with rf = 0.5 mm on No. 05 the bore's tets are three times the fillet's, with No.
+    05's own rf = 1.5 mm both are 0.15 mm. Measured on the mesh gmsh makes: the median
+    length of the tet edges within 0.5 mm of each place (inside its 0.6 mm ball)."""
+    import numpy as np
+
+    from geometry.meshspec import MeshSpec
+    from pipeline.meshing import generate
+    d = with_overrides(lookup("05").dims, rf=rf)
+    s = rf * (1 - math.sqrt(0.5))                             # 45° into the fillet, at its lowest
+    bore, fillet = (0.0, d.d2 / 2, 0.0), (d.b1 / 2 + s, 0.0, d.h3 / 2 - d.dj / 2 - s)
+    spec = replace(MeshSpec.default_for(d, 2.0), hotspots=(bore, fillet))
+    part = generate(d, "quarter", spec)
+    corners = part.x[part.cells[:, :4]]                       # (tets, 4, 3), mm
+    pairs = [(0, 1), (0, 2), (0, 3), (1, 2), (1, 3), (2, 3)]
+    edges = np.stack([np.linalg.norm(corners[:, i] - corners[:, j], axis=1) for i, j in pairs], axis=1)
+    centroid = corners.mean(axis=1)
+
+    def median_edge(place):
+        near = np.linalg.norm(centroid - np.asarray(place), axis=1) < 0.5
+        assert near.sum() >= 20, place
+        return float(np.median(edges[near]))
+
+    h_bore, h_fillet = median_edge(bore), median_edge(fillet)
+    assert h_bore / h_fillet == pytest.approx(expected_ratio, rel=0.25)
+    assert h_bore == pytest.approx(2.0 * 0.006 * d.h3, rel=0.35)   # × the factor 2
