@@ -11,8 +11,9 @@ from mpi4py import MPI
 
 from .case import Case
 from .errorbar import Estimate, estimate, representative_size, two_reading_estimate, with_bracket
+from . import levelcache
 from .level import Level, Progress, solve_level
-from .meshing import Mesher, given_or_new, make_meshes, owners
+from .meshing import ImportedMesh, Mesher, given_or_new, make_meshes, owners
 from .peaks import MIDPOINT
 from .pilot import KNOWN, Pilot, inside_refinement, pilot, refinement_places
 
@@ -77,8 +78,8 @@ def analyse(case: Case, levels: int = 3, ratio: float = 1.3, msh_path: Path | No
     for k in range(1, levels):
         if on[k] == comm.rank and error is None:
             try:
-                mine.append((k, solve_level(case, factors[k], comm=MPI.COMM_SELF, load_mesh=loaders[k],
-                                            progress=progress if comm.rank == 0 else None)))
+                mine.append((k, error_bar_level(case, case.mesh_spec(factors[k], pl.hotspots), loaders[k],
+                                                progress if comm.rank == 0 else None)))
             except Exception as exc:  # re-raised on every rank below
                 error = (k, exc)
     _wait_idle(comm)
@@ -93,6 +94,22 @@ def analyse(case: Case, levels: int = 3, ratio: float = 1.3, msh_path: Path | No
             say(f"mesh ×{lv.factor:.3g} (rank {on[k]}): {lv.dofs} DOFs, {lv.iterations} iterations; "
                 f"peak {lv.peak.value_MPa:.2f} MPa, critical {lv.critical.value_MPa:.2f} MPa")
     return out, pl
+
+
+def error_bar_level(case: Case, spec, load_mesh: Callable[[], ImportedMesh], progress: Progress | None) -> Level:
+    """One error-bar mesh solved on this rank alone: the results of an earlier run of the
+    same mesh and problem scaled to the case's load (pipeline/levelcache.py), or else a
+    new solve of the mesh ``load_mesh`` gives (``spec`` its MeshSpec), then kept."""
+    name = levelcache.key(case, spec)
+    lv = levelcache.earlier(name, case)
+    if lv is not None:
+        (progress or (lambda s: None))(
+            f"mesh ×{spec.factor:.3g}: the results of an earlier run at Q = {lv.scaled_from['load_N']:g} N scaled "
+            f"({lv.timings['post']:.2f} s); peak {lv.peak.value_MPa:.2f} MPa, critical {lv.critical.value_MPa:.2f} MPa")
+        return lv
+    lv = solve_level(case, spec.factor, comm=MPI.COMM_SELF, load_mesh=load_mesh, progress=progress)
+    levelcache.store(name, lv, case)
+    return lv
 
 
 def _wait_idle(comm) -> None:

@@ -295,7 +295,8 @@ def _fe_lines(res: dict) -> list[str]:
         add(f"Not solved again: on the mesh(es) ×{', ×'.join(f'{f:g}' for f in scaled)} the displacement is an "
             f"earlier run's solution of the same mesh and problem at Q = {_f(src['load_N'], 1)} N, E = "
             f"{_f(src['E_MPa'], 0)} MPa, scaled by the load ratio and the inverse modulus ratio (exact in linear "
-            "elasticity; the solver figures above are that solve's).\n")
+            "elasticity; the solver figures above are that solve's); on an error-bar mesh the earlier run's peaks "
+            "and forces themselves are scaled, the mesh is not read again.\n")
     add(f"Equilibrium: seat load {_f(fe['seat_force_N'], 3)} N, support {_f(fe['support_force_N'], 3)} N on the "
         f"model (share {fe['model_load_share']:g} of Q); imbalance {fe['equilibrium_error_N']:.2e} N; force "
         f"carried by the rigid-motion constraint {fe['constraint_reaction_N']:.2e} N (limit 1e-6·Q).\n")

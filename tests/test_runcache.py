@@ -22,16 +22,18 @@ def cache(tmp_path, monkeypatch):
 
 def test_a_load_change_reuses_mesh_pilot_and_solution(cache, tmp_path, monkeypatch):
     case = resolve("05", None, {"mesh_factor": 3.0})
-    first = execute_run(case, tmp_path / "a", levels=1, write_fields=False)
+    first = execute_run(case, tmp_path / "a", levels=3, write_fields=False)
     n_entries = len(list(cache.glob("*.pickle")))
-    assert n_entries == 4  # the pilot's mesh, its places, the requested mesh, its solution
+    # The pilot's mesh, its places; the requested mesh and its solution; each of the two
+    # error-bar meshes, its solution and its results (pipeline/levelcache.py).
+    assert n_entries == 10
     changed = replace(case, load_N=2.5 * case.load_N, E_MPa=70_000.0)
-    second = execute_run(changed, tmp_path / "b", levels=1, write_fields=False)
+    second = execute_run(changed, tmp_path / "b", levels=3, write_fields=False)
     assert len(list(cache.glob("*.pickle"))) == n_entries  # nothing new: all reused
     assert second["timings_s"]["pilot"] < 0.2 * first["timings_s"]["pilot"]
     assert second["fe"]["scaled_from"] == {"load_N": case.load_N, "E_MPa": case.E_MPa}
     monkeypatch.setenv("CROSSHEAD_NO_CACHE", "1")
-    fresh = execute_run(changed, tmp_path / "c", levels=1, write_fields=False)
+    fresh = execute_run(changed, tmp_path / "c", levels=3, write_fields=False)
     assert fresh["fe"]["scaled_from"] is None
     # The same mesh (the pilot's places are the same), solved anew: equal to the solver's
     # tolerance (rtol 1e-8 on the residual).
@@ -39,6 +41,15 @@ def test_a_load_change_reuses_mesh_pilot_and_solution(cache, tmp_path, monkeypat
     for key in ("peak_MPa", "critical_peak_MPa"):
         assert second["fe"][key] == pytest.approx(fresh["fe"][key], rel=1e-7)
         assert second["fe"][key] == pytest.approx(2.5 * first["fe"][key], rel=1e-12)
+    # The error-bar meshes: their results scaled, not solved; equal to a new solve's.
+    for coarse2, coarsef in zip(second["fe"]["levels"][1:], fresh["fe"]["levels"][1:], strict=True):
+        assert coarse2["scaled_from"] == {"load_N": case.load_N, "E_MPa": case.E_MPa}
+        assert coarse2["dofs"] == coarsef["dofs"]
+        for key in ("peak_MPa", "critical_peak_MPa", "peak_unaveraged_MPa", "peak_averaged_MPa"):
+            assert coarse2[key] == pytest.approx(coarsef[key], rel=1e-7)
+    for block in ("peak", "critical"):  # the error bars of both peaks
+        assert second["fe"][block]["error_estimate"]["band"] == pytest.approx(
+            fresh["fe"][block]["error_estimate"]["band"], rel=1e-5, abs=1e-9)
     sec2, secf = second["fe"]["sections"], fresh["fe"]["sections"]
     assert sec2["critical_section"]["nominal_MPa"] == pytest.approx(secf["critical_section"]["nominal_MPa"], rel=1e-7)
 
