@@ -12,6 +12,7 @@ from mpi4py import MPI
 from .case import Case
 from .errorbar import Estimate, estimate, representative_size, two_reading_estimate, with_bracket
 from . import levelcache
+from .idle import wait_for_ranks
 from .level import Level, Progress, solve_level
 from .meshing import ImportedMesh, Mesher, given_or_new, make_meshes, owners
 from .peaks import MIDPOINT
@@ -82,7 +83,7 @@ def analyse(case: Case, levels: int = 3, ratio: float = 1.3, msh_path: Path | No
                                                 progress if comm.rank == 0 else None)))
             except Exception as exc:  # re-raised on every rank below
                 error = (k, exc)
-    _wait_idle(comm)
+    wait_for_ranks(comm)
     gathered = comm.allgather((mine, error))
     errors = [e for _, e in gathered if e is not None]
     if errors:
@@ -110,17 +111,6 @@ def error_bar_level(case: Case, spec, load_mesh: Callable[[], ImportedMesh], pro
     lv = solve_level(case, spec.factor, comm=MPI.COMM_SELF, load_mesh=load_mesh, progress=progress)
     levelcache.store(name, lv, case)
     return lv
-
-
-def _wait_idle(comm) -> None:
-    """Wait for every rank, sleeping instead of spinning.
-
-    Why: a rank waiting in a blocking MPI call spins at 100 % of a core (Open MPI's default),
-    the core that the picture process and the other ranks' solves need.
-    """
-    request = comm.Ibarrier()
-    while not request.Test():
-        time.sleep(0.002)
 
 
 def error_bar_ranks(factors: Sequence[float], ranks: int) -> list[int | None]:

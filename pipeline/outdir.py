@@ -23,6 +23,7 @@ from typing import Iterator
 from mpi4py import MPI
 
 from .errors import InputError
+from .idle import wait_for_ranks
 from .interrupts import on_stop, signals_wait
 
 MARKER = ".crosshead-results"  # written last into every results folder: "this folder is ours"
@@ -271,7 +272,7 @@ def staged_dir(out_dir: str | os.PathLike, comm=MPI.COMM_WORLD,
             stack.enter_context(on_stop(discard))
         try:
             yield staging
-            comm.barrier()
+            wait_for_ranks(comm)  # rank 0 may still be waiting for the picture
             if comm.rank == 0:
                 try:
                     with signals_wait():  # a stop between the two renames would lose both
