@@ -1,5 +1,5 @@
-"""Work that a run can reuse from an earlier one: meshes, the pilot's refined places, and
-(pipeline/solvecache.py) solutions.
+"""Work that a run can reuse from an earlier one: meshes, the pilot's refined places,
+solutions (pipeline/solvecache.py) and the error-bar meshes' results (pipeline/levelcache.py).
 
 A mesh depends only on the part, the model and the mesh spec (sizes, factor, order,
 refined places) and on the meshing code; the pilot's places depend on those and on what
@@ -29,7 +29,7 @@ from .environment import CACHE_HOME
 
 ROOT = CACHE_HOME / "runs"
 MAX_ENTRIES = 60
-_CODE = ("geometry/part.py", "geometry/sizing.py", "geometry/curved.py", "geometry/meshspec.py",
+_CODE = ("geometry/part.py", "geometry/sizing.py", "geometry/curved.py", "geometry/meshspec.py", "geometry/places.py",
          "pipeline/meshing.py", "pipeline/pilot.py", "pipeline/peaks.py")
 
 
