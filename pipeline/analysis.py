@@ -58,7 +58,8 @@ def analyse(case: Case, levels: int = 3, ratio: float = 1.3, msh_path: Path | No
         factors = [case.mesh_factor * ratio ** k for k in range(levels)]
         on = error_bar_ranks(factors, comm.size)
         t0 = time.perf_counter()
-        loaders = make_meshes(case.dims, case.model, [case.mesh_spec(f, pl.hotspots) for f in factors],
+        specs = [case.mesh_spec(f, pl.hotspots) for f in factors]
+        loaders = make_meshes(case.dims, case.model, specs,
                               comm=comm, msh_paths=[msh_path] + [None] * (levels - 1), solve_on=on,
                               mesher=m)
     say = progress or (lambda s: None)
@@ -79,7 +80,7 @@ def analyse(case: Case, levels: int = 3, ratio: float = 1.3, msh_path: Path | No
     for k in range(1, levels):
         if on[k] == comm.rank and error is None:
             try:
-                mine.append((k, error_bar_level(case, case.mesh_spec(factors[k], pl.hotspots), loaders[k],
+                mine.append((k, error_bar_level(case, specs[k], loaders[k],
                                                 progress if comm.rank == 0 else None)))
             except Exception as exc:  # re-raised on every rank below
                 error = (k, exc)
