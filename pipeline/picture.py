@@ -12,6 +12,7 @@ solves on the same cores (docs/decisions.md).
 from __future__ import annotations
 
 import json
+import os
 import sys
 from dataclasses import dataclass
 from pathlib import Path
@@ -19,12 +20,15 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from .environment import CACHE_HOME
+
 if TYPE_CHECKING:  # VTK loads only in the picture's own process (module docstring)
     from vtkmodules.vtkCommonCore import vtkLookupTable
     from vtkmodules.vtkRenderingAnnotation import vtkScalarBarActor
     from vtkmodules.vtkRenderingCore import vtkRenderer, vtkRenderWindow, vtkTextActor
 
 WINDOW = (2000, 950)  # pixels: two panels side by side
+TURBO_TABLE = CACHE_HOME / "colours" / "turbo-256.npy"  # turbo_rgba
 # Left: from above, the seat, the bore and the ligament beside it. Right: from below and
 # outside, the journal root, its shoulder fillet and the bottom face. A panel marks a peak
 # only where the camera sees it (seen_from), so no label points at a hidden place.
@@ -32,6 +36,9 @@ VIEWS = ((-0.9, -1.5, 0.9), (0.5, 1.6, -1.0))
 COLOURS = {"black": (0.0, 0.0, 0.0), "magenta": (0.8, 0.0, 0.8), "red": (0.85, 0.1, 0.1),
            "green": (0.1, 0.6, 0.2)}
 
+# Weights of the positions' sort key: irrational ratios, so that different positions of a
+# mesh share a key only by a rare chance (_position_numbers checks for it).
+_KEY = (1.0, np.sqrt(2.0) * 1e3, np.pi * 1e6)
 _TET_FACES = np.array([(1, 2, 3), (0, 3, 2), (0, 1, 3), (0, 2, 1)])
 
 
@@ -45,16 +52,7 @@ def boundary_surface(xyz: np.ndarray, tets: np.ndarray) -> tuple[np.ndarray, np.
     boundary, docs/decisions.md). A face is on the boundary when no
     other tet has the same three corner positions.
     """
-    # + 0.0 turns -0.0 into 0.0: equal positions must compare equal. Sorting the rows
-    # (lexsort) numbers equal positions alike at half the cost of np.unique on row bytes.
-    rounded = np.round(xyz, 9) + 0.0
-    order = np.lexsort((rounded[:, 2], rounded[:, 1], rounded[:, 0]))
-    ordered = rounded[order]
-    starts = np.empty(len(ordered), dtype=bool)
-    starts[:1] = True
-    starts[1:] = np.any(ordered[1:] != ordered[:-1], axis=1)
-    corner = np.empty(len(xyz), dtype=np.int64)
-    corner[order] = np.cumsum(starts) - 1
+    corner = _position_numbers(xyz)
     faces = tets[:, _TET_FACES].reshape(-1, 3)
     key = np.sort(corner[faces], axis=1)
     n = int(corner.max()) + 1
@@ -66,6 +64,34 @@ def boundary_surface(xyz: np.ndarray, tets: np.ndarray) -> tuple[np.ndarray, np.
     outer = faces[np.sort(by_code[alone])]
     used, tri = np.unique(outer, return_inverse=True)
     return used, tri.reshape(-1, 3)
+
+
+def _position_numbers(xyz: np.ndarray) -> np.ndarray:
+    """A number per row of ``xyz`` (mm) that is equal exactly for equal positions.
+
+    The positions are sorted by one mixed key (a 1-D sort, about a third of a three-column
+    lexsort). Two different positions could share a key by chance; then a key's run would
+    hold more than one position, which the check below finds, and the exact three-column
+    sort is used instead.
+    """
+    # + 0.0 turns -0.0 into 0.0: equal positions must compare equal.
+    rounded = np.round(xyz, 9) + 0.0
+    # Element by element (not a matrix product, whose summation order may vary by row),
+    # so equal rows give bit-equal keys.
+    key = _KEY[0] * rounded[:, 0] + _KEY[1] * rounded[:, 1] + _KEY[2] * rounded[:, 2]
+    order = np.argsort(key)
+    ordered = rounded[order]
+    starts = np.empty(len(ordered), dtype=bool)
+    starts[:1] = True
+    starts[1:] = np.any(ordered[1:] != ordered[:-1], axis=1)
+    sorted_key = key[order]
+    if not np.array_equal(starts[1:], sorted_key[1:] != sorted_key[:-1]):
+        order = np.lexsort((rounded[:, 2], rounded[:, 1], rounded[:, 0]))
+        ordered = rounded[order]
+        starts[1:] = np.any(ordered[1:] != ordered[:-1], axis=1)
+    numbers = np.empty(len(xyz), dtype=np.int64)
+    numbers[order] = np.cumsum(starts) - 1
+    return numbers
 
 
 def seen_from(points: np.ndarray, tri: np.ndarray, target: np.ndarray, eye: np.ndarray,
@@ -147,14 +173,39 @@ def _surface_actor(points: np.ndarray, tri: np.ndarray, values: np.ndarray, lut)
     return actor
 
 
-def _turbo(vmin: float, vmax: float):
-    """matplotlib's turbo colour map as a VTK lookup table over [vmin, vmax] (MPa)."""
+def turbo_rgba(path: Path = TURBO_TABLE) -> np.ndarray:
+    """matplotlib's turbo colour map at 256 evenly spaced points (256×4 RGBA, 0..1).
+
+    Read from ``path`` once a picture has made it there from matplotlib: importing
+    matplotlib costs the picture process about 0.2 s of CPU, and the picture is what a
+    run with a changed load waits for last. The file is written under a temporary name
+    and renamed, so pictures drawn at once never read half of it.
+    """
+    try:
+        rgba = np.load(path)
+        if rgba.shape == (256, 4):
+            return rgba
+    except (OSError, ValueError):
+        pass  # not made yet, or unreadable: made again below
     from matplotlib import colormaps  # matplotlib.colors only, not pyplot
-    from vtkmodules.vtkCommonCore import vtkLookupTable
     rgba = colormaps["turbo"](np.linspace(0.0, 1.0, 256))
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+        with open(tmp, "wb") as f:
+            np.save(f, rgba)
+        os.replace(tmp, path)
+    except OSError:
+        pass  # a table that cannot be kept only costs time
+    return rgba
+
+
+def _turbo(vmin: float, vmax: float):
+    """The turbo colour map (:func:`turbo_rgba`) as a VTK lookup table over [vmin, vmax] (MPa)."""
+    from vtkmodules.vtkCommonCore import vtkLookupTable
     lut = vtkLookupTable()
     lut.SetNumberOfTableValues(256)
-    for i, c in enumerate(rgba):
+    for i, c in enumerate(turbo_rgba()):
         lut.SetTableValue(i, *c)
     lut.SetRange(vmin, vmax)
     lut.Build()
@@ -295,6 +346,7 @@ def _panel(window: vtkRenderWindow, scene: _Scene, col: int) -> vtkRenderer:
     ren = vtkRenderer()
     ren.SetViewport(0.5 * col, 0.0, 0.5 * (col + 1), 1.0)
     ren.SetBackground(1.0, 1.0, 1.0)
+    ren.UseFXAAOn()  # smooth edges for less than the window's 8 samples per pixel cost (docs/performance.md)
     vtkLightKit().AddLightsToRenderer(ren)
     window.AddRenderer(ren)
     ren.AddActor(_surface_actor(scene.points, scene.tri, scene.vm, scene.lut))
@@ -415,6 +467,7 @@ def render_folder(folder: Path, out_name: str = "von_mises.png") -> Path:
     window = vtkRenderWindow()
     window.SetOffScreenRendering(1)
     window.SetSize(*WINDOW)
+    window.SetMultiSamples(0)  # each panel smooths its edges itself (FXAA, _panel)
     window.SetNumberOfLayers(2)
     for col, direction in enumerate(VIEWS):
         ren = _panel(window, scene, col)

@@ -116,6 +116,41 @@ def test_picture_draws_the_outer_surface_only():
     assert len(np.unique(used)) == len(used) and tri.max() == len(used) - 1
 
 
+def test_picture_numbers_equal_positions_alike(monkeypatch):
+    """pipeline.picture._position_numbers gives equal positions one number and different
+    positions different numbers, as numpy's unique rows do, on 4 000 rows drawn from 300
+    positions (with -0.0 beside 0.0); and still does when every position shares one sort
+    key (weights zero), which must send it to its exact three-column sort."""
+    from pipeline import picture
+    rng = np.random.default_rng(5)
+    positions = np.round(rng.normal(size=(300, 3)), 3)
+    positions[:20, 1] = 0.0
+    rows = positions[rng.integers(0, 300, 4000)]
+    rows[rows == 0.0] *= rng.choice([-1.0, 1.0], size=int(np.sum(rows == 0.0)))  # -0.0 and 0.0
+    _, expected = np.unique(rows + 0.0, axis=0, return_inverse=True)
+    for weights in (picture._KEY, (0.0, 0.0, 0.0)):
+        monkeypatch.setattr(picture, "_KEY", weights)
+        got = picture._position_numbers(rows)
+        # The same partition of the rows: a one-to-one map between the two numberings.
+        pairs = np.unique(np.c_[got, expected.ravel()], axis=0)
+        assert len(pairs) == len(np.unique(got)) == len(np.unique(expected))
+
+
+def test_picture_colour_map_is_kept_as_matplotlib_made_it(tmp_path):
+    """pipeline.picture.turbo_rgba gives matplotlib's turbo at 256 points, whether it makes
+    the table (no file yet, or a damaged one) or reads the copy it kept."""
+    from matplotlib import colormaps
+
+    from pipeline.picture import turbo_rgba
+    expected = colormaps["turbo"](np.linspace(0.0, 1.0, 256))
+    table = tmp_path / "colours" / "turbo-256.npy"
+    assert np.array_equal(turbo_rgba(table), expected) and table.exists()
+    assert np.array_equal(turbo_rgba(table), expected)  # read back
+    table.write_bytes(b"not a table")
+    assert np.array_equal(turbo_rgba(table), expected)
+    assert np.array_equal(np.load(table), expected)
+
+
 def test_picture_marks_a_peak_only_where_the_camera_sees_it():
     """pipeline.picture.seen_from / mark_places on the cube [-1.5, 1.5]³: from an eye on the
     −x side a node of the −x face is seen, one of the +x face is not (the cube is in the
