@@ -93,7 +93,10 @@ def analyse(case: Case, levels: int = 3, ratio: float = 1.3, msh_path: Path | No
     for k in range(1, levels):
         if on[k] != 0:  # rank 0 printed its own
             lv = out[k]
-            say(f"mesh ×{lv.factor:.3g} (rank {on[k]}): {lv.dofs} DOFs, {lv.iterations} iterations; "
+            how = (f"scaled from an earlier run at Q = {lv.scaled_from['load_N']:g} N, "
+                   f"E = {lv.scaled_from['E_MPa']:g} MPa" if lv.scaled_from
+                   else f"{lv.dofs} DOFs, {lv.iterations} iterations")
+            say(f"mesh ×{lv.factor:.3g} (rank {on[k]}): {how}; "
                 f"peak {lv.peak.value_MPa:.2f} MPa, critical {lv.critical.value_MPa:.2f} MPa")
     return out, pl
 
