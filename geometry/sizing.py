@@ -87,7 +87,8 @@ def mesh(d: Dimensions, spec: MeshSpec) -> float:
 def _size_fields(d: Dimensions, spec: MeshSpec, hmax: float) -> list[int]:
     """The gmsh size fields of the part (mm, sizes times spec.factor, growing to ``hmax``):
     at the bore and seat edges, at the fillets, and in a ball around each hot spot (of the
-    fillet's hot-spot size on the journal root, of the edges' elsewhere: MeshSpec)."""
+    fillet's hot-spot size and radius on the journal root, of the edges' elsewhere:
+    MeshSpec)."""
     f = spec.factor
     edges, fillets = _feature_curves(d)
     fields_ = [size_field(edges, spec.size_feature * f, hmax, 0.25 * spec.grading * f, spec.grading)]
@@ -103,7 +104,8 @@ def _size_fields(d: Dimensions, spec: MeshSpec, hmax: float) -> list[int]:
         # The radius is a region, not a size: it stays put while the sizes are scaled, so
         # the DOFs grow with refinement like everywhere else (a scaled radius kept the
         # number of elements in the ball constant and stalled the error-bar ratios).
-        h_s, r_s = (spec.size_hotspot if root else spec.size_edge_hotspot) * f, spec.hotspot_radius
+        h_s = (spec.size_hotspot if root else spec.size_edge_hotspot) * f
+        r_s = spec.hotspot_radius if root else spec.edge_hotspot_radius
         fields_ += _balls(point, h_s, hmax, r_s, (hmax - h_s) / GRADE)
     return fields_
 

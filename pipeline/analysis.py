@@ -68,7 +68,7 @@ def analyse(case: Case, levels: int = 3, ratio: float = 1.3, msh_path: Path | No
             f"({time.perf_counter() - t0:.2f} s)")
     fine = solve_level(case, factors[0], keep_fields=True, with_sections=True, comm=comm, progress=progress, load_mesh=loaders[0])
     if pl.source == KNOWN and not inside_refinement(fine.critical.location_mm, pl,
-                                                    case.mesh_spec(factors[0]).hotspot_radius):
+                                                    case.mesh_spec(factors[0]).edge_hotspot_radius):
         say(f"the critical peak at ({', '.join(f'{c:.2f}' for c in fine.critical.location_mm)}) mm lies outside "
             f"the known places' refinement: finding the places by a pilot solve instead")
         return analyse(case, levels, ratio, msh_path, progress, comm,

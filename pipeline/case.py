@@ -72,7 +72,8 @@ class Case:
         out["mesh_sizes_mm"] = {"size_body": spec.size_body, "size_feature": spec.size_feature,
                                 "size_fillet": spec.size_fillet, "grading": spec.grading,
                                 "size_hotspot": spec.size_hotspot, "size_edge_hotspot": spec.size_edge_hotspot,
-                                "hotspot_radius": spec.hotspot_radius}
+                                "hotspot_radius": spec.hotspot_radius,
+                                "edge_hotspot_radius": spec.edge_hotspot_radius}
         return out
 
 

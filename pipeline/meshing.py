@@ -65,6 +65,7 @@ def _normalised(d: Dimensions, spec: MeshSpec, scale: float) -> tuple[Dimensions
                  size_fillet=_unit(spec.size_fillet, scale), grading=_unit(spec.grading, scale),
                  size_hotspot=_unit(spec.size_hotspot, scale), hotspot_radius=_unit(spec.hotspot_radius, scale),
                  size_edge_hotspot=_unit(spec.size_edge_hotspot, scale),
+                 edge_hotspot_radius=_unit(spec.edge_hotspot_radius, scale),
                  hotspots=tuple(tuple(_unit(c, scale) for c in p) for p in spec.hotspots))
     return dn, sn
 

@@ -111,10 +111,12 @@ def _gathered_max(vals: np.ndarray, xyz: np.ndarray, comm) -> Peak:
     return Peak(value_MPa=best[0], location_mm=best[1])
 
 
-def hot_spots(vm: fem.Function, threshold_MPa: float, separation_mm: float, limit: int,
+def hot_spots(vm: fem.Function, threshold_MPa: float,
+              separation_mm: float | Callable[[np.ndarray], np.ndarray], limit: int,
               region: Callable[[np.ndarray], np.ndarray] | None = None) -> list[tuple[float, float, float]]:
     """Points (mm) over ``region`` where vm is at least threshold_MPa: the highest first, each
-    at least separation_mm from those before, at most ``limit`` of them.
+    at least separation_mm from those before, at most ``limit`` of them. ``separation_mm``
+    may depend on the place: a function of the points (n × 3, mm) giving one length each.
 
     On a coarse mesh the peak of one feature can swap with a nearly equal one elsewhere
     (the bore's top and bottom edges differ by ~1 %), so every near-peak place is kept.
@@ -128,11 +130,12 @@ def hot_spots(vm: fem.Function, threshold_MPa: float, separation_mm: float, limi
     # Values rounded to 1e-6 of the threshold before ordering: 1 and 2 MPI ranks differ by
     # ~1e-9 (solver tolerance), and the greedy choice must not depend on that.
     vq = np.round(v / threshold_MPa, 6) if threshold_MPa > 0 else v
+    sep = np.broadcast_to(separation_mm(p) if callable(separation_mm) else separation_mm, len(p))
     chosen: list[np.ndarray] = []
     for i in np.lexsort((p[:, 2], p[:, 1], p[:, 0], -vq)):
         if len(chosen) == limit:
             break
-        if all(np.linalg.norm(p[i] - q) >= separation_mm for q in chosen):
+        if all(np.linalg.norm(p[i] - q) >= sep[i] for q in chosen):
             chosen.append(p[i])
     return [tuple(float(c) for c in q) for q in chosen]
 

@@ -8,7 +8,11 @@ import time
 from dataclasses import dataclass, replace
 from typing import Sequence
 
+import numpy as np
 from mpi4py import MPI
+
+from geometry.meshspec import fillet_scale
+from geometry.places import at_journal_root
 
 from . import runcache
 from .case import Case
@@ -20,7 +24,8 @@ from .peaks import hot_spots, peak
 PILOT_RATIO = 2.2  # the pilot mesh: every size of the case's mesh × this
 PILOT_FRACTION = 0.85  # pilot values this close to a peak (global or critical) are refined
 PILOT_SEPARATION = 0.04  # × h3 (mm): refined places closer than this are one place
-PILOT_LIMIT = 12  # refined places per peak, at most
+PILOT_ROUNDING = 0.01  # × h3 (mm): the grid the places are rounded to
+PILOT_LIMIT = 12  # refined places per peak, at most (at rf = RF_PER_H·h3 or more)
 
 
 def pilot_factor(case: Case) -> float:
@@ -113,19 +118,32 @@ def pilot(case: Case, comm=MPI.COMM_WORLD, progress: Progress | None = None,
         return Pilot(factor=known.factor, hotspots=known.hotspots, time_s=time.perf_counter() - t0)
     lv = solve_level(case, pilot_factor(case), comm=comm, keep_fields=True, mesher=mesher, reuse=False)
     vm = lv.fields[1]
-    sep = PILOT_SEPARATION * case.dims.h3
+    d = case.dims
+    scale = fillet_scale(d)
+
+    def lengths(per_h3: float, pts: np.ndarray) -> np.ndarray:
+        # On the journal root the places' lengths follow rf like their balls (MeshSpec).
+        return per_h3 * d.h3 * np.where(at_journal_root(d, np.reshape(pts, (-1, 3))), scale, 1.0)
+
+    def separation(pts: np.ndarray) -> np.ndarray:
+        return lengths(PILOT_SEPARATION, pts)
+
+    # Places closer together along the fillet at a small rf: as many as the same stretch
+    # of the ridge needs (within a limit on the size fields gmsh evaluates).
+    limit = min(math.ceil(PILOT_LIMIT / min(scale, 1.0) - 1e-9), 4 * PILOT_LIMIT)
     # Only the places of the peaks the run is asked for (case.want).
-    spots = hot_spots(vm, PILOT_FRACTION * peak(vm).value_MPa, sep, PILOT_LIMIT) if case.want != "critical" else []
+    spots = hot_spots(vm, PILOT_FRACTION * peak(vm).value_MPa, separation, limit) if case.want != "critical" else []
     if case.want != "global":
-        spots += [q for q in hot_spots(vm, PILOT_FRACTION * lv.critical.unaveraged.value_MPa, sep, PILOT_LIMIT,
-                                       critical_region(case))
-                  if all(math.dist(q, s) >= sep for s in spots)]
+        spots += [q for q in hot_spots(vm, PILOT_FRACTION * lv.critical.unaveraged.value_MPa, separation,
+                                       PILOT_LIMIT, critical_region(case))
+                  if all(math.dist(q, s) >= separation(np.array(q))[0] for s in spots)]
     # The pilot's peaks differ in the last digits between runs on 1 and 2 ranks (and
     # between runs when gmsh's high-order optimiser was used); the balls then moved and
-    # the refined meshes differed. Rounded to 0.01·h3 (0.25 mm on No. 05, well inside the 0.6 mm ball) and sorted, so
-    # that pilots differing in the last digits give the same refined meshes.
-    grid = 1e-2 * case.dims.h3
-    spots = sorted({tuple(round(c / grid) * grid + 0.0 for c in q) for q in spots})
+    # the refined meshes differed. Rounded to 0.01·h3 (0.25 mm on No. 05, well inside the
+    # 0.6 mm ball; on the journal root × fillet_scale like the ball) and sorted, so that
+    # pilots differing in the last digits give the same refined meshes.
+    grids = [float(g) for g in lengths(PILOT_ROUNDING, np.array(spots))] if spots else []
+    spots = sorted({tuple(round(c / g) * g + 0.0 for c in q) for q, g in zip(spots, grids)})
     dt = time.perf_counter() - t0
     say(f"pilot ×{lv.factor:.3g}: {lv.dofs} DOFs; refining near {len(spots)} places within "
         f"{100 * (1 - PILOT_FRACTION):.0f} % of a peak: {', '.join(_fmt(q) for q in spots)} mm ({dt:.2f} s)")

@@ -241,10 +241,16 @@ def _inputs_lines(res: dict) -> list[str]:
         else:
             where = (f"{len(spots)} places where a pilot solve (mesh × {fe['pilot_mesh_factor']:.3g}) found von Mises "
                      f"within {100 * (1 - fe['pilot_fraction']):.0f} % of the global or critical peak")
-        sizes = (f"{_f(ms['size_hotspot'], 3)} mm on the journal root and {_f(ms['size_edge_hotspot'], 3)} mm "
-                 f"elsewhere" if "size_edge_hotspot" in ms else f"{_f(ms['size_hotspot'], 3)} mm")
-        add(f"Refined to {sizes} (× factor) within {_f(ms['hotspot_radius'], 3)} mm of "
-            f"{where}: {', '.join(_loc(p) for p in spots)} (and their mirror images).\n")
+        if "edge_hotspot_radius" in ms:
+            sizes = (f"{_f(ms['size_hotspot'], 3)} mm within {_f(ms['hotspot_radius'], 3)} mm on the journal root and "
+                     f"{_f(ms['size_edge_hotspot'], 3)} mm within {_f(ms['edge_hotspot_radius'], 3)} mm elsewhere")
+        elif "size_edge_hotspot" in ms:  # results.json of an older run
+            sizes = (f"{_f(ms['size_hotspot'], 3)} mm on the journal root and {_f(ms['size_edge_hotspot'], 3)} mm "
+                     f"elsewhere, within {_f(ms['hotspot_radius'], 3)} mm")
+        else:
+            sizes = f"{_f(ms['size_hotspot'], 3)} mm within {_f(ms['hotspot_radius'], 3)} mm"
+        add(f"Refined to {sizes} (× factor) of {where}: {', '.join(_loc(p) for p in spots)} "
+            f"(and their mirror images).\n")
     return L
 
 

@@ -114,32 +114,63 @@ def test_mesher_meshes_like_a_new_session():
         assert new.quality == r.quality and new.names == r.names
 
 
-@pytest.mark.parametrize("rf, expected_ratio", [(1.5, 1.0), (0.5, 3.0)])
-def test_refined_place_takes_the_size_of_its_feature(rf, expected_ratio):
-    """A refined place on the journal root is meshed at the fillet's hot-spot size (rf/10),
-    one at the bore edge at the size it has on the table's parts (0.006·h3), whatever rf
-    is: with rf = 0.5 mm on No. 05 the bore's tets are three times the fillet's, with No.
-    05's own rf = 1.5 mm both are 0.15 mm. Measured on the mesh gmsh makes: the median
-    length of the tet edges within 0.5 mm of each place (inside its 0.6 mm ball)."""
+def _tets_near_places(rf: float):
+    """No. 05 with fillet radius ``rf`` (mm) meshed at factor 2 with a refined place at the
+    bore edge and one on the journal root (45° into the fillet, at its lowest, as a pilot
+    finds them): (dims, spec, the two places, each tet's centroid (mm),
+    each tet's six edge lengths (mm))."""
     import numpy as np
 
     from geometry.meshspec import MeshSpec
     from pipeline.meshing import generate
     d = with_overrides(lookup("05").dims, rf=rf)
-    s = rf * (1 - math.sqrt(0.5))                             # 45° into the fillet, at its lowest
+    s = rf * (1 - math.sqrt(0.5))
     bore, fillet = (0.0, d.d2 / 2, 0.0), (d.b1 / 2 + s, 0.0, d.h3 / 2 - d.dj / 2 - s)
     spec = replace(MeshSpec.default_for(d, 2.0), hotspots=(bore, fillet))
     part = generate(d, "quarter", spec)
     corners = part.x[part.cells[:, :4]]                       # (tets, 4, 3), mm
     pairs = [(0, 1), (0, 2), (0, 3), (1, 2), (1, 3), (2, 3)]
     edges = np.stack([np.linalg.norm(corners[:, i] - corners[:, j], axis=1) for i, j in pairs], axis=1)
-    centroid = corners.mean(axis=1)
+    return d, spec, bore, fillet, corners.mean(axis=1), edges
 
-    def median_edge(place):
-        near = np.linalg.norm(centroid - np.asarray(place), axis=1) < 0.5
-        assert near.sum() >= 20, place
-        return float(np.median(edges[near]))
 
-    h_bore, h_fillet = median_edge(bore), median_edge(fillet)
+def _median_edge(centroid, edges, place, r_min: float, r_max: float) -> float:
+    """The median tet edge (mm) of the tets whose centroid lies r_min..r_max mm from ``place``."""
+    import numpy as np
+    dist = np.linalg.norm(centroid - np.asarray(place), axis=1)
+    near = (dist >= r_min) & (dist < r_max)
+    assert near.sum() >= 20, (place, r_min, r_max)
+    return float(np.median(edges[near]))
+
+
+@pytest.mark.parametrize("rf, expected_ratio", [(1.5, 1.0), (0.5, 3.0)])
+def test_refined_place_takes_the_size_of_its_feature(rf, expected_ratio):
+    """A refined place on the journal root is meshed at the fillet's hot-spot size (rf/10),
+    one at the bore edge at the size it has on the table's parts (0.006·h3), whatever rf
+    is: with rf = 0.5 mm on No. 05 the bore's tets are three times the fillet's, with No.
+    05's own rf = 1.5 mm both are 0.15 mm. Measured on the mesh gmsh makes: the median
+    length of the tet edges within 0.8 of each place's ball radius."""
+    d, spec, bore, fillet, centroid, edges = _tets_near_places(rf)
+    h_bore = _median_edge(centroid, edges, bore, 0.0, 0.8 * spec.edge_hotspot_radius)
+    h_fillet = _median_edge(centroid, edges, fillet, 0.0, 0.8 * spec.hotspot_radius)
     assert h_bore / h_fillet == pytest.approx(expected_ratio, rel=0.25)
     assert h_bore == pytest.approx(2.0 * 0.006 * d.h3, rel=0.35)   # × the factor 2
+
+
+def test_refinement_on_the_journal_root_scales_with_rf():
+    """Around a refined place on the journal root the mesh at rf = 0.5 mm is the mesh at
+    rf = 1.5 mm (No. 05's own) shrunk by 3: the tets 1.5–2.5 rf from the place, outside
+    its ball (0.4 rf), are as many times larger than those inside it at both radii (3.6
+    and 3.4 when written). With a ball of fixed radius (0.6 mm, 0.024·h3) the ratio at
+    rf = 0.5 mm was 2.3: part of that shell lay inside the ball. The bore edge's ball
+    keeps 0.6 mm at both."""
+    ratios = []
+    for rf in (0.5, 1.5):
+        _, spec, _, fillet, centroid, edges = _tets_near_places(rf)
+        assert spec.hotspot_radius == pytest.approx(0.4 * rf)
+        assert spec.edge_hotspot_radius == pytest.approx(0.6)
+        inside = _median_edge(centroid, edges, fillet, 0.0, 0.8 * spec.hotspot_radius)
+        shell = _median_edge(centroid, edges, fillet, 1.5 * rf, 2.5 * rf)
+        ratios.append(shell / inside)
+    assert ratios[0] == pytest.approx(ratios[1], rel=0.15)
+    assert min(ratios) > 2.8, ratios
