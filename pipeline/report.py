@@ -48,7 +48,7 @@ def _trend_text(est: dict) -> str:
         return "unchanged across meshes"
     if st == "settled":
         return (f"± {_f(est['band'])} MPa ({100 * est['gci_fine']:.2f} %), the same on every mesh to within "
-                "0.1 % (below the mesh-to-mesh noise of nodal peaks); band = their spread")
+                "0.1 % (the mesh-to-mesh noise of nodal peaks); band = 0.1 %, not their smaller spread")
     if st == "scattered":
         return (f"± {_f(est['band'])} MPa ({100 * est['gci_fine']:.1f} %), values scatter between meshes "
                 f"(unstructured meshes move nodal peaks by ~1 %); least-squares limit {_f(est['extrapolated'])} MPa, "

@@ -255,8 +255,8 @@ def _status_notes(rows: list[dict]) -> list[str]:
         notes.append("*singular*: the peak grows under refinement (observed order < 0.5); it sits "
                      "at a singular feature, has no finite value and is not a number to design with.")
     if "settled" in statuses:
-        notes.append("*settled*: the peak is the same on every mesh to within 0.1 %; the bar is "
-                     "the spread, no order is fitted.")
+        notes.append("*settled*: the peak is the same on every mesh to within 0.1 %, the noise of a "
+                     "nodal peak; the bar is that 0.1 %, no order is fitted.")
     if "unsettled" in statuses:
         notes.append("*unsettled*: the peak still falls between the meshes without a steady rate "
                      "(not in the asymptotic range); the bar is the largest change, no extrapolation.")
