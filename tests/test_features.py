@@ -56,3 +56,29 @@ def test_misplaced_known_places_fall_back_to_the_pilot():
     direct, _ = analyse(case, levels=1, pl=pilot(case))
     assert levels[0].dofs == direct[0].dofs
     assert levels[0].critical.value_MPa == pytest.approx(direct[0].critical.value_MPa, rel=1e-8)
+
+
+def test_bridged_places_leave_no_gap_on_the_crest():
+    """pipeline.pilot.bridged on No. 05's pilot places: between two fillet places 1.6 mm
+    apart (balls of 0.6 mm) every point of the segment ends within 0.9 × 0.6 mm of a
+    place (sampled at 201 points); two fillet places farther apart than the reach and two
+    bore-edge places keep their gap; the given places are all kept."""
+    import numpy as np
+
+    from pipeline.pilot import BRIDGE_COVER, bridged
+    d = resolve("05").dims
+    a, b = (23.25, 5.75, 4.0), (23.25, 7.0, 5.0)          # on the journal root
+    far = (23.25, 4.25, 3.25), (23.25, 8.0, 6.25)        # 4.8 mm apart
+    bore = (0.0, 10.5, 0.0), (2.0, 10.25, 2.0)           # 2.0 mm apart, not on the root
+    radius, reach = 0.6, 3.0
+    out = np.array(bridged([a, b, *bore], d, radius, reach))
+    assert {tuple(p) for p in (a, b, *bore)} <= {tuple(p) for p in out}
+
+    def largest_gap(p, q, places):
+        seg = np.asarray(p) + np.linspace(0.0, 1.0, 201)[:, None] * (np.asarray(q) - np.asarray(p))
+        return float(np.max(np.min(np.linalg.norm(seg[:, None, :] - places[None, :, :], axis=2), axis=1)))
+
+    assert largest_gap(a, b, out) <= BRIDGE_COVER * radius + 1e-9
+    assert largest_gap(*bore, out) > radius       # not on the journal root: left as it was
+    assert len(out) == 4 + 1                      # 1.6 mm bridged by one place
+    assert bridged(list(far), d, radius, reach) == sorted(far)   # beyond the reach
