@@ -16,9 +16,10 @@ P_SINGULAR = 0.5   # observed order below this: the peak is not converging
 TWO_READINGS = "two readings, one limit"   # Estimate.method of two_reading_estimate
 SETTLED = 1e-3     # all meshes within this relative spread: "settled", no order fitted
 # Growth per refinement step (relative) below which growing values are mesh noise, not a
-# singularity: a stress singularity of this part grows by percents per step of 1.3 (a
-# re-entrant 90° edge, σ ∝ r^-0.46, by 13 %; even r^-0.1 by 2.7 %), while nodal peaks
-# move by a few hundredths of a percent between meshes.
+# singularity: a stress singularity of this part grows by percents at every step of 1.3
+# (a re-entrant 90° edge, σ ∝ r^-0.46, by 13 %; even r^-0.1 by 2.7 %), while nodal peaks
+# move by hundredths of a percent at the bore edge and up to ~1 % at the fillet between
+# meshes; so every step must grow by this much, not only the finest.
 SINGULAR_MIN_STEP = 5e-3
 
 
@@ -29,7 +30,7 @@ class Estimate:
     status: "converged" (monotone, p >= 0.5), "oscillatory" (three meshes, differences
     change sign; band = largest difference), "scattered" (four or more meshes whose values
     scatter about the fit by more than the data range per step; band with Fs = 3),
-    "singular" (growing with refinement by at least SINGULAR_MIN_STEP per mesh, p < 0.5:
+    "singular" (growing with refinement by at least SINGULAR_MIN_STEP at every step, p < 0.5:
     no finite limit), "unsettled" (p < 0.5, falling or growing by less: not in the
     asymptotic range; band = largest change), "exact"
     (no change between meshes), "settled" (every mesh within 0.1 % of the others: band =
@@ -162,8 +163,9 @@ def least_squares_estimate(values: Sequence[float], h: Sequence[float], p_formal
     def ssr(p: float) -> float:
         return _fit(f, hh, p)[2]
     p_obs = _best_order(ssr, 0.05, 2.0 * p_formal + 1.0)
-    growing = bool(np.all(np.diff(f) < 0))           # finest first: each coarser one smaller
-    if p_obs < P_SINGULAR and growing and f[0] - f[1] >= SINGULAR_MIN_STEP * scale:
+    # Finest first: each coarser one smaller by a singularity's percents.
+    growing = bool(np.all(-np.diff(f) >= SINGULAR_MIN_STEP * scale))
+    if p_obs < P_SINGULAR and growing:
         return Estimate(vals, hs, "singular", p_obs, None, None, None, None, None)
     delta_step = float(np.ptp(f)) / (n - 1)
     p_used, confirmed = _order_used(p_obs, p_formal, ssr)
@@ -194,7 +196,8 @@ def three_mesh_estimate(values: Sequence[float], h: Sequence[float], p_formal: f
         band = max(abs(e21), abs(e32))
         return Estimate(vals, hs, "oscillatory", None, None, f1, band / scale, band, band / scale)
     if p < P_SINGULAR:
-        if f1 > f2 > f3 and e21 >= SINGULAR_MIN_STEP * scale:   # growing without slowing down: no finite limit
+        # Growing by a singularity's percents at every step: no finite limit.
+        if min(e21, e32) >= SINGULAR_MIN_STEP * scale:
             return Estimate(vals, hs, "singular", p, None, None, None, None, None)
         # Falling, or growing by less than a singularity would, but not yet at a steady
         # rate: not in the asymptotic range. No extrapolation; the band is the largest
@@ -249,7 +252,7 @@ def two_reading_estimate(upper: Sequence[float], lower: Sequence[float], h: Sequ
     def ssr(p: float) -> float:
         return _fit_two(u, lo, hh, p)[1]
     p_obs = _best_order(ssr, 0.05, 2.0 * p_formal + 1.0)
-    if p_obs < P_SINGULAR and bool(np.all(np.diff(mid) < 0)) and mid[0] - mid[1] >= SINGULAR_MIN_STEP * scale:
+    if p_obs < P_SINGULAR and bool(np.all(-np.diff(mid) >= SINGULAR_MIN_STEP * scale)):
         return Estimate(vals, hs, "singular", p_obs, None, None, None, None, None, method=TWO_READINGS)
     delta_step = float(np.ptp(mid)) / (n - 1)
     p_used, confirmed = _order_used(p_obs, p_formal, ssr)
