@@ -69,8 +69,8 @@ def boundary_surface(xyz: np.ndarray, tets: np.ndarray) -> tuple[np.ndarray, np.
 def _position_numbers(xyz: np.ndarray) -> np.ndarray:
     """A number per row of ``xyz`` (mm) that is equal exactly for equal positions.
 
-    The positions are sorted by one mixed key (a 1-D sort, about a third of a three-column
-    lexsort). Two different positions could share a key by chance; then a key's run would
+    The positions are sorted by one mixed key (a 1-D sort, under half the time of a
+    three-column lexsort). Two different positions could share a key by chance; then a key's run would
     hold more than one position, which the check below finds, and the exact three-column
     sort is used instead.
     """

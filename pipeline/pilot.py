@@ -60,6 +60,7 @@ class Pilot:
     hotspots: tuple[tuple[float, float, float], ...]
     time_s: float
     source: str = PILOT
+    bridging: int = 0  # of the hotspots, how many were added between the found ones (bridged)
 
 
 def refinement_places(case: Case, comm=MPI.COMM_WORLD, progress: Progress | None = None,
@@ -117,7 +118,8 @@ def pilot(case: Case, comm=MPI.COMM_WORLD, progress: Progress | None = None,
     if known is not None:
         say(f"pilot skipped: the places found by an earlier run of this part and model are reused "
             f"({len(known.hotspots)} places; load, E and the allowable do not move them)")
-        return Pilot(factor=known.factor, hotspots=known.hotspots, time_s=time.perf_counter() - t0)
+        return Pilot(factor=known.factor, hotspots=known.hotspots, time_s=time.perf_counter() - t0,
+                     bridging=known.bridging)
     lv = solve_level(case, pilot_factor(case), comm=comm, keep_fields=True, mesher=mesher, reuse=False)
     vm = lv.fields[1]
     d = case.dims
@@ -146,11 +148,13 @@ def pilot(case: Case, comm=MPI.COMM_WORLD, progress: Progress | None = None,
     # pilots differing in the last digits give the same refined meshes.
     grids = [float(g) for g in lengths(PILOT_ROUNDING, np.array(spots))] if spots else []
     spots = sorted({tuple(round(c / g) * g + 0.0 for c in q) for q, g in zip(spots, grids)})
+    found_here = len(spots)
     spots = bridged(spots, d, case.mesh_spec().hotspot_radius, BRIDGE_REACH * PILOT_SEPARATION * d.h3 * scale)
     dt = time.perf_counter() - t0
-    say(f"pilot ×{lv.factor:.3g}: {lv.dofs} DOFs; refining near {len(spots)} places within "
-        f"{100 * (1 - PILOT_FRACTION):.0f} % of a peak: {', '.join(_fmt(q) for q in spots)} mm ({dt:.2f} s)")
-    found = Pilot(factor=lv.factor, hotspots=tuple(spots), time_s=dt)
+    say(f"pilot ×{lv.factor:.3g}: {lv.dofs} DOFs; refining near {found_here} places within "
+        f"{100 * (1 - PILOT_FRACTION):.0f} % of a peak and {len(spots) - found_here} between them on the fillet's "
+        f"crest: {', '.join(_fmt(q) for q in spots)} mm ({dt:.2f} s)")
+    found = Pilot(factor=lv.factor, hotspots=tuple(spots), time_s=dt, bridging=len(spots) - found_here)
     if comm.rank == 0:
         runcache.store(cache_key, found)
     return found

@@ -239,8 +239,11 @@ def _inputs_lines(res: dict) -> list[str]:
             where = (f"{len(spots)} places known from the dimensions, the bore edges in x = 0 (no pilot solve: "
                      f"only the critical peak is asked for, and it fell inside their refinement)")
         else:
-            where = (f"{len(spots)} places where a pilot solve (mesh × {fe['pilot_mesh_factor']:.3g}) found von Mises "
-                     f"within {100 * (1 - fe['pilot_fraction']):.0f} % of the global or critical peak")
+            between = fe.get("refined_bridging_places") or 0
+            where = (f"{len(spots) - between} places where a pilot solve (mesh × {fe['pilot_mesh_factor']:.3g}) found "
+                     f"von Mises within {100 * (1 - fe['pilot_fraction']):.0f} % of the global or critical peak"
+                     + (f" and {between} added between neighbouring ones on the fillet's crest, so that their balls "
+                        "leave no gap" if between else ""))
         if "edge_hotspot_radius" in ms:
             sizes = (f"{_f(ms['size_hotspot'], 3)} mm within {_f(ms['hotspot_radius'], 3)} mm on the journal root and "
                      f"{_f(ms['size_edge_hotspot'], 3)} mm within {_f(ms['edge_hotspot_radius'], 3)} mm elsewhere")

@@ -252,7 +252,8 @@ def _status_notes(rows: list[dict]) -> list[str]:
                      "peaks by ~1 %); the bar is from a least-squares fit over the meshes with safety "
                      "factor 3.")
     if "singular" in statuses:
-        notes.append("*singular*: the peak grows under refinement (observed order < 0.5); it sits "
+        notes.append("*singular*: the peak grows under refinement by 0.5 % or more at every step (observed "
+                     "order < 0.5); it sits "
                      "at a singular feature, has no finite value and is not a number to design with.")
     if "settled" in statuses:
         notes.append("*settled*: the peak is the same on every mesh to within 0.1 %, the noise of a "
