@@ -17,6 +17,7 @@ import csv
 import hashlib
 import itertools
 import json
+import math
 import os
 import shutil
 import time
@@ -51,7 +52,7 @@ def parse_values(text: str, name: str) -> list[float]:
             raise ValueError
     except ValueError:
         raise InputError(f"{name}: {text!r}: give START:STOP:COUNT or a list v1,v2,...") from None
-    if not values or not all(v == v and abs(v) != float("inf") for v in values):
+    if not values or not all(math.isfinite(v) for v in values):
         raise InputError(f"{name}: {text!r}: every value must be a finite number")
     return values
 
@@ -74,14 +75,14 @@ def plan(size: str | None, case_file: Path | None, base: dict, axes: dict[str, l
     every hook number (each at its own rated load unless loads are given)."""
     names = list(axes)
     tasks = []
-    for size, combo in itertools.product(sizes or [size], itertools.product(*(axes[n] for n in names))):
-        params = dict(zip(names, combo), **({"size": size} if sizes else {}))
+    for hook, combo in itertools.product(sizes or [size], itertools.product(*(axes[n] for n in names))):
+        params = dict(zip(names, combo), **({"size": hook} if sizes else {}))
         over = dict(base, **{k: v for k, v in params.items() if k != "size"})
         try:
-            case = resolve(size, case_file, over)
+            case = resolve(hook, case_file, over)
             qs = tuple(loads) or (case.load_N,)
             for q in qs:
-                resolve(size, case_file, dict(over, load_N=q))
+                resolve(hook, case_file, dict(over, load_N=q))
             note = ""
         except InputError as exc:
             case, qs, note = None, tuple(loads), " ".join(str(exc).split())

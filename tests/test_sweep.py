@@ -31,7 +31,7 @@ def sweep(out: Path, *args: str, ranks: int = 1) -> subprocess.CompletedProcess:
 def test_parse_values():
     assert parse_values("0.5:2.5:5", "rf") == pytest.approx([0.5, 1.0, 1.5, 2.0, 2.5])
     assert parse_values("16,18,20", "dj") == [16.0, 18.0, 20.0]
-    for bad in ("1:2", "a,b", "1:2:1", "1:inf:3", ""):
+    for bad in ("1:2", "a,b", "1:2:1", "1:inf:3", "nan,1", "1,-inf", ""):
         with pytest.raises(InputError):
             parse_values(bad, "rf")
 
