@@ -27,7 +27,11 @@ if TYPE_CHECKING:  # VTK loads only in the picture's own process (module docstri
     from vtkmodules.vtkRenderingAnnotation import vtkScalarBarActor
     from vtkmodules.vtkRenderingCore import vtkRenderer, vtkRenderWindow, vtkTextActor
 
-WINDOW = (2000, 950)  # pixels: two panels side by side
+WINDOW = (2240, 950)  # pixels: two panels of 1000 and the colour scale's column of 240
+# Viewport x-ranges (fractions of the window): the panels, then the colour scale in a
+# column of its own, so that no part of the drawn crosshead lies under it.
+PANELS = ((0.0, 1000 / 2240), (1000 / 2240, 2000 / 2240))
+SCALE_COLUMN = (2000 / 2240, 1.0)
 TURBO_TABLE = CACHE_HOME / "colours" / "turbo-256.npy"  # turbo_rgba
 # Left: from above, the seat, the bore and the ligament beside it. Right: from below and
 # outside, the journal root, its shoulder fillet and the bottom face. A panel marks a peak
@@ -344,7 +348,7 @@ def _panel(window: vtkRenderWindow, scene: _Scene, col: int) -> vtkRenderer:
     ``scene.eyes[col]`` at the part's centre with z up."""
     from vtkmodules.vtkRenderingCore import vtkLightKit, vtkRenderer
     ren = vtkRenderer()
-    ren.SetViewport(0.5 * col, 0.0, 0.5 * (col + 1), 1.0)
+    ren.SetViewport(PANELS[col][0], 0.0, PANELS[col][1], 1.0)
     ren.SetBackground(1.0, 1.0, 1.0)
     ren.UseFXAAOn()  # smooth edges for less than the window's 8 samples per pixel cost (docs/performance.md)
     vtkLightKit().AddLightsToRenderer(ren)
@@ -395,7 +399,8 @@ def _axes_inset(window: vtkRenderWindow, col: int, direction: tuple[float, float
     from vtkmodules.vtkRenderingCore import vtkRenderer
     axes_ren = vtkRenderer()
     axes_ren.SetLayer(1)
-    axes_ren.SetViewport(0.5 * col, 0.0, 0.5 * col + 0.1, 0.21)
+    x0 = PANELS[col][0]
+    axes_ren.SetViewport(x0, 0.0, x0 + 0.2 * (PANELS[col][1] - x0), 0.21)
     axes_ren.AddActor(vtkAxesActor())
     axes_cam = axes_ren.GetActiveCamera()
     axes_cam.SetFocalPoint(0.0, 0.0, 0.0)
@@ -421,15 +426,16 @@ def _title(scene: _Scene) -> vtkTextActor:
 
 
 def _scale_bar(lut: vtkLookupTable) -> vtkScalarBarActor:
-    """The right panel's colour scale of von Mises (MPa), five labels, in black text."""
+    """The colour scale of von Mises (MPa) for the window's right column (SCALE_COLUMN):
+    five labels, in black text."""
     from vtkmodules.vtkRenderingAnnotation import vtkScalarBarActor
     bar = vtkScalarBarActor()
     bar.SetLookupTable(lut)
     bar.SetTitle("von Mises (MPa)")
     bar.SetNumberOfLabels(5)
     bar.SetLabelFormat("%.1f")
-    bar.GetPositionCoordinate().SetValue(0.83, 0.15)
-    bar.SetWidth(0.1)
+    bar.GetPositionCoordinate().SetValue(0.275, 0.15)  # centred: the title is wider than the bar
+    bar.SetWidth(0.45)
     bar.SetHeight(0.7)
     bar.UnconstrainedFontSizeOn()  # the font sizes below, not fitted to the bar
     for prop in (bar.GetTitleTextProperty(), bar.GetLabelTextProperty()):
@@ -438,6 +444,17 @@ def _scale_bar(lut: vtkLookupTable) -> vtkScalarBarActor:
         prop.SetItalic(False)
         prop.SetShadow(False)
     return bar
+
+
+def _scale_column(lut: vtkLookupTable) -> vtkRenderer:
+    """The window's right column (SCALE_COLUMN) on a white background, holding the colour
+    scale."""
+    from vtkmodules.vtkRenderingCore import vtkRenderer
+    ren = vtkRenderer()
+    ren.SetViewport(SCALE_COLUMN[0], 0.0, SCALE_COLUMN[1], 1.0)
+    ren.SetBackground(1.0, 1.0, 1.0)
+    ren.AddViewProp(_scale_bar(lut))
+    return ren
 
 
 def _write_png(window: vtkRenderWindow, out: Path) -> None:
@@ -472,8 +489,9 @@ def render_folder(folder: Path, out_name: str = "von_mises.png") -> Path:
     for col, direction in enumerate(VIEWS):
         ren = _panel(window, scene, col)
         _axes_inset(window, col, direction)
-        # The left panel carries the title, the right one the colour scale.
-        ren.AddViewProp(_title(scene) if col == 0 else _scale_bar(scene.lut))
+        if col == 0:
+            ren.AddViewProp(_title(scene))
+    window.AddRenderer(_scale_column(scene.lut))
     out = folder / out_name
     _write_png(window, out)
     window.Finalize()

@@ -171,12 +171,18 @@ def test_picture_marks_a_peak_only_where_the_camera_sees_it():
 
 
 def test_picture_shows_the_field(coarse_run):
-    """von_mises.png is a drawn field, not an empty window: 2000 x 950 pixels, a white
-    background, and the turbo colours of the stress field (a few hundred distinct colours)."""
+    """von_mises.png is a drawn field, not an empty window: 2240 x 950 pixels, a white
+    background, and the turbo colours of the stress field (a few hundred distinct colours);
+    the colour scale in a column of its own, right of the panels."""
     from matplotlib.image import imread
     out, _ = coarse_run
     img = imread(out / "von_mises.png")[:, :, :3]
-    assert img.shape[:2] == (950, 2000)
+    assert img.shape[:2] == (950, 2240)
     assert np.allclose(img[5, 1000], 1.0)                       # background between panels
+    column = img[:, 2000:]
+    ink = ~np.all(np.isclose(column, 1.0), axis=2)
+    rows, cols = np.nonzero(ink)
+    assert 0.6 * 950 < rows.ptp() < 0.85 * 950                  # the bar, its title and labels
+    assert cols.min() > 10 and cols.max() < 230                 # none of it cut off at the sides
     colours = np.unique((img.reshape(-1, 3) * 255).round().astype(np.int64) @ [65536, 256, 1])
     assert len(colours) > 300
