@@ -83,14 +83,22 @@ def sigma_xx_field(u: fem.Function, mat: Material) -> SigmaXX:
 
 
 def sigma_xx_at(s: SigmaXX, points: np.ndarray) -> np.ndarray:
-    """σ_xx (MPa) at ``points`` (n × 3, mm). Collective; every rank gets all values."""
+    """σ_xx (MPa) at ``points`` (n × 3, mm). Collective; every rank gets all values.
+
+    A curved cell whose hull holds a point need not hold the point itself, and then
+    DOLFINx's pull-back into it fails (RuntimeError, Newton's method): the value comes
+    from the next cell that holds the point, or stays NaN. The error is never raised, so
+    that no rank leaves the collective below while the others wait in it."""
     sxx, mesh = s.field, s.field.function_space.mesh
     cells = geometry.compute_colliding_cells(mesh, geometry.compute_collisions(s.tree, points), points)
     local = np.full(len(points), np.nan)
     for i in range(len(points)):
-        links = cells.links(i)
-        if len(links):
-            local[i] = sxx.eval(points[i], links[:1])[0]
+        for cell in cells.links(i):
+            try:
+                local[i] = sxx.eval(points[i], np.array([cell], dtype=np.int32))[0]
+                break
+            except RuntimeError:
+                continue
     found = mesh.comm.allgather(local)
     values = np.full(len(points), np.nan)
     for part in found:  # the first rank that holds a point gives its value

@@ -127,3 +127,33 @@ def test_journal_nominal_moment_is_statics():
     M, s = journal_nominal(d, 10_000.0)
     assert M == pytest.approx(5000.0 * ((22.5 + 1.5 + 35.0) / 2 - 22.5))
     assert s == pytest.approx(32 * M / (math.pi * 20.0 ** 3))
+
+
+def test_a_failed_pull_back_takes_the_next_cell_and_never_raises(monkeypatch):
+    """A point in the hull of a curved cell but outside the cell itself: DOLFINx's eval
+    there raises (Newton's method fails). sigma_xx_at takes the value from the next cell
+    holding the point, or leaves NaN; it raises nothing, since a rank that raised would
+    leave the others waiting in the allgather."""
+    import pipeline.sections as sec
+
+    class Links:
+        def __init__(self, rows):
+            self.rows = rows
+
+        def links(self, i):
+            return np.array(self.rows[i], dtype=np.int32)
+
+    class Field:  # cell 7 fails like a bad pull-back; others give 10 × cell number (MPa)
+        function_space = type("V", (), {"mesh": type("M", (), {"comm": MPI.COMM_SELF})()})()
+
+        def eval(self, x, cells):
+            if int(cells[0]) == 7:
+                raise RuntimeError("Newton method failed to converge for non-affine geometry")
+            return np.array([10.0 * int(cells[0])])
+
+    rows = [[3], [7, 4], [7], []]
+    monkeypatch.setattr(sec.geometry, "compute_collisions", lambda tree, pts: None)
+    monkeypatch.setattr(sec.geometry, "compute_colliding_cells", lambda mesh, coll, pts: Links(rows))
+    got = sec.sigma_xx_at(sec.SigmaXX(Field(), tree=None), np.zeros((4, 3)))
+    assert got[:2].tolist() == [30.0, 40.0]
+    assert np.isnan(got[2]) and np.isnan(got[3])
