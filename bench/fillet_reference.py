@@ -49,6 +49,9 @@ BALL_RADIUS_MM = 2.5        # the refined ball around the hot spot
 # P3's DOFs.
 H_BALLS_MM = (0.4, 0.3, 0.225, 0.17, 0.128)
 ORDERS_AT = {2: H_BALLS_MM, 3: H_BALLS_MM, 4: H_BALLS_MM[:3]}
+# Richardson's order below which three levels are not converging (as pipeline.errorbar's
+# P_SINGULAR): their limit is not used.
+MIN_ORDER = 0.5
 
 
 @dataclass(frozen=True)
@@ -219,13 +222,17 @@ def run_point(order: int, h_ball: float, centre: tuple[float, float, float], out
 def richardson(h: list[float], f: list[float]) -> dict:
     """Limit of f(h) = f0 + C h^p from the last three levels of a sequence with a constant
     ratio: p = ln((f1−f2)/(f2−f3)) / ln(ratio); NaN when the differences change sign
-    (not monotone: no order can be fitted)."""
+    (not monotone: no order can be fitted) or do not shrink by an order of at least
+    MIN_ORDER (equal steps give p = 0 and a limit at infinity: noise, not convergence)."""
+    nan = {"order": float("nan"), "limit_MPa": float("nan"), "levels": 3}
     f1, f2, f3 = f[-3:]
     ratio = h[-3] / h[-2]
     e12, e23 = f1 - f2, f2 - f3
     if e12 == 0 or e23 == 0 or e12 * e23 < 0:
-        return {"order": float("nan"), "limit_MPa": float("nan"), "levels": 3}
+        return nan
     p = math.log(e12 / e23) / math.log(ratio)
+    if p < MIN_ORDER:
+        return dict(nan, order=p)
     limit = f3 - e23 / (ratio ** p - 1)
     return {"order": p, "limit_MPa": limit, "levels": 3}
 

@@ -53,3 +53,14 @@ def test_reference_band_covers_every_p3_value_p4_and_the_far_field():
     assert ref["value_MPa"] == pytest.approx(100.5)
     assert ref["band_MPa"] == pytest.approx(1.5)
     assert reference_value({2: p3}) is None
+
+
+def test_richardson_gives_no_limit_without_convergence():
+    """Equal steps (p = 0; No. 05's P3 levels 113.762, 113.795, 113.829 MPa came close,
+    p = -0.015, and put a 'limit' at 105.9 MPa into the reference's band) and steps that
+    shrink by less than p = 0.5 give no limit; p = 0.6 still does."""
+    h = [0.3, 0.225, 0.16875]
+    assert math.isnan(richardson(h, [113.762, 113.795, 113.828])["limit_MPa"])
+    assert math.isnan(richardson(h, [113.762, 113.795, 113.829])["limit_MPa"])
+    fit = richardson(h, [113.0 + 5.0 * x ** 0.6 for x in h])
+    assert fit["order"] == pytest.approx(0.6) and fit["limit_MPa"] == pytest.approx(113.0)
