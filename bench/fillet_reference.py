@@ -5,13 +5,14 @@ The default path reads von Mises at the nodes of three pilot-refined P2 meshes (
 fillet the midpoint of the unaveraged and the nodal-averaged value, docs/design.md §5).
 This study instead
 
-- refines only a ball around the fillet's hot spot, in a geometric sequence of element
-  sizes (the rest of the part keeps one fixed mesh: the journal's bending moment at its
-  root is fixed by statics, so the far field only has to carry it);
+- refines only a ball around the fillet's hot spot (or, with --crest, several along the
+  fillet's crest where the peak is broad), in a geometric sequence of element sizes (the
+  rest of the part keeps one fixed mesh: the journal's bending moment at its root is fixed
+  by statics, so the far field only has to carry it);
 - solves P2, P3 and (on the coarser balls) P4 displacements on the same meshes;
 - takes the peak as the maximum of the FE von Mises stress over the exact fillet surface
-  (a torus), sampled densely and refined around the best sample, so the answer does not
-  depend on where the mesh happens to have a node;
+  (a torus) inside the balls, sampled densely and refined around the best sample, so the
+  answer does not depend on where the mesh happens to have a node;
 - checks that the fillet surface inside the ball is the torus (the distance of every
   geometry node there from the torus's centre circle minus rf: a mid-edge node pulled
   straight by geometry/curved.py shows as a negative distance);
@@ -19,6 +20,8 @@ This study instead
   compares the limits of the orders with each other.
 
 Run: ``python -m bench.fillet_reference --out results/fillet-reference`` (make reference),
+another part with ``--size`` and ``--dim NAME=MM`` (the ball's radius and element sizes
+then follow rf: the lengths above × rf / (0.06·h3), as the default path's refinement does),
 or one point: ``... --point ORDER H_BALL`` (used by the study itself, one process per
 point so that memory is returned between points).
 """
@@ -31,7 +34,7 @@ import os
 import subprocess
 import sys
 import time
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 from pipeline.environment import configure  # noqa: E402
@@ -43,8 +46,9 @@ import numpy as np  # noqa: E402
 ROOT = Path(__file__).resolve().parents[1]
 OUTER_FACTOR = 1.3          # the fixed mesh outside the ball: default sizes × this
 OUTER_CHECKS = (1.0, 0.77)  # the middle P3 level again with finer outer meshes: the far field's share
-BALL_RADIUS_MM = 2.5        # the refined ball around the hot spot
-# Element sizes in the ball, ratio 4/3; why the sequence stops at 0.128 mm: docs/fillet-reference.md.
+BALL_RADIUS_MM = 2.5        # the refined ball around the hot spot (at rf = 0.06·h3: × fillet_scale)
+# Element sizes in the ball, ratio 4/3 (at rf = 0.06·h3: × fillet_scale); why the sequence
+# stops at 0.128 mm: docs/fillet-reference.md.
 # P4 runs on the three coarsest only: it checks P3's limit with another order at about twice
 # P3's DOFs.
 H_BALLS_MM = (0.4, 0.3, 0.225, 0.17, 0.128)
@@ -100,6 +104,23 @@ def von_mises_tensor_field(u, mat):
     return s
 
 
+def _stress_at(s, points: np.ndarray, cells: np.ndarray) -> np.ndarray:
+    """The stress tensors (n × 3 × 3, MPa) of s at points in the given cells; NaN where the
+    pull-back into a curved cell fails (the point is in the cell's hull, not in the cell:
+    DOLFINx raises). All at once, or one by one after a failure: never raising, so that no
+    rank leaves the collectives that follow while the others wait in them."""
+    try:
+        return s.eval(points, cells).reshape(-1, 3, 3)
+    except RuntimeError:
+        out = np.full((len(points), 3, 3), np.nan)
+        for i in range(len(points)):
+            try:
+                out[i] = s.eval(points[i], cells[i:i + 1]).reshape(3, 3)
+            except RuntimeError:
+                continue
+        return out
+
+
 def von_mises_at(s, tree, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Von Mises (MPa) of the DG stress field s at points (n × 3, mm), evaluated in every
     cell that holds the point: (largest, mean) over those cells; NaN where no cell holds
@@ -118,7 +139,9 @@ def von_mises_at(s, tree, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     total = np.zeros(len(points))
     count = np.zeros(len(points))
     if len(idx):
-        t = s.eval(points[idx], cell.astype(np.int32)).reshape(-1, 3, 3)
+        t = _stress_at(s, points[idx], cell.astype(np.int32))
+        ok = np.isfinite(t).all(axis=(1, 2))
+        idx, t = idx[ok], t[ok]
         dev = t - np.trace(t, axis1=1, axis2=2)[:, None, None] / 3 * np.eye(3)
         vm = np.sqrt(1.5 * np.einsum("nij,nij->n", dev, dev))
         np.maximum.at(hi, idx, vm)
@@ -131,14 +154,29 @@ def von_mises_at(s, tree, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return np.where(count > 0, hi, np.nan), mean
 
 
-def surface_maxima(s, tree, torus: Torus) -> tuple[tuple[float, float, float], ...]:
-    """Largest von Mises (MPa) over the fillet surface of the quarter (phi 0..π), of the
-    cells' mean and of their largest value at each point: one 1° grid for both, then three
-    finer grids around each one's best point. Returns ((mean, theta, phi), (largest, theta,
-    phi), (grid points found in no cell,))."""
+def near(points: np.ndarray, centres: np.ndarray, radius: float) -> np.ndarray:
+    """Which points (n × 3, mm) lie within ``radius`` (mm) of one of the centres (m × 3)."""
+    dist = np.linalg.norm(points[:, None, :] - centres[None, :, :], axis=2)
+    return dist.min(axis=1) < radius
+
+
+def surface_maxima(s, tree, torus: Torus, centres: np.ndarray, radius: float
+                   ) -> tuple[tuple[float, ...], ...]:
+    """Largest von Mises (MPa) over the fillet surface of the quarter (phi 0..π) inside the
+    refined balls (within ``radius`` mm of a centre), of the cells' mean and of their
+    largest value at each point: one 1° grid for both, then three finer grids around each
+    one's best point. Outside the balls the mesh is the coarse outer one, whose surface
+    values are not what the study measures. Returns ((mean, theta, phi), (largest, theta,
+    phi), (grid points found in no cell, the largest mean on the 1° grid outside the balls
+    or NaN))."""
     th, ph = np.meshgrid(np.radians(np.arange(0.0, 90.01, 1.0)), np.radians(np.arange(0.0, 180.01, 1.0)))
     th, ph = th.ravel(), ph.ravel()
-    largest, mean = von_mises_at(s, tree, torus.point(th, ph))
+    pts = torus.point(th, ph)
+    inside = near(pts, centres, radius)
+    largest, mean = von_mises_at(s, tree, pts)
+    outside = float(np.nanmax(mean[~inside])) if np.any(~inside) and np.any(np.isfinite(mean[~inside])) else float("nan")
+    missing = int(np.isnan(mean).sum())
+    largest, mean = np.where(inside, largest, np.nan), np.where(inside, mean, np.nan)
     out = []
     for which, vals in ((1, mean), (0, largest)):
         i = int(np.nanargmax(vals))
@@ -147,18 +185,19 @@ def surface_maxima(s, tree, torus: Torus) -> tuple[tuple[float, float, float], .
         for _ in range(3):
             T, P = np.meshgrid(np.clip(best[1] + step * np.linspace(-1, 1, 21), 0, math.pi / 2),
                                np.clip(best[2] + step * np.linspace(-1, 1, 21), 0, math.pi))
-            fine = von_mises_at(s, tree, torus.point(T.ravel(), P.ravel()))[which]
+            fine_pts = torus.point(T.ravel(), P.ravel())
+            fine = np.where(near(fine_pts, centres, radius), von_mises_at(s, tree, fine_pts)[which], np.nan)
             k = int(np.nanargmax(fine))
             if fine[k] > best[0]:
                 best = (float(fine[k]), float(T.ravel()[k]), float(P.ravel()[k]))
             step /= 10
         out.append(best)
-    return out[0], out[1], (int(np.isnan(mean).sum()),)
+    return out[0], out[1], (missing, outside)
 
 
-def fillet_gap(mesh, torus: Torus, d, centre, radius: float) -> tuple[float, float]:
-    """(min, max) over the boundary geometry nodes on the fillet within ``radius`` of
-    ``centre`` of their distance from the torus (mm): 0 where gmsh put them on the CAD
+def fillet_gap(mesh, torus: Torus, d, centres: np.ndarray, radius: float) -> tuple[float, float]:
+    """(min, max) over the boundary geometry nodes on the fillet within ``radius`` of one
+    of the ``centres`` of their distance from the torus (mm): 0 where gmsh put them on the CAD
     surface; a mid-edge node pulled towards its chord lies inside the tube (< 0)."""
     from dolfinx import cpp
     from dolfinx.mesh import exterior_facet_indices
@@ -170,49 +209,62 @@ def fillet_gap(mesh, torus: Torus, d, centre, radius: float) -> tuple[float, flo
     ra = np.hypot(x[:, 1], x[:, 2] - torus.zc)
     tol = 1e-3 * d.rf
     on = ((x[:, 0] > d.b1 / 2 + tol) & (x[:, 0] < d.b1 / 2 + d.rf - tol) & (ra > d.dj / 2 + tol)
-          & (ra < d.dj / 2 + d.rf - tol) & (np.linalg.norm(x - np.array(centre), axis=1) < radius))
+          & (ra < d.dj / 2 + d.rf - tol) & (np.abs(x[:, 1]) > tol) & near(x, centres, radius))
     gap = torus.gap(x[on])
     lo = mesh.comm.allreduce(float(gap.min()) if len(gap) else np.inf, op=MPI.MIN)
     hi = mesh.comm.allreduce(float(gap.max()) if len(gap) else -np.inf, op=MPI.MAX)
     return lo, hi
 
 
-def run_point(order: int, h_ball: float, centre: tuple[float, float, float], outer: float,
-              radius: float) -> dict:
-    """Mesh with a ball of size h_ball (mm) at centre, solve Pk, measure the fillet peak."""
+def study_case(size: str, dims: dict[str, float]):
+    """The part the study measures: hook number ``size`` with dimensions ``dims`` (mm)
+    overriding its table row, at its rated load."""
+    from pipeline.case import resolve
+    return resolve(size=size, overrides={f"dims.{k}": v for k, v in dims.items()})
+
+
+def run_point(order: int, h_ball: float, centres: tuple[tuple[float, float, float], ...], outer: float,
+              radius: float, size: str = "05", dims: dict[str, float] | None = None,
+              search_radius: float | None = None) -> dict:
+    """Mesh with balls of size h_ball (mm) at the centres, solve Pk, measure the fillet
+    peak inside them (within ``search_radius`` mm of a centre, default the balls' radius)."""
     from dolfinx import geometry
     from mpi4py import MPI
 
-    from pipeline.case import resolve
     from pipeline.elasticity import Material
     from pipeline.level import solve_level
     from pipeline.meshing import make_mesh
     from pipeline.peaks import peak
     comm = MPI.COMM_WORLD
     # P4 is beyond the orders a case offers (the check refuses it); the study sets it directly.
-    case = replace(resolve(size="05"), order=order, solver="pmg", rtol=1e-10)
+    case = replace(study_case(size, dims or {}), order=order, solver="pmg", rtol=1e-10)
     d = case.dims
     torus = fillet_torus(d)
     # Sizes inside the mesher are multiplied by the factor: the ball's size is given per factor.
-    spec = replace(case.mesh_spec(outer), hotspots=(centre,), size_hotspot=h_ball / outer, hotspot_radius=radius)
+    spec = replace(case.mesh_spec(outer), hotspots=tuple(centres), size_hotspot=h_ball / outer,
+                   hotspot_radius=radius)
+    cs = np.array(centres, dtype=float).reshape(-1, 3)
     t0 = time.perf_counter()
     m = make_mesh(d, case.model, spec, comm=comm)
     t_mesh = time.perf_counter() - t0
-    gap_min, gap_max = fillet_gap(m.mesh, torus, d, centre, radius)
+    gap_min, gap_max = fillet_gap(m.mesh, torus, d, cs, radius)
     lv = solve_level(case, outer, keep_fields=True, comm=comm, load_mesh=lambda: m)
     u, vm = lv.fields
     in_fillet = lambda p: (p[:, 0] > d.b1 / 2 - 0.5) & (p[:, 0] < d.b1 / 2 + d.rf + 0.5)  # noqa: E731
     nodal = peak(vm, in_fillet)
     s = von_mises_tensor_field(u, Material(E=case.E_MPa, nu=case.nu))
     tree = geometry.BoundingBoxTree(m.mesh, m.mesh.topology.dim)
-    (value, theta, phi), (value_hi, theta_hi, phi_hi), (missing,) = surface_maxima(s, tree, torus)
+    (value, theta, phi), (value_hi, theta_hi, phi_hi), (missing, outside) = surface_maxima(
+        s, tree, torus, cs, radius if search_radius is None else search_radius)
     where = torus.at(theta, phi)
-    return {"order": order, "h_ball_mm": h_ball, "outer_factor": outer, "ball_radius_mm": radius,
-            "ball_centre_mm": list(centre), "dofs": lv.dofs, "cells": lv.cells,
+    return {"size": size, "dims_mm": dims or {},
+            "order": order, "h_ball_mm": h_ball, "outer_factor": outer, "ball_radius_mm": radius,
+            "ball_centre_mm": list(centres[0]), "ball_centres_mm": [list(c) for c in centres],
+            "dofs": lv.dofs, "cells": lv.cells, "surface_peak_outside_balls_MPa": outside,
             "iterations": lv.iterations, "surface_peak_MPa": value, "surface_peak_cellmax_MPa": value_hi,
             "cellmax_theta_deg": math.degrees(theta_hi), "cellmax_phi_deg": math.degrees(phi_hi), "theta_deg": math.degrees(theta),
             "phi_deg": math.degrees(phi), "surface_peak_at_mm": list(where),
-            "peak_from_centre_mm": float(np.linalg.norm(np.array(where) - np.array(centre))),
+            "peak_from_centre_mm": float(np.linalg.norm(cs - np.array(where), axis=1).min()),
             "nodal_peak_MPa": nodal.value_MPa, "nodal_peak_at_mm": list(nodal.location_mm),
             "samples_outside_mesh": missing, "torus_gap_min_mm": gap_min, "torus_gap_max_mm": gap_max,
             "jacobian_ratio": m.jacobian_ratio, "time_mesh_s": t_mesh,
@@ -292,11 +344,23 @@ def _parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="python -m bench.fillet_reference", description=__doc__.split("\n\n")[0])
     p.add_argument("--out", type=Path, default=Path("results/fillet-reference"))
     p.add_argument("--ranks", type=int, default=2)
-    p.add_argument("--radius", type=float, default=BALL_RADIUS_MM)
+    p.add_argument("--size", default="05", help="hook number (default 05)")
+    p.add_argument("--dim", action="append", default=[], metavar="NAME=MM",
+                   help="override one dimension of the size's row, mm (repeatable)")
+    p.add_argument("--radius", type=float, help="ball radius, mm (default 2.5 × fillet_scale)")
     p.add_argument("--outer", type=float, default=OUTER_FACTOR)
     p.add_argument("--orders", default="2,3,4")
     p.add_argument("--point", nargs=2, metavar=("ORDER", "H_BALL"))
-    p.add_argument("--centre", help="x,y,z of the ball (mm); default: found by a P3 probe")
+    p.add_argument("--centre", help="x,y,z of the ball (mm), or several x,y,z;x,y,z;...; "
+                   "default: found by a P3 probe")
+    p.add_argument("--ball-sizes", type=int, metavar="N",
+                   help="only the N coarsest ball sizes of each order (default: all)")
+    p.add_argument("--search-radius", type=float, metavar="MM",
+                   help="one point: look for the peak within this distance of a centre (default: the ball radius)")
+    p.add_argument("--crest", metavar="PHI0,PHI1,N",
+                   help="N balls along the fillet's crest from PHI0 to PHI1 degrees around the journal "
+                        "(0 straight down), at the probe's angle across the fillet, instead of one at "
+                        "the probe's peak: for a crest broader than one ball")
     return p
 
 
@@ -304,16 +368,20 @@ def main(argv: list[str] | None = None) -> int:
     """The study (or, with --point, one of its points): the ball's centre, each order's
     sequence of ball sizes, the far-field checks, then reference.json and a summary."""
     a = _parser().parse_args(argv)
+    dims = _parse_dims(a.dim)
+    scale = _scale(a.size, dims)
+    radius = a.radius if a.radius is not None else _scaled(BALL_RADIUS_MM, scale)
     if a.point:
-        return _print_point(a)
-    study = _Study.open(a.out, radius=a.radius, ranks=a.ranks)
-    centre = _ball_centre(study, a.centre, a.outer)
+        return _print_point(a, dims, radius)
+    study = _Study.open(a.out, radius=radius, ranks=a.ranks, size=a.size, dims=dims)
+    centres = _ball_centres(study, a.centre, a.outer, a.crest)
     orders = [int(o) for o in a.orders.split(",")]
-    rows = _sequences(study, orders, a.outer, centre)
-    far_field = _far_field(study, orders, centre)
+    rows = _sequences(study, orders, a.outer, centres, scale, a.ball_sizes)
+    far_field = _far_field(study, orders, centres, scale)
     fits = _fits(rows, orders)
     ref = reference_value(fits, [r["surface_peak_MPa"] for r in far_field])
-    _write_reference(study.out / "reference.json", centre, a.outer, a.radius, ref, far_field, fits, rows)
+    _write_reference(study.out / "reference.json", centres, a.outer, radius, ref, far_field, fits, rows,
+                     a.size, dims)
     for order, fit in fits.items():
         study.say(f"P{order}: finest three {fit['finest_three_mean_MPa']:.3f} MPa (spread {fit['finest_three_spread_MPa']:.3f}), "
                   f"all levels {fit['min_MPa']:.3f}..{fit['max_MPa']:.3f} MPa; Richardson {fit['richardson']}")
@@ -323,23 +391,44 @@ def main(argv: list[str] | None = None) -> int:
     return 0
 
 
-def _parse_centre(text: str) -> tuple[float, ...]:
-    """The ball centre x,y,z (mm) from its command-line form."""
-    return tuple(float(c) for c in text.split(","))
+def _parse_dims(items: list[str]) -> dict[str, float]:
+    """--dim NAME=MM options as a dict (mm)."""
+    out = {}
+    for item in items:
+        name, _, value = item.partition("=")
+        out[name.strip()] = float(value)
+    return out
 
 
-def _point_args(order: int, h: float, centre: tuple[float, ...], outer: float, radius: float) -> list[str]:
-    """The command line of one point's process: order, ball size h (mm), ball centre (mm),
-    outer mesh factor and ball radius (mm)."""
-    return ["--point", str(order), str(h), "--centre", ",".join(map(str, centre)),
-            "--outer", str(outer), "--radius", str(radius)]
+def _scale(size: str, dims: dict[str, float]) -> float:
+    """How the ball's lengths scale for this part: rf / (0.06·h3), as the default path's
+    refinement near the journal root (geometry.meshspec.fillet_scale)."""
+    from geometry.meshspec import fillet_scale
+    return fillet_scale(study_case(size, dims).dims)
 
 
-def _print_point(a: argparse.Namespace) -> int:
+Centres = tuple[tuple[float, float, float], ...]
+
+
+def _parse_centres(text: str) -> Centres:
+    """The ball centres x,y,z;x,y,z;... (mm) from their command-line form."""
+    return tuple(tuple(float(c) for c in one.split(",")) for one in text.split(";") if one.strip())
+
+
+def _point_args(order: int, h: float, centres: Centres, outer: float, radius: float,
+                size: str, dims: dict[str, float]) -> list[str]:
+    """The command line of one point's process: order, ball size h (mm), ball centres (mm),
+    outer mesh factor, ball radius (mm) and the part (size and dimensions, mm)."""
+    return ["--point", str(order), str(h), "--centre", ";".join(",".join(map(str, c)) for c in centres),
+            "--outer", str(outer), "--radius", str(radius), "--size", size,
+            *[f"--dim={k}={v}" for k, v in sorted(dims.items())]]
+
+
+def _print_point(a: argparse.Namespace, dims: dict[str, float], radius: float) -> int:
     """Solve the one point --point asks for and print its row as a ``POINT`` JSON line
     (rank 0): the line :func:`spawn` reads back."""
-    centre = _parse_centre(a.centre)
-    r = run_point(int(a.point[0]), float(a.point[1]), centre, a.outer, a.radius)
+    r = run_point(int(a.point[0]), float(a.point[1]), _parse_centres(a.centre), a.outer, radius, a.size, dims,
+                  search_radius=a.search_radius)
     from mpi4py import MPI
     if MPI.COMM_WORLD.rank == 0:
         print("POINT " + json.dumps(r), flush=True)
@@ -357,75 +446,104 @@ class _Study:
     ranks: int      # MPI ranks per point process
     done: list[dict]
     started: float
+    size: str = "05"                                   # the part: hook number
+    dims: dict[str, float] = field(default_factory=dict)  # and its dimensions overridden, mm
 
     @classmethod
-    def open(cls, out: Path, radius: float, ranks: int) -> _Study:
+    def open(cls, out: Path, radius: float, ranks: int, size: str = "05",
+             dims: dict[str, float] | None = None) -> _Study:
         """Create ``out`` if needed and read the rows earlier runs left in points.jsonl."""
         out.mkdir(parents=True, exist_ok=True)
         log = out / "points.jsonl"
         done = [json.loads(ln) for ln in log.read_text().splitlines()] if log.exists() else []
-        return cls(out=out, radius=radius, ranks=ranks, done=done, started=time.perf_counter())
+        return cls(out=out, radius=radius, ranks=ranks, done=done, started=time.perf_counter(),
+                   size=size, dims=dict(dims or {}))
 
     def say(self, msg: str) -> None:
         """One progress line, stamped with the study's elapsed time."""
         print(f"[{time.perf_counter() - self.started:8.1f} s] {msg}", flush=True)
 
-    def point(self, order: int, h: float, outer: float, centre: tuple[float, ...]) -> tuple[dict, bool]:
+    def point(self, order: int, h: float, outer: float, centres: Centres) -> tuple[dict, bool]:
         """The point's row: from points.jsonl when an earlier run made it, else solved now
         (in its own process) and appended there. Second: whether it was solved now."""
         for r in self.done:
-            if (r["order"], r["h_ball_mm"], r["outer_factor"], r["ball_radius_mm"], tuple(r["ball_centre_mm"])) \
-                    == (order, h, outer, self.radius, centre):
+            # Rows written before the study took other parts have no size: they are No. 05's.
+            known = tuple(tuple(c) for c in r.get("ball_centres_mm", [r["ball_centre_mm"]]))
+            if (r["order"], r["h_ball_mm"], r["outer_factor"], r["ball_radius_mm"], known,
+                    r.get("size", "05"), r.get("dims_mm", {})) \
+                    == (order, h, outer, self.radius, centres, self.size, self.dims):
                 return r, False
-        r = spawn(_point_args(order, h, centre, outer, self.radius), self.ranks)
+        r = spawn(self.args(order, h, outer, centres), self.ranks)
         self.done.append(r)
         with (self.out / "points.jsonl").open("a") as f:
             f.write(json.dumps(r) + "\n")
         return r, True
 
+    def args(self, order: int, h: float, outer: float, centres: Centres) -> list[str]:
+        """The command line of this study's point (order, ball size h mm, outer factor, centres)."""
+        return _point_args(order, h, centres, outer, self.radius, self.size, self.dims)
 
-def _ball_centre(study: _Study, given: str | None, outer: float) -> tuple[float, ...]:
-    """Where the ball goes (mm): --centre when given, else the surface maximum of a P3
+
+def _ball_centres(study: _Study, given: str | None, outer: float, crest: str | None) -> Centres:
+    """Where the balls go (mm): --centre when given, else the surface maximum of a P3
     solution on the unrefined mesh (a ball of the fillet's own size at a point of the
-    fillet changes nothing there). The probe is not kept in points.jsonl: its centre is a
-    guess, and it is cheap."""
+    fillet changes nothing there), or with ``crest`` (PHI0,PHI1,N in degrees) N points
+    along the fillet at the probe's angle across it. The probe is not kept in
+    points.jsonl: its centre is a guess, and it is cheap."""
     if given:
-        return _parse_centre(given)
-    from pipeline.case import resolve
-    case = resolve(size="05")
+        return _parse_centres(given)
+    case = study_case(study.size, study.dims)
     probe_centre = fillet_torus(case.dims).at(math.radians(45), math.radians(40))
     h0 = case.mesh_spec(outer).size_fillet * outer
-    probe = spawn(_point_args(3, h0, probe_centre, outer, study.radius), study.ranks)
+    # The probe's "ball" covers the whole fillet, so its maximum is over all of it.
+    # The probe looks for the peak over the whole fillet, not only inside its ball.
+    probe = spawn([*study.args(3, h0, outer, (probe_centre,)), "--search-radius", "inf"], study.ranks)
     centre = tuple(probe["surface_peak_at_mm"])
     study.say(f"probe P3: surface peak {probe['surface_peak_MPa']:.2f} MPa at theta {probe['theta_deg']:.1f}°, "
               f"phi {probe['phi_deg']:.1f}° → ball centre ({centre[0]:.3f}, {centre[1]:.3f}, {centre[2]:.3f}) mm")
-    return centre
+    if not crest:
+        return (centre,)
+    phi0, phi1, n = (float(v) for v in crest.split(","))
+    torus = fillet_torus(case.dims)
+    theta = math.radians(probe["theta_deg"])
+    centres = tuple(torus.at(theta, math.radians(ph)) for ph in np.linspace(phi0, phi1, int(n)))
+    study.say(f"{len(centres)} balls along the crest at theta {probe['theta_deg']:.1f}°, phi {phi0:g}..{phi1:g}°")
+    return tuple(tuple(round(c, 6) for c in q) for q in centres)
 
 
-def _sequences(study: _Study, orders: list[int], outer: float, centre: tuple[float, ...]) -> list[dict]:
-    """Every order's rows over its ball sizes (ORDERS_AT, coarsest first), the outer mesh
-    fixed at ``outer``; a line for each point solved now."""
+def _sequences(study: _Study, orders: list[int], outer: float, centres: Centres,
+               scale: float = 1.0, count: int | None = None) -> list[dict]:
+    """Every order's rows over its ball sizes (ORDERS_AT × ``scale``, coarsest first; the
+    ``count`` coarsest only, if given), the outer mesh fixed at ``outer``; a line for each
+    point solved now."""
     rows = []
     for order in orders:
-        for h in ORDERS_AT[order]:
-            r, new = study.point(order, h, outer, centre)
+        for h in (_scaled(h0, scale) for h0 in ORDERS_AT[order][:count]):
+            r, new = study.point(order, h, outer, centres)
             rows.append(r)
             if new:
                 study.say(f"P{order} h {h:.3f} mm: {r['dofs']} DOFs, surface peak {r['surface_peak_MPa']:.3f} MPa "
                           f"(cell max {r['surface_peak_cellmax_MPa']:.3f}) "
                           f"(θ {r['theta_deg']:.1f}°, φ {r['phi_deg']:.1f}°), nodal {r['nodal_peak_MPa']:.3f} MPa, "
                           f"torus gap {r['torus_gap_min_mm']:.1e}..{r['torus_gap_max_mm']:.1e} mm, "
-                          f"mesh {r['time_mesh_s']:.1f} s, solve {r['time_solve_s']:.1f} s")
+                          f"mesh {r['time_mesh_s']:.1f} s, solve {r['time_solve_s']:.1f} s; "
+                          f"outside the balls {r['surface_peak_outside_balls_MPa']:.3f} MPa")
     return rows
 
 
-def _far_field(study: _Study, orders: list[int], centre: tuple[float, ...]) -> list[dict]:
+def _scaled(h: float, scale: float) -> float:
+    """A length of the ball (its element size or radius, mm) × scale, rounded to 1e-6 mm so
+    that it reads back the same from points.jsonl (and No. 05's lengths stay 0.4, 2.5, ...)."""
+    return round(h * scale, 6)
+
+
+def _far_field(study: _Study, orders: list[int], centres: Centres, scale: float = 1.0) -> list[dict]:
     """The far field's share: the middle P3 level again with the finer meshes outside the
     ball of OUTER_CHECKS (none without P3); a line for each point solved now."""
-    h_mid = H_BALLS_MM[2]
+    h_mid = _scaled(H_BALLS_MM[2], scale)
     far_field = []
     for outer in (OUTER_CHECKS if 3 in orders else ()):
-        r, new = study.point(3, h_mid, outer, centre)
+        r, new = study.point(3, h_mid, outer, centres)
         far_field.append(r)
         if new:
             study.say(f"far field: P3 h {h_mid} mm with the outer mesh ×{outer}: {r['dofs']} DOFs, "
@@ -440,11 +558,14 @@ def _fits(rows: list[dict], orders: list[int]) -> dict[int, dict]:
             for order in orders if sum(r["order"] == order for r in rows) >= 3}
 
 
-def _write_reference(path: Path, centre: tuple[float, ...], outer: float, radius: float, ref: dict | None,
-                     far_field: list[dict], fits: dict[int, dict], rows: list[dict]) -> None:
-    """reference.json: the ball (centre and radius, mm), the outer mesh factor, the
-    reference value, the far-field checks, each order's sequence and every point's row."""
-    path.write_text(json.dumps({"centre_mm": centre, "outer_factor": outer,
+def _write_reference(path: Path, centres: Centres, outer: float, radius: float, ref: dict | None,
+                     far_field: list[dict], fits: dict[int, dict], rows: list[dict], size: str = "05",
+                     dims: dict[str, float] | None = None) -> None:
+    """reference.json: the part (size, dimensions overridden, mm), the ball (centre and
+    radius, mm), the outer mesh factor, the reference value, the far-field checks, each
+    order's sequence and every point's row."""
+    path.write_text(json.dumps({"size": size, "dims_mm": dims or {}, "centre_mm": centres[0],
+                                "centres_mm": centres, "outer_factor": outer,
                                 "ball_radius_mm": radius, "reference": ref,
                                 "far_field": [{k: r[k] for k in ("outer_factor", "h_ball_mm", "dofs", "surface_peak_MPa")}
                                               for r in far_field],

@@ -6,7 +6,8 @@ import math
 import numpy as np
 import pytest
 
-from bench.fillet_reference import Torus, fillet_torus, reference_value, richardson
+from bench.fillet_reference import (BALL_RADIUS_MM, H_BALLS_MM, Torus, _parse_centres, _scale, _scaled,
+                                    fillet_torus, near, reference_value, richardson)
 from pipeline.case import resolve
 
 
@@ -53,6 +54,25 @@ def test_reference_band_covers_every_p3_value_p4_and_the_far_field():
     assert ref["value_MPa"] == pytest.approx(100.5)
     assert ref["band_MPa"] == pytest.approx(1.5)
     assert reference_value({2: p3}) is None
+
+
+def test_the_balls_follow_rf_and_no_05_keeps_its_lengths():
+    """At rf = 0.06·h3 (No. 05's table row) the study's ball sizes and radius are the
+    published ones to the digit, so points.jsonl of `make reference` still matches; at
+    rf = 0.5 mm they are a third of them (rf / 1.5 mm)."""
+    assert _scale("05", {}) == 1.0
+    assert [_scaled(h, _scale("05", {})) for h in H_BALLS_MM] == list(H_BALLS_MM)
+    assert _scaled(BALL_RADIUS_MM, _scale("05", {})) == BALL_RADIUS_MM
+    assert _scale("05", {"rf": 0.5, "dj": 16.0}) == pytest.approx(1 / 3)
+    assert _scaled(0.4, 1 / 3) == 0.133333
+
+
+def test_centres_and_the_region_inside_the_balls():
+    assert _parse_centres("1,2,3") == ((1.0, 2.0, 3.0),)
+    assert _parse_centres("1,2,3;4.5,5,6") == ((1.0, 2.0, 3.0), (4.5, 5.0, 6.0))
+    centres = np.array([[0.0, 0.0, 0.0], [2.0, 0.0, 0.0]])
+    pts = np.array([[0.9, 0.0, 0.0], [1.0, 0.0, 0.0], [2.5, 0.5, 0.0], [1.0, 1.0, 0.0]])
+    assert near(pts, centres, 1.0).tolist() == [True, False, True, False]
 
 
 def test_richardson_gives_no_limit_without_convergence():
