@@ -415,15 +415,6 @@ def _parse_centres(text: str) -> Centres:
     return tuple(tuple(float(c) for c in one.split(",")) for one in text.split(";") if one.strip())
 
 
-def _point_args(order: int, h: float, centres: Centres, outer: float, radius: float,
-                size: str, dims: dict[str, float]) -> list[str]:
-    """The command line of one point's process: order, ball size h (mm), ball centres (mm),
-    outer mesh factor, ball radius (mm) and the part (size and dimensions, mm)."""
-    return ["--point", str(order), str(h), "--centre", ";".join(",".join(map(str, c)) for c in centres),
-            "--outer", str(outer), "--radius", str(radius), "--size", size,
-            *[f"--dim={k}={v}" for k, v in sorted(dims.items())]]
-
-
 def _print_point(a: argparse.Namespace, dims: dict[str, float], radius: float) -> int:
     """Solve the one point --point asks for and print its row as a ``POINT`` JSON line
     (rank 0): the line :func:`spawn` reads back."""
@@ -480,8 +471,11 @@ class _Study:
         return r, True
 
     def args(self, order: int, h: float, outer: float, centres: Centres) -> list[str]:
-        """The command line of this study's point (order, ball size h mm, outer factor, centres)."""
-        return _point_args(order, h, centres, outer, self.radius, self.size, self.dims)
+        """The command line of this study's point process: order, ball size h (mm), ball
+        centres (mm), outer mesh factor, and the study's ball radius (mm) and part."""
+        return ["--point", str(order), str(h), "--centre", ";".join(",".join(map(str, c)) for c in centres),
+                "--outer", str(outer), "--radius", str(self.radius), "--size", self.size,
+                *[f"--dim={k}={v}" for k, v in sorted(self.dims.items())]]
 
 
 def _ball_centres(study: _Study, given: str | None, outer: float, crest: str | None) -> Centres:

@@ -27,11 +27,12 @@ if TYPE_CHECKING:  # VTK loads only in the picture's own process (module docstri
     from vtkmodules.vtkRenderingAnnotation import vtkScalarBarActor
     from vtkmodules.vtkRenderingCore import vtkRenderer, vtkRenderWindow, vtkTextActor
 
-WINDOW = (2240, 950)  # pixels: two panels of 1000 and the colour scale's column of 240
+PANEL_PX, SCALE_PX, HEIGHT_PX = 1000, 240, 950  # two panels, then the colour scale's column
+WINDOW = (2 * PANEL_PX + SCALE_PX, HEIGHT_PX)  # pixels
 # Viewport x-ranges (fractions of the window): the panels, then the colour scale in a
 # column of its own, so that no part of the drawn crosshead lies under it.
-PANELS = ((0.0, 1000 / 2240), (1000 / 2240, 2000 / 2240))
-SCALE_COLUMN = (2000 / 2240, 1.0)
+PANELS = tuple((k * PANEL_PX / WINDOW[0], (k + 1) * PANEL_PX / WINDOW[0]) for k in range(2))
+SCALE_COLUMN = (2 * PANEL_PX / WINDOW[0], 1.0)
 TURBO_TABLE = CACHE_HOME / "colours" / "turbo-256.npy"  # turbo_rgba
 # Left: from above, the seat, the bore and the ligament beside it. Right: from below and
 # outside, the journal root, its shoulder fillet and the bottom face. A panel marks a peak

@@ -138,8 +138,8 @@ def pilot(case: Case, comm=MPI.COMM_WORLD, progress: Progress | None = None,
     # Only the places of the peaks the run is asked for (case.want).
     # Within 15 % of the global peak as the run reads it (at the fillet the midpoint of
     # its two readings), not of the largest element-node value: on the coarse pilot mesh
-    # that can over-read the fillet by a third at one node (No. 1.6: 147.5 MPa against a
-    # reference of 114.3), and the rest of the crest then fell below the threshold.
+    # that can over-read the fillet at one node, and the rest of the crest then falls
+    # below the threshold (docs/decisions.md).
     spots = hot_spots(vm, PILOT_FRACTION * lv.peak.value_MPa, separation, limit) if case.want != "critical" else []
     if case.want != "global":
         spots += [q for q in hot_spots(vm, PILOT_FRACTION * lv.critical.unaveraged.value_MPa, separation,

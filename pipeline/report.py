@@ -244,14 +244,11 @@ def _inputs_lines(res: dict) -> list[str]:
                      f"von Mises within {100 * (1 - fe['pilot_fraction']):.0f} % of the global or critical peak"
                      + (f" and {between} added between neighbouring ones on the fillet's crest, so that their balls "
                         "leave no gap" if between else ""))
-        if "edge_hotspot_radius" in ms:
-            sizes = (f"{_f(ms['size_hotspot'], 3)} mm within {_f(ms['hotspot_radius'], 3)} mm on the journal root and "
-                     f"{_f(ms['size_edge_hotspot'], 3)} mm within {_f(ms['edge_hotspot_radius'], 3)} mm elsewhere")
-        elif "size_edge_hotspot" in ms:  # results.json of an older run
-            sizes = (f"{_f(ms['size_hotspot'], 3)} mm on the journal root and {_f(ms['size_edge_hotspot'], 3)} mm "
-                     f"elsewhere, within {_f(ms['hotspot_radius'], 3)} mm")
-        else:
-            sizes = f"{_f(ms['size_hotspot'], 3)} mm within {_f(ms['hotspot_radius'], 3)} mm"
+        sizes = f"{_f(ms['size_hotspot'], 3)} mm within {_f(ms['hotspot_radius'], 3)} mm"
+        if "size_edge_hotspot" in ms:  # an older results.json has one size, or one radius
+            edge_radius = ms.get("edge_hotspot_radius", ms["hotspot_radius"])
+            sizes += (f" on the journal root and {_f(ms['size_edge_hotspot'], 3)} mm within "
+                      f"{_f(edge_radius, 3)} mm elsewhere")
         add(f"Refined to {sizes} (× factor) of {where}: {', '.join(_loc(p) for p in spots)} "
             f"(and their mirror images).\n")
     return L
