@@ -223,40 +223,35 @@ def main(argv: list[str] | None = None, handle_signals: bool = False) -> int:
 
 def _dispatch(args: argparse.Namespace) -> int:
     """Do the command; a failure becomes one line on stderr (rank 0) and its exit status:
-    2 bad input or an output folder that cannot be written, 3 the computation failed."""
+    2 bad input or an output folder that cannot be written, 3 the computation failed.
+    Under more than one MPI rank a failure on any rank ends the run on all of them
+    (pipeline.rankfailure)."""
     from mpi4py import MPI
 
     from geometry.part import GeometryError
     from pipeline.errors import InputError, NumericalError
+    from pipeline.rankfailure import RankFailures
     rank0 = MPI.COMM_WORLD.rank == 0
-    stack = contextlib.ExitStack()  # clean-ups that last as long as this command
-    try:
-        if args.command == "sweep":
-            return _sweep(args, rank0)
-        return _run_or_converge(args, rank0, stack)
-    except InputError as exc:
-        if rank0:
-            sys.stderr.write(f"error: {_one_line(exc)}\n")
-        return 2
-    except (NumericalError, GeometryError) as exc:
-        if rank0:
-            sys.stderr.write(f"numerical failure: {_one_line(exc)}; nothing written\n")
-        return 3
-    except OSError as exc:  # disk full, permission, ...: the staging folder is already gone
-        if rank0:
+    with RankFailures(MPI.COMM_WORLD) as failures:
+        try:
+            with contextlib.ExitStack() as stack:  # clean-ups that last as long as this command
+                if args.command == "sweep":
+                    return _sweep(args, rank0)
+                return _run_or_converge(args, rank0, stack)
+        except InputError as exc:
+            code, line = 2, f"error: {_one_line(exc)}"
+        except (NumericalError, GeometryError) as exc:
+            code, line = 3, f"numerical failure: {_one_line(exc)}; nothing written"
+        except OSError as exc:  # disk full, permission, ...: the staging folder is already gone
             where = f" {exc.filename}" if exc.filename else ""
-            sys.stderr.write(f"error: out: cannot write{where}: {exc.strerror or exc}; nothing written, "
-                             "the output folder is as it was\n")
-        return 2
-    except Exception as exc:  # a failure no check foresaw: still one line and nothing written
-        if os.environ.get("CROSSHEAD_TRACEBACK"):
-            raise
-        if rank0:
-            sys.stderr.write(f"failure: {type(exc).__name__}: {_one_line(exc)}; nothing written "
-                             "(set CROSSHEAD_TRACEBACK=1 for the traceback)\n")
-        return 3
-    finally:
-        stack.close()
+            code, line = 2, (f"error: out: cannot write{where}: {exc.strerror or exc}; nothing written, "
+                             "the output folder is as it was")
+        except Exception as exc:  # a failure no check foresaw: still one line and nothing written
+            if os.environ.get("CROSSHEAD_TRACEBACK"):
+                raise
+            code, line = 3, (f"failure: {type(exc).__name__}: {_one_line(exc)}; nothing written "
+                             "(set CROSSHEAD_TRACEBACK=1 for the traceback)")
+        return failures.fail(code, line)
 
 
 def _run_or_converge(args: argparse.Namespace, rank0: bool, stack: contextlib.ExitStack) -> int:

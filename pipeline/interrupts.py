@@ -46,6 +46,7 @@ class _Watcher:
 
 
 _WATCHER = _Watcher()  # process-wide by nature: signals and their handlers are per process
+_ENDING = threading.Lock()  # held by the thread that ends the process (end_process)
 
 
 @contextlib.contextmanager
@@ -66,8 +67,8 @@ def signals_wait() -> threading.Lock:
     return _WATCHER.lock
 
 
-def _stop(signum: int) -> None:
-    """Run the clean-ups, say how the run stopped (rank 0), end the process."""
+def _run_cleanups() -> None:
+    """The clean-ups registered with :func:`on_stop`, newest first, each whatever the others do."""
     with _WATCHER.lock:
         cleanups = list(reversed(_WATCHER.cleanups))
     for cleanup in cleanups:
@@ -75,14 +76,41 @@ def _stop(signum: int) -> None:
             cleanup()
         except Exception:  # noqa: BLE001  (the others must still run)
             pass
-    if _WATCHER.speak:
+
+
+def end_process(code: int, line: str | None, run_cleanups: bool) -> None:
+    """End the process with status ``code``: the clean-ups registered with :func:`on_stop`
+    if ``run_cleanups``, then ``line`` on stderr (if any). Does not return.
+
+    The first thread to call this ends the process; a second one (a signal while a failure
+    is ending the run, say) waits here until it has, so one line is written, not two.
+    Python's buffered streams are flushed from the main thread only: another thread could
+    wait forever on a buffer's lock that the main thread holds.
+    """
+    _ENDING.acquire()
+    if run_cleanups:
+        _run_cleanups()
+    if threading.current_thread() is threading.main_thread():
+        for stream in (sys.stdout, sys.stderr):
+            try:
+                stream.flush()
+            except (OSError, ValueError):  # a closed pipe: the line below still goes out
+                pass
+    if line is not None:
         try:
-            os.write(2, (STOP_LINE[signum] + "\n").encode())
+            os.write(2, (line + "\n").encode())
         except OSError:
             pass
-    else:
-        time.sleep(QUIET_RANK_WAIT_S)
-    os._exit(EXIT_FOR[signum])
+    os._exit(code)
+
+
+def _stop(signum: int) -> None:
+    """Run the clean-ups, say how the run stopped (rank 0), end the process."""
+    if _WATCHER.speak:
+        end_process(EXIT_FOR[signum], STOP_LINE[signum], run_cleanups=True)
+    _run_cleanups()
+    time.sleep(QUIET_RANK_WAIT_S)  # outside end_process: a failure may still end it first
+    end_process(EXIT_FOR[signum], None, run_cleanups=False)
 
 
 def _watch(read_fd: int) -> None:

@@ -6,7 +6,8 @@
   leave the earlier result as it was, with one process and under MPI (pipeline.launch);
 - a staging folder left by a killed run is removed by the next run to the same folder;
 - a second run to a folder that is being written stops with exit 2 naming the other run;
-- a closed stdout does not lose the result; a full disk is exit 2 with nothing written.
+- a closed stdout does not lose the result; a full disk is exit 2 with nothing written;
+- a failure on one MPI rank alone ends every rank with one line (no hang), nothing written.
 
 The runs are real subprocesses on coarse meshes (mesh factor 3, one level: a few seconds).
 """
@@ -225,3 +226,25 @@ def test_disk_full_is_exit_2_with_nothing_written(tmp_path, earlier, monkeypatch
         assert "out: cannot write" in err and "No space left" in err and "nothing written" in err
     assert snapshot(out) == before and debris(tmp_path, "res") == []
     assert not (tmp_path / "a").exists()
+
+
+# ------------------------------------------------------------------ 5. one MPI rank fails alone
+
+@pytest.mark.skipif(shutil.which("mpirun") is None, reason="mpirun not installed")
+@pytest.mark.parametrize("failing_rank", [0, 1])
+def test_a_failure_on_one_rank_ends_every_rank_with_one_line(tmp_path, earlier, failing_rank):
+    """One rank raises before a solve that the other has entered (tests/one_rank_fails.py).
+    Before pipeline.rankfailure the other rank waited in the solve's collectives for ever;
+    now the run ends within seconds, exit 3, one line naming the failure, the earlier
+    result as it was and nothing left beside it."""
+    out = fresh_copy(earlier, tmp_path / "res")
+    before = snapshot(out)
+    cmd = [shutil.which("mpirun"), "--allow-run-as-root", "--oversubscribe", "--quiet", "-n", "2", PY,
+           str(ROOT / "tests" / "one_rank_fails.py"), str(failing_rank), *map(str, FAST), "--out", str(out)]
+    t0 = time.monotonic()
+    proc = subprocess.run(cmd, cwd=ROOT, env=dict(os.environ), capture_output=True, text=True, timeout=120)
+    one_error_line(proc, 3, "failure", "RuntimeError", f"injected on rank {failing_rank} alone",
+                   "nothing written")
+    assert time.monotonic() - t0 < 60
+    assert snapshot(out) == before
+    assert debris(tmp_path, "res") == []

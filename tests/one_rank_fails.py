@@ -1,0 +1,34 @@
+"""The command line with one MPI rank failing alone (a test helper, started under mpirun).
+
+usage: mpirun -n 2 python tests/one_rank_fails.py RANK ARGS...
+
+Rank RANK raises RuntimeError("injected ...") just before its first solve on the whole
+communicator, while the other ranks enter that solve's collectives: the failure the
+product must end cleanly on every rank (pipeline.rankfailure) instead of hanging.
+"""
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from mpi4py import MPI
+
+import pipeline.level
+from pipeline.cli import main
+
+FAILING_RANK = int(sys.argv[1])
+_solve_or_scale = pipeline.level.solve_or_scale
+
+
+def failing_solve_or_scale(case, prob, reuse=True):
+    if MPI.COMM_WORLD.rank == FAILING_RANK and prob.mesh.mesh.comm.size > 1:
+        raise RuntimeError(f"injected on rank {FAILING_RANK} alone")
+    return _solve_or_scale(case, prob, reuse)
+
+
+pipeline.level.solve_or_scale = failing_solve_or_scale
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[2:], handle_signals=True))
