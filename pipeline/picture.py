@@ -12,7 +12,6 @@ solves on the same cores (docs/decisions.md).
 from __future__ import annotations
 
 import json
-import os
 import sys
 from dataclasses import dataclass
 from pathlib import Path
@@ -20,6 +19,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from .atomicfile import replacing
 from .environment import CACHE_HOME
 
 if TYPE_CHECKING:  # VTK loads only in the picture's own process (module docstring)
@@ -196,10 +196,8 @@ def turbo_rgba(path: Path = TURBO_TABLE) -> np.ndarray:
     rgba = colormaps["turbo"](np.linspace(0.0, 1.0, 256))
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
-        tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-        with open(tmp, "wb") as f:
+        with replacing(path, "wb") as f:
             np.save(f, rgba)
-        os.replace(tmp, path)
     except OSError:
         pass  # a table that cannot be kept only costs time
     return rgba

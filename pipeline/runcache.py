@@ -25,6 +25,7 @@ import pickle
 from pathlib import Path
 from typing import Any
 
+from .atomicfile import replacing
 from .environment import CACHE_HOME
 
 ROOT = CACHE_HOME / "runs"
@@ -76,10 +77,8 @@ def store(name: str, value: Any) -> None:
         return
     try:
         ROOT.mkdir(parents=True, exist_ok=True)
-        tmp = ROOT / f".{name}.{os.getpid()}.tmp"
-        with open(tmp, "wb") as f:
+        with replacing(ROOT / f"{name}.pickle", "wb") as f:
             pickle.dump(value, f, protocol=pickle.HIGHEST_PROTOCOL)
-        os.replace(tmp, ROOT / f"{name}.pickle")
         entries = sorted(ROOT.glob("*.pickle"), key=lambda p: p.stat().st_mtime)
         for old in entries[:-MAX_ENTRIES]:
             old.unlink(missing_ok=True)

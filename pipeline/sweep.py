@@ -27,6 +27,7 @@ from typing import Callable
 
 from mpi4py import MPI
 
+from .atomicfile import replacing, write_text
 from .case import Case, resolve
 from .errors import InputError, NumericalError
 
@@ -93,12 +94,6 @@ def plan(size: str | None, case_file: Path | None, base: dict, axes: dict[str, l
     return tasks
 
 
-def _write_atomic(path: Path, text: str) -> None:
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    tmp.write_text(text, encoding="utf-8")
-    os.replace(tmp, path)
-
-
 def _claim(out: Path, key: str) -> bool:
     try:
         os.close(os.open(out / ".claims" / key, os.O_CREAT | os.O_EXCL | os.O_WRONLY))
@@ -121,7 +116,7 @@ def run_task(task: Task, out: Path, levels: int, ratio: float) -> None:
         execute_run(case, out / "variants" / task.key, levels=levels, ratio=ratio, write_fields=False,
                     loads=list(task.loads) if len(task.loads) > 1 else None, comm=MPI.COMM_SELF)
     except (NumericalError, GeometryError, InputError) as exc:
-        _write_atomic(out / "variants" / f"{task.key}.failed.json",
+        write_text(out / "variants" / f"{task.key}.failed.json",
                       json.dumps({"error": " ".join(str(exc).split())}) + "\n")
 
 
@@ -211,19 +206,18 @@ def write_outputs(tasks: list[Task], out: Path, axes: dict[str, list[float]], al
     rows = rows_of(tasks, out)
     names = [n for n in axes]
     cols = list(COLUMNS) + [n for n in names if n not in COLUMNS]
-    with open(out / ".sweep.csv.tmp", "w", newline="", encoding="utf-8") as f:
+    with replacing(out / "sweep.csv", "w", newline="", encoding="utf-8") as f:
         w = csv.DictWriter(f, fieldnames=cols, extrasaction="ignore")
         w.writeheader()
         w.writerows(rows)
-    os.replace(out / ".sweep.csv.tmp", out / "sweep.csv")
     swept = [n for n in names if len(axes[n]) > 1 and n != "size"]  # numeric axes only
     cross = [c for n in swept for c in crossings(rows, n, allowable)]
     summary = {"units": {"length": "mm", "force": "N", "stress": "MPa"}, "allowable_MPa": allowable,
                "axes": axes, "rows": rows, "crossings": cross,
                "counts": {s: sum(r["status"] == s for r in rows) for s in ("done", "invalid", "failed", "not run")}}
-    _write_atomic(out / "sweep.json", json.dumps(summary, indent=2, default=str) + "\n")
+    write_text(out / "sweep.json", json.dumps(summary, indent=2, default=str) + "\n")
     plots = [p for n in swept for p in _plots(rows, n, allowable, out)]
-    _write_atomic(out / "report.md", _report(summary, swept, plots))
+    write_text(out / "report.md", _report(summary, swept, plots))
     return summary
 
 
