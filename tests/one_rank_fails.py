@@ -1,10 +1,12 @@
 """The command line with one MPI rank failing alone (a test helper, started under mpirun).
 
-usage: mpirun -n 2 python tests/one_rank_fails.py RANK ARGS...
+usage: mpirun -n 2 python tests/one_rank_fails.py RANK[:busy] ARGS...
 
 Rank RANK raises RuntimeError("injected ...") just before its first solve on the whole
 communicator, while the other ranks enter that solve's collectives: the failure the
-product must end cleanly on every rank (pipeline.rankfailure) instead of hanging.
+product must end cleanly on every rank (pipeline.rankfailure) instead of hanging. With
+":busy" rank 0 (healthy) instead spends minutes in one C call that holds Python's lock, so
+that its failure listener cannot run (the fallback of pipeline.rankfailure).
 """
 from __future__ import annotations
 
@@ -18,13 +20,16 @@ from mpi4py import MPI
 import pipeline.level
 from pipeline.cli import main
 
-FAILING_RANK = int(sys.argv[1])
+FAILING_RANK = int(sys.argv[1].split(":")[0])
+BUSY = sys.argv[1].endswith(":busy")
 _solve_or_scale = pipeline.level.solve_or_scale
 
 
 def failing_solve_or_scale(case, prob, reuse=True):
     if MPI.COMM_WORLD.rank == FAILING_RANK and prob.mesh.mesh.comm.size > 1:
         raise RuntimeError(f"injected on rank {FAILING_RANK} alone")
+    if BUSY and MPI.COMM_WORLD.rank == 0 and prob.mesh.mesh.comm.size > 1:
+        sum(range(10**12))  # builtin sum in C: Python's lock is not released for minutes
     return _solve_or_scale(case, prob, reuse)
 
 
