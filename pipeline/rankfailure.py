@@ -43,7 +43,6 @@ class RankFailures:
     creates it at the same point). Use as a context manager around the command."""
 
     def __init__(self, comm=MPI.COMM_WORLD) -> None:
-        self.size = comm.size
         self.rank = comm.rank
         self.comm = comm.Dup() if comm.size > 1 else None
         self._done = threading.Event()
