@@ -23,6 +23,13 @@ SETTLED = 1e-3     # all meshes within this relative spread: "settled", no order
 SINGULAR_MIN_STEP = 5e-3
 
 
+def grows_like_a_singularity(values: Sequence[float]) -> bool:
+    """True when ``values`` (finest mesh first) grow by at least SINGULAR_MIN_STEP of the
+    finest value at every refinement step: the growth of a singularity, not mesh noise."""
+    f = np.asarray(values, dtype=float)
+    return bool(np.all(-np.diff(f) >= SINGULAR_MIN_STEP * max(abs(f[0]), 1e-300)))
+
+
 @dataclass(frozen=True)
 class Estimate:
     """Discretisation error estimate of one quantity (MPa) on the finest mesh.
@@ -163,9 +170,7 @@ def least_squares_estimate(values: Sequence[float], h: Sequence[float], p_formal
     def ssr(p: float) -> float:
         return _fit(f, hh, p)[2]
     p_obs = _best_order(ssr, 0.05, 2.0 * p_formal + 1.0)
-    # Finest first: each coarser one smaller by a singularity's percents.
-    growing = bool(np.all(-np.diff(f) >= SINGULAR_MIN_STEP * scale))
-    if p_obs < P_SINGULAR and growing:
+    if p_obs < P_SINGULAR and grows_like_a_singularity(f):
         return Estimate(vals, hs, "singular", p_obs, None, None, None, None, None)
     delta_step = float(np.ptp(f)) / (n - 1)
     p_used, confirmed = _order_used(p_obs, p_formal, ssr)
@@ -196,8 +201,7 @@ def three_mesh_estimate(values: Sequence[float], h: Sequence[float], p_formal: f
         band = max(abs(e21), abs(e32))
         return Estimate(vals, hs, "oscillatory", None, None, f1, band / scale, band, band / scale)
     if p < P_SINGULAR:
-        # Growing by a singularity's percents at every step: no finite limit.
-        if min(e21, e32) >= SINGULAR_MIN_STEP * scale:
+        if grows_like_a_singularity(values[:3]):  # no finite limit
             return Estimate(vals, hs, "singular", p, None, None, None, None, None)
         # Falling, or growing by less than a singularity would, but not yet at a steady
         # rate: not in the asymptotic range. No extrapolation; the band is the largest
@@ -252,7 +256,7 @@ def two_reading_estimate(upper: Sequence[float], lower: Sequence[float], h: Sequ
     def ssr(p: float) -> float:
         return _fit_two(u, lo, hh, p)[1]
     p_obs = _best_order(ssr, 0.05, 2.0 * p_formal + 1.0)
-    if p_obs < P_SINGULAR and bool(np.all(-np.diff(mid) >= SINGULAR_MIN_STEP * scale)):
+    if p_obs < P_SINGULAR and grows_like_a_singularity(mid):
         return Estimate(vals, hs, "singular", p_obs, None, None, None, None, None, method=TWO_READINGS)
     delta_step = float(np.ptp(mid)) / (n - 1)
     p_used, confirmed = _order_used(p_obs, p_formal, ssr)

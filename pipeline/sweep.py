@@ -117,7 +117,7 @@ def run_task(task: Task, out: Path, levels: int, ratio: float) -> None:
                     loads=list(task.loads) if len(task.loads) > 1 else None, comm=MPI.COMM_SELF)
     except (NumericalError, GeometryError, InputError) as exc:
         write_text(out / "variants" / f"{task.key}.failed.json",
-                      json.dumps({"error": " ".join(str(exc).split())}) + "\n")
+                   json.dumps({"error": " ".join(str(exc).split())}) + "\n")
 
 
 def work(tasks: list[Task], out: Path, levels: int, ratio: float, say: Progress, comm=MPI.COMM_WORLD) -> None:
