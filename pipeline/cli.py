@@ -10,6 +10,7 @@ import argparse
 import contextlib
 import math
 import os
+import signal
 import sys
 import time
 from collections.abc import Callable
@@ -26,7 +27,7 @@ from pipeline.environment import configure  # noqa: E402
 configure()  # before numpy, PETSc or DOLFINx load (pipeline/environment.py)
 
 from pipeline.choices import MODELS, SOLVERS, SUPPORTS, WANTS  # noqa: E402
-from pipeline.interrupts import install as install_interrupts  # noqa: E402
+from pipeline.interrupts import install as install_interrupts, stop_line, yield_to_stop  # noqa: E402
 
 DESCRIPTION = """\
 Finite-element stress analysis of a DIN 15412 crane hook-block crosshead.
@@ -215,10 +216,12 @@ def main(argv: list[str] | None = None, handle_signals: bool = False) -> int:
     if handle_signals:
         install_interrupts(speak=os.environ.get("OMPI_COMM_WORLD_RANK", os.environ.get("PMI_RANK", "0")) == "0")
     try:
-        return _dispatch(args)
-    except KeyboardInterrupt:
-        sys.stderr.write("interrupted (Ctrl-C): nothing written, the output folder is as it was\n")
+        code = _dispatch(args)
+    except KeyboardInterrupt:  # without handle_signals: a test calling in
+        sys.stderr.write(stop_line(signal.SIGINT) + "\n")
         return 130
+    yield_to_stop()  # a signal's stop, once begun, ends the process with its own status
+    return code
 
 
 def _dispatch(args: argparse.Namespace) -> int:

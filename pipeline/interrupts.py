@@ -9,6 +9,14 @@ writes the signal number to a wake-up pipe even while the main thread is blocked
 watcher reads it, runs the clean-ups registered with :func:`on_stop` (newest first),
 writes one line (rank 0) and ends the process with ``os._exit``.
 
+The main thread runs on while the watcher works. So the clean-ups run under the same
+lock as the blocks that must not be cut in two (:func:`signals_wait`: putting the
+finished folder in place), and the line is chosen after them, from what the output
+folder's code last declared (:func:`stop_outcome`). A failure that the stop causes in the
+main thread (a file of the removed staging folder, say) must not speak for the run: once
+a stop has begun, :func:`yield_to_stop` keeps the main thread from writing a line or
+exiting on its own.
+
 Under mpirun every rank gets the signal, and mpirun kills the remaining ranks as soon as
 one of them ends. A rank other than 0 has nothing to say and little to clean up, so it
 would end first and rank 0 could be killed before its clean-up and its line. So the
@@ -32,8 +40,8 @@ from typing import Callable, Iterator
 
 EXIT_FOR = {signal.SIGINT: 130, signal.SIGTERM: 143}
 QUIET_RANK_WAIT_S = 10.0  # how long a silent rank lets rank 0 finish its stop (see module doc)
-STOP_LINE = {signal.SIGINT: "interrupted (Ctrl-C): nothing written, the output folder is as it was",
-             signal.SIGTERM: "terminated (SIGTERM): nothing written, the output folder is as it was"}
+STOPPED = {signal.SIGINT: "interrupted (Ctrl-C)", signal.SIGTERM: "terminated (SIGTERM)"}
+NOTHING_WRITTEN = "nothing written, the output folder is as it was"
 
 
 class _Watcher:
@@ -41,12 +49,36 @@ class _Watcher:
 
     def __init__(self) -> None:
         self.cleanups: list[Callable[[], None]] = []
-        self.lock = threading.Lock()
+        self.lock = threading.RLock()  # re-entrant: a guarded block may declare its outcome
         self.speak = True
+        self.outcome = NOTHING_WRITTEN  # what a stop says became of the output (stop_outcome)
+        self.stopping = threading.Event()  # set when a signal's stop has begun
 
 
 _WATCHER = _Watcher()  # process-wide by nature: signals and their handlers are per process
 _ENDING = threading.Lock()  # held by the thread that ends the process (end_process)
+
+
+def stop_line(signum: int) -> str:
+    """The line a stop by ``signum`` writes now: how it stopped, and what became of the output."""
+    return f"{STOPPED[signal.Signals(signum)]}: {_WATCHER.outcome}"
+
+
+def stop_outcome(text: str) -> None:
+    """Declare what a stop from now on says became of the output (after "interrupted
+    (Ctrl-C): "); the default is NOTHING_WRITTEN."""
+    with _WATCHER.lock:
+        _WATCHER.outcome = text
+
+
+def yield_to_stop() -> None:
+    """Return at once unless a signal's stop has begun; then wait for it to end the
+    process. Called before this thread writes a failure line or lets the process exit:
+    the stop owns the exit status and the line."""
+    if not _WATCHER.stopping.is_set():
+        return
+    while True:
+        time.sleep(1.0)
 
 
 @contextlib.contextmanager
@@ -62,25 +94,27 @@ def on_stop(cleanup: Callable[[], None]) -> Iterator[None]:
                 _WATCHER.cleanups.remove(cleanup)
 
 
-def signals_wait() -> threading.Lock:
-    """A block that a stop waits for (as a context manager): keep it short."""
+def signals_wait() -> contextlib.AbstractContextManager:
+    """A block that a stop's clean-ups wait for, and never cut in two (as a context
+    manager): keep it short."""
     return _WATCHER.lock
 
 
 def _run_cleanups() -> None:
-    """The clean-ups registered with :func:`on_stop`, newest first, each whatever the others do."""
+    """The clean-ups registered with :func:`on_stop`, newest first, each whatever the
+    others do; under the lock of :func:`signals_wait`, so none runs inside such a block."""
     with _WATCHER.lock:
-        cleanups = list(reversed(_WATCHER.cleanups))
-    for cleanup in cleanups:
-        try:
-            cleanup()
-        except Exception:  # noqa: BLE001  (the others must still run)
-            pass
+        for cleanup in list(reversed(_WATCHER.cleanups)):
+            try:
+                cleanup()
+            except Exception:  # noqa: BLE001  (the others must still run)
+                pass
 
 
-def end_process(code: int, line: str | None, run_cleanups: bool) -> None:
+def end_process(code: int, line: str | Callable[[], str] | None, run_cleanups: bool) -> None:
     """End the process with status ``code``: the clean-ups registered with :func:`on_stop`
-    if ``run_cleanups``, then ``line`` on stderr (if any). Does not return.
+    if ``run_cleanups``, then ``line`` on stderr (if any; a callable is asked after the
+    clean-ups). Does not return.
 
     The first thread to call this ends the process; a second one (a signal while a failure
     is ending the run, say) waits here until it has, so one line is written, not two.
@@ -96,6 +130,8 @@ def end_process(code: int, line: str | None, run_cleanups: bool) -> None:
                 stream.flush()
             except (OSError, ValueError):  # a closed pipe: the line below still goes out
                 pass
+    if callable(line):
+        line = line()
     if line is not None:
         try:
             os.write(2, (line + "\n").encode())
@@ -106,8 +142,9 @@ def end_process(code: int, line: str | None, run_cleanups: bool) -> None:
 
 def _stop(signum: int) -> None:
     """Run the clean-ups, say how the run stopped (rank 0), end the process."""
+    _WATCHER.stopping.set()
     if _WATCHER.speak:
-        end_process(EXIT_FOR[signum], STOP_LINE[signum], run_cleanups=True)
+        end_process(EXIT_FOR[signum], lambda: stop_line(signum), run_cleanups=True)
     _run_cleanups()
     time.sleep(QUIET_RANK_WAIT_S)  # outside end_process: a failure may still end it first
     end_process(EXIT_FOR[signum], None, run_cleanups=False)
@@ -130,7 +167,7 @@ def install(speak: bool = True) -> None:
     ``speak``: write the one line when stopped (False on MPI ranks other than 0).
     Only the main thread of a program may call this; a second call changes ``speak`` only.
     """
-    import gmsh  # noqa: F401  (imported for its side effect on SIGINT, before ours is set)
+    import gmsh  # imported for its side effect on SIGINT, before ours is set
     _WATCHER.speak = speak
     if signal.getsignal(signal.SIGTERM) is _noop:
         return
@@ -139,5 +176,8 @@ def install(speak: bool = True) -> None:
     signal.set_wakeup_fd(write_fd, warn_on_full_buffer=False)
     for s in EXIT_FOR:
         signal.signal(s, _noop)
+    # gmsh.finalize() puts back the SIGINT handler gmsh found at its import (Python's, which
+    # raises KeyboardInterrupt in the main thread beside the watcher's stop): make it ours.
+    gmsh.oldsig = _noop
     threading.Thread(target=_watch, args=(read_fd,), name="stop-watcher", daemon=True).start()
     sys.stdout.flush()

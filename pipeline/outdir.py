@@ -15,8 +15,9 @@ import json
 import os
 import shutil
 import tempfile
+import threading
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Iterator
 
@@ -24,7 +25,7 @@ from mpi4py import MPI
 
 from .errors import InputError
 from .idle import wait_for_ranks
-from .interrupts import on_stop, signals_wait
+from .interrupts import on_stop, signals_wait, stop_outcome
 
 MARKER = ".crosshead-results"  # written last into every results folder: "this folder is ours"
 STAGING_MARK = ".crosshead-staging"  # written first into every staging folder
@@ -116,16 +117,19 @@ class Lock:
 
     path: Path
     fd: int
+    _guard: threading.Lock = field(default_factory=threading.Lock, repr=False, compare=False)
 
     def release(self) -> None:
         """Remove the lock file, then let go (unlink first: a waiter re-checks the inode).
-        Releasing twice does nothing."""
-        if self.fd < 0:
-            return
-        with contextlib.suppress(OSError):
-            self.path.unlink()
-        os.close(self.fd)
-        self.fd = -1
+        Releasing twice, from two threads too (a stop's clean-up and the main thread),
+        closes the file once: a second close could close a file opened meanwhile."""
+        with self._guard:
+            if self.fd < 0:
+                return
+            with contextlib.suppress(OSError):
+                self.path.unlink()
+            os.close(self.fd)
+            self.fd = -1
 
 
 def lock_path(out: Path) -> Path:
@@ -171,7 +175,7 @@ def remove_leftovers(out: Path) -> list[Path]:
     """
     removed = []
     for p in out.parent.glob(f".{out.name}.*"):
-        ours = (p.name.endswith(".partial") and (p / STAGING_MARK).exists()) or (
+        ours = (p.name.endswith(".partial") and ((p / STAGING_MARK).exists() or (p / MARKER).exists())) or (
             ".old-" in p.name and (p / MARKER).exists())
         if p.is_dir() and not p.is_symlink() and ours:
             shutil.rmtree(p, ignore_errors=True)
@@ -222,18 +226,53 @@ def _remove_empty(folders: list[Path]) -> None:
             p.rmdir()
 
 
+def _remove_marked(folder: Path, mark: str) -> None:
+    """Delete ``folder``, its ``mark`` file last: killed half-way, it still carries the mark
+    by which :func:`remove_leftovers` knows it for the tool's own."""
+    try:
+        entries = list(folder.iterdir())
+    except OSError:
+        return
+    for p in entries:
+        if p.name == mark:
+            continue
+        if p.is_dir() and not p.is_symlink():
+            shutil.rmtree(p, ignore_errors=True)
+        else:
+            with contextlib.suppress(OSError):
+                p.unlink()
+    with contextlib.suppress(OSError):
+        (folder / mark).unlink()
+    with contextlib.suppress(OSError):
+        folder.rmdir()
+
+
+def _discard(staging: Path) -> None:
+    """Remove a staging folder that will not be published. It is renamed first, so that a
+    file written to it from now on (the main thread writes on while a stop's clean-up runs)
+    fails instead of reviving it; the new name is still one :func:`remove_leftovers` knows."""
+    trash = staging.with_name(staging.name.removesuffix(".partial") + ".discarded.partial")
+    try:
+        staging.rename(trash)
+    except OSError:
+        trash = staging  # already gone, or renamed by a stop's clean-up
+    _remove_marked(trash, STAGING_MARK)
+
+
 def _publish(staging: Path, out: Path) -> None:
-    """Mark ``staging`` as a finished results folder and put it in place of ``out``."""
-    (staging / STAGING_MARK).unlink()
+    """Mark ``staging`` as a finished results folder and put it in place of ``out``. The
+    results marker comes before the staging mark goes, so the folder always carries one."""
     (staging / MARKER).write_text(json.dumps({"tool": "crosshead", "written": time.strftime(
         "%Y-%m-%dT%H:%M:%S%z"), "pid": os.getpid()}) + "\n", encoding="utf-8")
+    (staging / STAGING_MARK).unlink()
     old = None
     if out.exists():
         old = out.with_name(f".{out.name}.old-{os.getpid()}")
         out.rename(old)
     staging.rename(out)
+    stop_outcome(f"the results were already written to {out}")
     if old is not None:
-        shutil.rmtree(old, ignore_errors=True)
+        _remove_marked(old, MARKER)
 
 
 @contextlib.contextmanager
@@ -265,7 +304,7 @@ def staged_dir(out_dir: str | os.PathLike, comm=MPI.COMM_WORLD,
                 notice(f"removed {p.name} beside the output folder (left by a run that was killed)")
 
             def discard() -> None:
-                shutil.rmtree(staging, ignore_errors=True)
+                _discard(staging)
                 lock.release()
                 _remove_empty(created)
             stack.callback(lock.release)
@@ -282,6 +321,7 @@ def staged_dir(out_dir: str | os.PathLike, comm=MPI.COMM_WORLD,
             ok = True
         finally:
             if comm.rank == 0 and not ok:
-                shutil.rmtree(staging, ignore_errors=True)
-                lock.release()  # before the parents: its file is in the innermost one
-                _remove_empty(created)
+                with signals_wait():  # a stop's clean-up waits, and must not end the process half-way
+                    _discard(staging)
+                    lock.release()  # before the parents: its file is in the innermost one
+                    _remove_empty(created)

@@ -30,7 +30,7 @@ from typing import Self
 
 from mpi4py import MPI
 
-from .interrupts import end_process
+from .interrupts import end_process, yield_to_stop
 
 FAILURE_TAG = 4047  # on a communicator of its own: no other message can match it
 SAME_FAILURE_WAIT_S = 1.0  # ranks that fail alike (bad input) do so within milliseconds
@@ -71,7 +71,10 @@ class RankFailures:
         """Report a failure of this rank with exit status ``code`` and its ``line`` (no
         newline). Returns ``code`` when every rank fails (one rank, or all within
         SAME_FAILURE_WAIT_S: bad input, say), rank 0 having written the line; otherwise the
-        run ends here on every rank (see module doc) and this does not return."""
+        run ends here on every rank (see module doc) and this does not return. During a
+        signal's stop it waits for the stop to end the process (the stop may have caused
+        this failure: pipeline.interrupts.yield_to_stop)."""
+        yield_to_stop()
         if self.comm is None:
             sys.stderr.write(line + "\n")
             return code

@@ -30,6 +30,7 @@ from mpi4py import MPI
 from .atomicfile import replacing, write_text
 from .case import Case, resolve
 from .errors import InputError, NumericalError
+from .interrupts import stop_outcome
 
 Progress = Callable[[str], None]
 PEAKS = (("peak_MPa", "peak_band_MPa", "global peak"), ("critical_peak_MPa", "critical_band_MPa", "critical peak"))
@@ -312,6 +313,7 @@ def execute_sweep(size: str | None, case_file: Path | None, base: dict, axes: di
             (out / ".claims").mkdir()
             (out / "variants").mkdir(exist_ok=True)
             (out / MARKER).write_text(json.dumps({"tool": "crosshead", "sweep": True}) + "\n")
+            stop_outcome(f"the study in {out} keeps the variants finished so far; the same command resumes it")
         except (InputError, OSError) as exc:
             error = exc if isinstance(exc, InputError) else InputError(f"out: cannot write {out}: {exc}")
     error = comm.bcast(error, root=0)

@@ -14,6 +14,7 @@ The runs are real subprocesses on coarse meshes (mesh factor 3, one level: a few
 from __future__ import annotations
 
 import errno
+import json
 import os
 import shutil
 import signal
@@ -177,6 +178,63 @@ def test_staging_left_by_sigkill_is_removed_by_the_next_run(tmp_path, earlier):
     again = cli(FAST + ["--out", out])
     assert again.returncode == 0, again.stderr
     assert "removed" in again.stdout
+    assert debris(tmp_path, "res") == []
+
+
+def test_a_stopped_sweep_says_it_keeps_what_it_finished_and_resumes(tmp_path):
+    """Ctrl-C in a study: its folder keeps the finished variants (it is resumable), so the
+    line says so instead of "nothing written"; the same command then finishes the study."""
+    out = tmp_path / "study"
+    args = ["sweep", "--size", "05", "--dim", "rf=0.8,1.0,1.5,2.0", "--mesh-factor", "3", "--levels", "1",
+            "--out", out]
+    proc = start(args)
+    t0 = time.monotonic()
+    while not list((out / ".claims").glob("*")) if (out / ".claims").is_dir() else True:
+        assert proc.poll() is None and time.monotonic() - t0 < 120, proc.communicate()
+        time.sleep(0.05)
+    proc.send_signal(signal.SIGINT)
+    _, err = proc.communicate(timeout=120)
+    assert proc.returncode == 130, err
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and "resumes" in lines[0] and str(out) in lines[0], err
+    again = cli(args[:-2] + ["--out", out, "--quiet"])
+    assert again.returncode == 0, again.stderr
+    rows = json.loads((out / "sweep.json").read_text(encoding="utf-8"))["rows"]
+    assert [r["status"] for r in rows] == ["done"] * 4
+
+
+def stopped_at_the_end(out: Path, when: str, load_N: float) -> subprocess.CompletedProcess:
+    """FAST at ``load_N`` with tests/stop_while_writing.py's stop ``when``."""
+    return subprocess.run([PY, str(ROOT / "tests" / "stop_while_writing.py"), when, *map(str, FAST),
+                           "--load", str(load_N), "--out", str(out)],
+                          cwd=ROOT, env=ENV, capture_output=True, text=True, timeout=120)
+
+
+def test_a_stop_while_the_run_still_writes_keeps_the_earlier_result(tmp_path, earlier):
+    """Ctrl-C when every file is staged, the main thread still writing into the staging
+    folder: the stop removes the staging folder whole (none of the late files revives it)
+    and the earlier result stays as it was. Before the fix the stop's clean-up raced the
+    writes: a staging folder without its mark was left for good, or the main thread's
+    failure spoke (exit 2 or 3) instead of the stop."""
+    out = fresh_copy(earlier, tmp_path / "res")
+    before = snapshot(out)
+    proc = stopped_at_the_end(out, "writing", 12_000.0)
+    one_error_line(proc, 130, "interrupted", "nothing written")
+    assert snapshot(out) == before
+    assert debris(tmp_path, "res") == []
+
+
+def test_a_stop_during_publication_waits_for_it_and_says_so(tmp_path, earlier):
+    """Ctrl-C just as the finished result replaces the earlier one: the stop waits for the
+    replacement (two renames) and then says the results were written, instead of claiming
+    that nothing was; the new result is whole (its load, its marker), nothing beside it."""
+    out = fresh_copy(earlier, tmp_path / "res")
+    proc = stopped_at_the_end(out, "publishing", 12_000.0)
+    line = one_error_line(proc, 130, "interrupted", "already written", str(out))
+    assert "nothing written" not in line
+    res = json.loads((out / "results.json").read_text(encoding="utf-8"))
+    assert res["case"]["load_N"] == pytest.approx(12_000.0)
+    assert (out / ".crosshead-results").is_file()
     assert debris(tmp_path, "res") == []
 
 
