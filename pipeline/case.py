@@ -259,7 +259,8 @@ def check(case: Case) -> Case:
                              f"{least * case.dims.b6:g} mm; a mesh this fine would need more elements than this tool allows")
     if spec.size_body * spec.factor > case.dims.b6:
         raise InputError(f"size_body_mm: {spec.size_body * spec.factor:g} mm is larger than the part ({case.dims.b6:g} mm)")
-    if not case.name or any(c in case.name for c in "/\\") or case.name in (".", "..") or \
+    if not case.name or case.name != case.name.strip() or any(c in case.name for c in "/\\") or \
+            case.name in (".", "..") or \
             not case.name.isprintable() or len(case.name.encode("utf-8", "replace")) > 200:
         raise InputError(f"name: {case.name!r} cannot be used as a folder name")
     return case

@@ -68,6 +68,14 @@ def _positive_float(text: str) -> float:
     return v
 
 
+def _gib(text: str) -> float:
+    """--memory-limit: a finite amount of memory > 0, GiB."""
+    v = _positive_float(text)
+    if not (math.isfinite(v) and v > 0):
+        raise argparse.ArgumentTypeError(f"memory_limit: must be a finite number of GiB > 0, got {text!r}")
+    return v
+
+
 def _loads(text: str) -> list[float]:
     """--load: one value, a comma list (5000,10000) or a range START:STOP:COUNT, in N."""
     parts = text.split(":")
@@ -85,9 +93,14 @@ def _loads(text: str) -> list[float]:
         return [a + (b - a) * k / (n - 1) for k in range(n)]
     if len(parts) != 1:
         raise argparse.ArgumentTypeError(f"load_N: {text!r}: give N, N1,N2,... or START:STOP:COUNT")
+    if any(not v.strip() for v in text.split(",")):
+        raise argparse.ArgumentTypeError(f"load_N: {text!r} has an empty item")
     values = [_positive_float(v) for v in text.split(",")]
     if not values or len(values) > 1000:
         raise argparse.ArgumentTypeError("load_N: give between 1 and 1000 loads")
+    twice = sorted({v for v in values if values.count(v) > 1})
+    if twice:
+        raise argparse.ArgumentTypeError(f"load_N: {', '.join(f'{v:g}' for v in twice)} given twice")
     return values
 
 
@@ -151,7 +164,7 @@ def add_case_options(p: argparse.ArgumentParser, dim_type=None) -> None:
     m.add_argument("--solver", choices=SOLVERS,
                    help="CG + p-multigrid over P1 with GAMG (default), CG + GAMG, CG + BoomerAMG, or direct MUMPS")
     m.add_argument("--rtol", type=_positive_float, help="relative tolerance of the iterative solver on the true residual (default 1e-8)")
-    m.add_argument("--memory-limit", type=_positive_float, dest="memory_limit", metavar="GB",
+    m.add_argument("--memory-limit", type=_gib, dest="memory_limit", metavar="GB",
                    help="refuse a run estimated to need more memory than this, GiB (default: what the machine has free)")
     p.add_argument("--out", type=Path, help="output folder (default results/<case name>)")
     p.add_argument("--quiet", action="store_true", help="no progress lines")
@@ -211,7 +224,7 @@ def main(argv: list[str] | None = None, handle_signals: bool = False) -> int:
     args = make_parser().parse_args(argv)
     if args.command is None:
         make_parser().print_help()
-        sys.stderr.write("error: command: choose run or converge (see --help)\n")
+        sys.stderr.write("error: command: choose run, converge or sweep (see --help)\n")
         return 2
     if handle_signals:
         install_interrupts(speak=os.environ.get("OMPI_COMM_WORLD_RANK", os.environ.get("PMI_RANK", "0")) == "0")
@@ -308,8 +321,8 @@ def _case_of(args: argparse.Namespace) -> tuple[Case, list[float]]:
 
 def _check_levels(args: argparse.Namespace, case: Case) -> None:
     """Refuse (InputError) --levels outside 1..8 and --ratio outside [1.1, 3]; a convergence
-    study needs at least 4 meshes at a ratio >= 1.3, and its finest mesh must pass the
-    case's mesh checks too."""
+    study needs at least 4 meshes at a ratio >= 1.3 and one load; its finest mesh, and the
+    coarsest error-bar mesh of a run, must pass the case's mesh checks too."""
     from dataclasses import replace
 
     from pipeline.case import check
@@ -318,8 +331,18 @@ def _check_levels(args: argparse.Namespace, case: Case) -> None:
         raise InputError(f"levels: must lie in 1..8, got {args.levels}")
     if args.command == "converge" and (args.levels < 4 or args.ratio < 1.3):
         raise InputError("levels/ratio: a convergence study needs at least 4 meshes and ratio >= 1.3")
+    if args.command == "converge" and len(args.loads or []) > 1:
+        raise InputError("load_N: a convergence study takes one load (a run or a sweep takes several)")
     if not 1.1 <= args.ratio <= 3:
         raise InputError(f"ratio: must lie in [1.1, 3], got {args.ratio:g}")
+    coarsest = case.mesh_factor * args.ratio ** (args.levels - 1)
+    if args.command != "converge":  # the error bar's coarsest mesh must be one the case allows
+        try:
+            check(replace(case, mesh_factor=coarsest))
+        except InputError as exc:
+            raise InputError(f"levels: the coarsest error-bar mesh (mesh factor {case.mesh_factor:g} x "
+                             f"{args.ratio:g}^{args.levels - 1} = {coarsest:.3g}) is not allowed: {exc}; "
+                             "use fewer --levels or a smaller --ratio") from None
     if args.command == "converge":  # the study's finest mesh must pass the case's mesh checks too
         finest = case.mesh_factor / args.ratio ** max(args.levels - 3, 0)
         try:
@@ -379,16 +402,27 @@ def _sweep(args, rank0: bool) -> int:
     if args.sizes:
         from geometry.table import load_table
         table = list(load_table())
-        sizes = table if args.sizes == "all" else [s.strip() for s in args.sizes.split(",") if s.strip()]
+        if args.size is not None:
+            raise InputError("size: give --size or --sizes, not both")
+        sizes = table if args.sizes == "all" else [s.strip() for s in args.sizes.split(",")]
+        if "" in sizes:
+            raise InputError(f"sizes: {args.sizes!r} has an empty item")
         unknown = [s for s in sizes if s not in table]
         if unknown or not sizes:
             raise InputError(f"sizes: unknown hook number(s) {', '.join(unknown) or '(none given)'}; "
                              f"known: {', '.join(table)}")
+        twice = sorted({s for s in sizes if sizes.count(s) > 1})
+        if twice:
+            raise InputError(f"sizes: {', '.join(twice)} given twice")
         size = size or sizes[0]
     if size is None and case_file is None:
         raise InputError("size: give --size, --case or a study file with size = ...")
+    names = [k for k, _ in args.dim]
+    twice = sorted({k for k in names if names.count(k) > 1})
+    if twice:
+        raise InputError(f"dim: {', '.join(twice)} given twice; give each dimension's values in one --dim")
     dims = dict(study.get("dims", {}))
-    dims.update(dict(args.dim))
+    dims.update(dict(args.dim))  # the command line overrides the study file
     axes = {f"dims.{k}": parse_values(str(v), f"dims.{k}") for k, v in dims.items()}
     loads = args.loads or (parse_values(str(study["load"]), "load_N") if "load" in study else [])
     base = {k: getattr(args, k) for k in CASE_KEYS if getattr(args, k) is not None}
@@ -441,5 +475,9 @@ def _summary(res: dict, out: Path) -> None:
         return "none (not asked for)" if "want =" in fe.get(f"{key}_note", "") else "none (singular peak)"
     _print(f"formulas: approximate {an['approximate_MPa']:.2f} MPa, exact {an['exact_MPa']:.2f} MPa; "
            f"safety factor {sf('safety_factor')} (global), {sf('critical_safety_factor')} (critical)")
-    _print(f"written to {out}/ (results.json, report.md, ...) in {res['timings_s']['total']:.1f} s")
+    named = res.get("files") or {"results": "results.json"}
+    files = [named[k] for k in ("report", "results") if k in named] + \
+        [f for k, f in named.items() if k not in ("report", "results")]
+    _print(f"written to {out}/ ({', '.join(files[:4])}{', ...' if len(files) > 4 else ''}) "
+           f"in {res['timings_s']['total']:.1f} s")
 

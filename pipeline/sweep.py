@@ -28,11 +28,15 @@ from typing import Callable
 from mpi4py import MPI
 
 from .atomicfile import replacing, write_text
-from .case import Case, resolve
+from .case import Case, check, resolve
 from .errors import InputError, NumericalError
 from .interrupts import stop_outcome
 
 Progress = Callable[[str], None]
+# A study file's [sweep] keys and their TOML types.
+TOML_NAMES = {str: "a string", int: "an integer", float: "a number", dict: "a table"}
+STUDY_KEYS = {"size": (str,), "case": (str,), "dims": (dict,), "load": (str, int, float), "levels": (int,),
+              "ratio": (int, float), "mesh_factor": (int, float), "out": (str,)}
 PEAKS = (("peak_MPa", "peak_band_MPa", "global peak"), ("critical_peak_MPa", "critical_band_MPa", "critical peak"))
 COLUMNS = ("variant", "status", "size", "load_N", "parameters", "peak_MPa", "peak_band_MPa", "critical_peak_MPa",
            "critical_band_MPa", "critical_section_nominal_MPa", "safety_factor", "critical_safety_factor",
@@ -42,6 +46,8 @@ COLUMNS = ("variant", "status", "size", "load_N", "parameters", "peak_MPa", "pea
 def parse_values(text: str, name: str) -> list[float]:
     """A sweep axis: ``START:STOP:COUNT`` (COUNT values, both ends included) or ``a,b,c``."""
     parts = text.split(":")
+    if len(parts) == 1 and any(not v.strip() for v in text.split(",")):
+        raise InputError(f"{name}: {text!r} has an empty item")
     try:
         if len(parts) == 3:
             a, b, n = float(parts[0]), float(parts[1]), int(parts[2])
@@ -49,13 +55,16 @@ def parse_values(text: str, name: str) -> list[float]:
                 raise InputError(f"{name}: a range needs 2..200 values, got {n}")
             values = [a + (b - a) * k / (n - 1) for k in range(n)]
         elif len(parts) == 1:
-            values = [float(v) for v in text.split(",") if v.strip()]
+            values = [float(v) for v in text.split(",")]
         else:
             raise ValueError
     except ValueError:
         raise InputError(f"{name}: {text!r}: give START:STOP:COUNT or a list v1,v2,...") from None
     if not values or not all(math.isfinite(v) for v in values):
         raise InputError(f"{name}: {text!r}: every value must be a finite number")
+    twice = sorted({v for v in values if values.count(v) > 1})
+    if twice:  # the same variant twice would be analysed once and listed twice
+        raise InputError(f"{name}: {text!r}: {', '.join(f'{v:g}' for v in twice)} given twice")
     return values
 
 
@@ -92,6 +101,16 @@ def plan(size: str | None, case_file: Path | None, base: dict, axes: dict[str, l
                  "ratio": ratio, "params": params}
         key = hashlib.sha1(json.dumps(ident, sort_keys=True, default=str).encode()).hexdigest()[:12]
         tasks.append(Task(key=key, params=params, case=case, loads=qs, note=note))
+    valid = [t.case for t in tasks if t.case is not None]
+    if not valid:  # refused before the output folder is touched: nothing to analyse
+        raise InputError(f"sweep: every variant is invalid; the first: {tasks[0].note}")
+    coarsest = valid[0].mesh_factor * ratio ** (levels - 1)
+    try:
+        check(replace(valid[0], mesh_factor=coarsest))
+    except InputError as exc:
+        raise InputError(f"levels: the coarsest error-bar mesh (mesh factor {valid[0].mesh_factor:g} x "
+                         f"{ratio:g}^{levels - 1} = {coarsest:.3g}) is not allowed: {exc}; "
+                         "use fewer levels or a smaller ratio") from None
     return tasks
 
 
@@ -285,15 +304,38 @@ def read_study(path: Path) -> dict:
     ``case``, ``dims`` (NAME = "START:STOP:COUNT" or "a,b,c"), ``load``, ``levels``,
     ``ratio``, ``mesh_factor``, ``out``."""
     import tomllib
+
+    from geometry.table import Dimensions
     try:
         data = tomllib.loads(Path(path).read_text(encoding="utf-8").removeprefix("\ufeff"))
     except (OSError, UnicodeDecodeError, ValueError) as exc:
         raise InputError(f"study: cannot read {path}: {exc}") from None
     s = data.get("sweep")
-    known = {"size", "case", "dims", "load", "levels", "ratio", "mesh_factor", "out"}
-    if not isinstance(s, dict) or set(s) - known:
-        raise InputError(f"study: {path} needs a [sweep] table with keys among {', '.join(sorted(known))}")
-    return s
+    if not isinstance(s, dict) or set(data) != {"sweep"}:
+        extra = ", ".join(sorted(set(data) - {"sweep"}))
+        raise InputError(f"study: {path} holds one [sweep] table and nothing else"
+                         + (f" (found {extra}; material and mesh options go in a case file, case = ...)"
+                            if extra else ""))
+    for key, value in s.items():
+        types = STUDY_KEYS.get(key)
+        if types is None:
+            raise InputError(f"sweep.{key}: unknown key in {path}; known: {', '.join(STUDY_KEYS)}")
+        if isinstance(value, bool) or not isinstance(value, types):
+            raise InputError(f"sweep.{key}: expected {' or '.join(TOML_NAMES[t] for t in types)} in {path}, "
+                             f"got {value!r}")
+    names = list(Dimensions.__dataclass_fields__)
+    dims = {}
+    for name, values in s.get("dims", {}).items():
+        if name not in names:
+            raise InputError(f"sweep.dims.{name}: unknown dimension in {path}; known: {', '.join(names)}")
+        if isinstance(values, list) and values and all(
+                isinstance(v, (int, float)) and not isinstance(v, bool) for v in values):
+            values = ",".join(repr(v) for v in values)  # a TOML array of numbers is a list
+        if isinstance(values, bool) or not isinstance(values, (str, int, float)):
+            raise InputError(f"sweep.dims.{name}: expected \"START:STOP:COUNT\", \"v1,v2,...\", an array of "
+                             f"numbers or a number in {path}, got {values!r}")
+        dims[name] = values
+    return dict(s, **({"dims": dims} if "dims" in s else {}))
 
 
 def execute_sweep(size: str | None, case_file: Path | None, base: dict, axes: dict[str, list[float]],

@@ -220,7 +220,7 @@ CORPUS = [
     # command line itself
     ("unknown-option", RUN + ["--colour", "red"], None, ("unrecognized arguments",)),
     ("unknown-command", ["solve", "--size", "05"], None, ("invalid choice",)),
-    ("no-command", [], None, ("command",)),
+    ("no-command", [], None, ("command", "run, converge or sweep")),
     ("option-without-value", RUN + ["--load"], None, ("--load", "expected one argument")),
     # physical ranges and consistency (docs/design.md §3, §4)
     ("load-tiny", RUN + ["--load", "1e-300"], None, ("load_N", "must lie in")),
@@ -234,6 +234,35 @@ CORPUS = [
     ("size-conflicts-case-file", ["run", "--size", "10", "--case", "{case}"], 'size = "05"\n', ("size", "conflicts")),
     ("case-not-regular", ["run", "--case", "/dev/zero"], None, ("case", "not a regular file")),
     ("case-too-large", ["run", "--case", "{case}"], "#" * (2 << 20) + "\n", ("case", "larger than")),
+    # found by a robustness audit (2026-11-25): each of these ran, or failed with exit 3
+    ("memory-limit-nan", RUN + ["--memory-limit", "nan"], None, ("memory_limit", "> 0")),
+    ("memory-limit-negative", RUN + ["--memory-limit", "-1"], None, ("memory_limit", "> 0")),
+    ("error-bar-mesh-too-coarse", RUN + ["--mesh-factor", "3", "--levels", "8", "--ratio", "3"], None,
+     ("levels", "coarsest", "mesh_factor")),
+    ("converge-two-loads", ["converge", "--size", "05", "--load", "1000,2000"], None, ("load_N", "one load")),
+    ("load-twice", RUN + ["--load", "5000,5000"], None, ("load_N", "5000 given twice")),
+    ("load-empty-item", RUN + ["--load", "5000,,6000"], None, ("load_N", "empty item")),
+    ("name-blank", ["run", "--case", "{case}"], 'name = " "\nsize = "05"\n', ("name", "folder name")),
+    ("sweep-value-twice", ["sweep", "--size", "05", "--dim", "rf=1,1"], None, ("dims.rf", "given twice")),
+    ("sweep-range-of-one-value", ["sweep", "--size", "05", "--dim", "rf=1:1:3"], None, ("dims.rf", "given twice")),
+    ("sweep-empty-item", ["sweep", "--size", "05", "--dim", "rf=1,,2"], None, ("dims.rf", "empty item")),
+    ("sweep-dim-twice", ["sweep", "--size", "05", "--dim", "rf=1,2", "--dim", "rf=3,4"], None, ("dim", "rf given twice")),
+    ("sweep-all-invalid", ["sweep", "--size", "05", "--dim", "rf=-1,-2"], None, ("every variant is invalid", "rf")),
+    ("sweep-size-and-sizes", ["sweep", "--sizes", "05,1", "--size", "1.6"], None, ("--size or --sizes",)),
+    ("sweep-sizes-twice", ["sweep", "--sizes", "05,05"], None, ("sizes", "05 given twice")),
+    ("sweep-sizes-empty-item", ["sweep", "--sizes", "05,,1"], None, ("sizes", "empty item")),
+    ("sweep-error-bar-mesh-too-coarse", ["sweep", "--size", "05", "--dim", "rf=1,2", "--mesh-factor", "3",
+                                         "--levels", "8", "--ratio", "3"], None, ("levels", "coarsest")),
+    ("study-unknown-dim", ["sweep", "--study", "{case}"], '[sweep]\nsize = "05"\ndims = { zz = "1,2" }\n',
+     ("sweep.dims.zz", "unknown dimension")),
+    ("study-dims-not-a-table", ["sweep", "--study", "{case}"], '[sweep]\nsize = "05"\ndims = "rf=1,2"\n',
+     ("sweep.dims", "a table")),
+    ("study-out-not-a-string", ["sweep", "--study", "{case}"],
+     '[sweep]\nsize = "05"\ndims = { rf = "1,2" }\nout = 5\n', ("sweep.out", "a string")),
+    ("study-other-table", ["sweep", "--study", "{case}"],
+     '[sweep]\nsize = "05"\ndims = { rf = "1,2" }\n[material]\nE_MPa = 1\n', ("study", "material", "case file")),
+    ("study-mesh-factor-a-string", ["sweep", "--study", "{case}"],
+     '[sweep]\nsize = "05"\ndims = { rf = "1,2" }\nmesh_factor = "3"\n', ("sweep.mesh_factor", "a number")),
 ]
 
 
@@ -273,7 +302,7 @@ def test_bad_input_in_process(tmp_path, tripwire, argv, toml, expect):
 
 # A few as real processes: the exit status and stderr a shell sees, with no mocking.
 SUBPROCESS_IDS = ("load-negative", "order-7", "toml-unclosed-section", "toml-unknown-section",
-                  "case-missing", "out-under-a-file", "no-command")
+                  "case-missing", "out-under-a-file", "no-command", "memory-limit-nan", "study-unknown-dim")
 
 
 @pytest.mark.parametrize("argv,toml,expect", [c[1:] for c in CORPUS if c[0] in SUBPROCESS_IDS],

@@ -12,7 +12,7 @@ from pathlib import Path
 import pytest
 
 from pipeline.errors import InputError
-from pipeline.sweep import COLUMNS, crossings, parse_values
+from pipeline.sweep import COLUMNS, crossings, parse_values, read_study
 
 ROOT = Path(__file__).resolve().parents[1]
 GRID = ["--size", "05", "--dim", "rf=1.0,1.5,2.5", "--mesh-factor", "3", "--levels", "1"]
@@ -31,9 +31,18 @@ def sweep(out: Path, *args: str, ranks: int = 1) -> subprocess.CompletedProcess:
 def test_parse_values():
     assert parse_values("0.5:2.5:5", "rf") == pytest.approx([0.5, 1.0, 1.5, 2.0, 2.5])
     assert parse_values("16,18,20", "dj") == [16.0, 18.0, 20.0]
-    for bad in ("1:2", "a,b", "1:2:1", "1:inf:3", "nan,1", "1,-inf", ""):
+    for bad in ("1:2", "a,b", "1:2:1", "1:inf:3", "nan,1", "1,-inf", "", "1,,2", "1,1", "2:2:3"):
         with pytest.raises(InputError):
             parse_values(bad, "rf")
+
+
+def test_a_study_file_takes_an_array_of_values_like_a_list(tmp_path):
+    """``rf = [1.0, 1.5]`` in a study file means what ``rf = "1.0,1.5"`` means."""
+    a, b = tmp_path / "a.toml", tmp_path / "b.toml"
+    a.write_text('[sweep]\nsize = "05"\ndims = { rf = [1.0, 1.5] }\n')
+    b.write_text('[sweep]\nsize = "05"\ndims = { rf = "1.0,1.5" }\n')
+    va, vb = (parse_values(str(read_study(p)["dims"]["rf"]), "rf") for p in (a, b))
+    assert va == vb == [1.0, 1.5]
 
 
 def test_crossing_is_interpolated_with_its_band():
