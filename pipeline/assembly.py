@@ -12,38 +12,50 @@ from dolfinx.fem.petsc import (
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from .elasticity import Constraint
+from .elasticity import Constraint, Material
 from .errors import NumericalError
 
 
-def assemble_aij(a, bcs) -> PETSc.Mat:
+def assemble_aij(a, bcs, diagonal: float = 1.0) -> PETSc.Mat:
     """The matrix of bilinear form ``a`` with ``bcs`` applied, as an AIJ matrix (bs 3).
 
     Why through BAIJ: DOLFINx inserts each element matrix into a 3×3-block matrix faster
     than into AIJ, by enough to pay for the conversion (docs/decisions.md). GAMG and hypre need AIJ;
     "pmg" converts to SBAIJ instead (:func:`assemble_sbaij`).
     """
-    A = assemble_baij(a, bcs)
+    A = assemble_baij(a, bcs, diagonal)
     A.convert("aij")  # in place (petsc4py converts self when no target is given)
     return A
 
 
-def assemble_baij(a, bcs) -> PETSc.Mat:
-    """The matrix of bilinear form ``a`` with ``bcs`` applied, as a BAIJ matrix (3×3 blocks)."""
+def constrained_diagonal(mat: Material) -> float:
+    """The diagonal entry of a constrained row (its row and column are zeroed), MPa·mm:
+    E × 1 mm, of the order of the stiffness entries (E × element size).
+
+    Why not 1 (DOLFINx's default): with a large E the other entries stand so far above
+    the constrained rows' 1 that the p-multigrid's CG stopped on an indefinite
+    preconditioner (docs/decisions.md). The constraints are homogeneous (u = 0), so the
+    solution does not depend on this value."""
+    return float(mat.E)
+
+
+def assemble_baij(a, bcs, diagonal: float = 1.0) -> PETSc.Mat:
+    """The matrix of bilinear form ``a`` with ``bcs`` applied (``diagonal`` on the
+    constrained rows: :func:`constrained_diagonal`), as a BAIJ matrix (3×3 blocks)."""
     A = create_matrix(a, "baij")
-    assemble_matrix(A, a, bcs=bcs)
+    assemble_matrix(A, a, bcs=bcs, diagonal=diagonal)
     A.assemble()
     return A
 
 
-def assemble_sbaij(a, bcs) -> PETSc.Mat:
+def assemble_sbaij(a, bcs, diagonal: float = 1.0) -> PETSc.Mat:
     """The matrix of the symmetric bilinear form ``a`` with ``bcs`` applied (rows and columns
     zeroed: still symmetric), stored as its upper triangle in 3×3 blocks (SBAIJ).
 
     Why: the product with a vector, most of pmg's time, reads half the matrix; the
     conversion from BAIJ is cheap (docs/decisions.md).
     """
-    A = assemble_baij(a, bcs)
+    A = assemble_baij(a, bcs, diagonal)
     A.convert("sbaij")  # in place, as in assemble_aij
     return A
 

@@ -11,7 +11,7 @@ import ufl
 from dolfinx import fem
 from petsc4py import PETSc
 
-from .assembly import assemble_aij, dirichlet_bc, rigid_body_nullspace
+from .assembly import assemble_aij, constrained_diagonal, dirichlet_bc, rigid_body_nullspace
 from .elasticity import (
     Constraint,
     Material,
@@ -85,7 +85,8 @@ def p_multigrid(ksp: PETSc.KSP, V, mat: Material, facet_tags, constraints: Seque
     u1, v1 = ufl.TrialFunction(V1), ufl.TestFunction(V1)
     bcs1 = [bc for c in constraints for bc in dirichlet_bc(V1, facet_tags, c)[0]]
     Ac = assemble_aij(fem.form(volume_integral(ufl.inner(stress(u1, mat), strain(v1)),
-                                                volume_measures(mesh, 1, like=measures))), bcs1)
+                                                volume_measures(mesh, 1, like=measures))), bcs1,
+                      constrained_diagonal(mat))
     Ac.setNearNullSpace(rigid_body_nullspace(V1))
     P = p1_interpolation(V1, V)
     free = Ac.createVecRight()

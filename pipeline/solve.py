@@ -18,7 +18,7 @@ from dolfinx.fem.petsc import (
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from .assembly import assemble_aij, assemble_sbaij, dirichlet_bc, rigid_body_nullspace
+from .assembly import assemble_aij, assemble_sbaij, constrained_diagonal, dirichlet_bc, rigid_body_nullspace
 from .choices import SOLVERS
 from .elasticity import (
     Constraint,
@@ -167,7 +167,8 @@ def _assemble(mesh, facet_tags, order: int, mat: Material, tractions: Sequence[T
     L = fem.form(L_form)
     # pmg multiplies with the fine matrix in SBAIJ (see assemble_sbaij, p_multigrid); the
     # others need AIJ.
-    A = assemble_sbaij(a, bcs) if solver == "pmg" else assemble_aij(a, bcs)
+    diagonal = constrained_diagonal(mat)
+    A = assemble_sbaij(a, bcs, diagonal) if solver == "pmg" else assemble_aij(a, bcs, diagonal)
     b = assemble_vector(L)
     apply_lifting(b, [a], bcs=[bcs])
     b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
