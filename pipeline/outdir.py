@@ -269,7 +269,12 @@ def _publish(staging: Path, out: Path) -> None:
     if out.exists():
         old = out.with_name(f".{out.name}.old-{os.getpid()}")
         out.rename(old)
-    staging.rename(out)
+    try:
+        staging.rename(out)
+    except OSError:
+        if old is not None:  # the earlier result back in its place, not left to be removed
+            old.rename(out)
+        raise
     stop_outcome(f"the results were already written to {out}")
     if old is not None:
         _remove_marked(old, MARKER)
@@ -317,7 +322,8 @@ def staged_dir(out_dir: str | os.PathLike, comm=MPI.COMM_WORLD,
                     with signals_wait():  # a stop between the two renames would lose both
                         _publish(staging, out)
                 except OSError as exc:
-                    raise OutputError(f"out: cannot write {out}: {exc.strerror or exc}") from None
+                    raise OutputError(f"out: cannot write {out}: {exc.strerror or exc}; nothing written, "
+                                      "the output folder is as it was") from None
             ok = True
         finally:
             if comm.rank == 0 and not ok:

@@ -286,6 +286,26 @@ def test_disk_full_is_exit_2_with_nothing_written(tmp_path, earlier, monkeypatch
     assert not (tmp_path / "a").exists()
 
 
+def test_a_failed_replacement_puts_the_earlier_result_back(tmp_path, earlier, monkeypatch, capsys):
+    """Publishing is two renames (the earlier result aside, the new one in). When the
+    second fails, the earlier result goes back in its place: left aside, the next run to
+    the folder would remove it as a leftover. Exit 2, one line, nothing beside it."""
+    from pipeline import cli as cli_main
+    rename = Path.rename
+
+    def second_fails(self, target):
+        if str(self).endswith(".partial") and Path(target).name == "res":
+            raise OSError(errno.EXDEV, os.strerror(errno.EXDEV), str(self))
+        return rename(self, target)
+    monkeypatch.setattr(Path, "rename", second_fails)
+    out = fresh_copy(earlier, tmp_path / "res")
+    before = snapshot(out)
+    code = cli_main.main([*FAST, "--out", str(out), "--quiet"])
+    err = capsys.readouterr().err
+    assert code == 2 and len(err.strip().splitlines()) == 1 and "nothing written" in err, err
+    assert snapshot(out) == before and debris(tmp_path, "res") == []
+
+
 # ------------------------------------------------------------------ 5. one MPI rank fails alone
 
 def one_rank_fails(out: Path, how: str) -> tuple[subprocess.CompletedProcess, float]:
