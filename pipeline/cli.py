@@ -198,8 +198,8 @@ def make_parser() -> argparse.ArgumentParser:
     sweep.add_argument("--sizes", metavar="LIST", help="hook numbers to sweep over, e.g. 05,1,2.5, or 'all' rows of "
                        "geometry/sizes.csv (each at its own rated load unless --load is given)")
     sweep.add_argument("--study", type=Path, help="a study file (TOML with a [sweep] table), e.g. cases/sweep-rf.toml")
-    sweep.add_argument("--levels", type=int, default=3, help="meshes per variant for its error bar (default 3)")
-    sweep.add_argument("--ratio", type=_positive_float, default=1.3, help="mesh-size ratio between them (default 1.3)")
+    sweep.add_argument("--levels", type=int, help="meshes per variant for its error bar (default 3)")
+    sweep.add_argument("--ratio", type=_positive_float, help="mesh-size ratio between them (default 1.3)")
     return parser
 
 
@@ -428,8 +428,9 @@ def _sweep(args, rank0: bool) -> int:
     base = {k: getattr(args, k) for k in CASE_KEYS if getattr(args, k) is not None}
     if "mesh_factor" in study and "mesh_factor" not in base:
         base["mesh_factor"] = float(study["mesh_factor"])
-    levels = int(study.get("levels", args.levels))
-    ratio = float(study.get("ratio", args.ratio))
+    # The command line overrides the study file, which overrides the defaults.
+    levels = args.levels if args.levels is not None else int(study.get("levels", 3))
+    ratio = args.ratio if args.ratio is not None else float(study.get("ratio", 1.3))
     if not 1 <= levels <= 8 or not 1.1 <= ratio <= 3:
         raise InputError("levels/ratio: levels must lie in 1..8 and ratio in [1.1, 3]")
     if not axes and len(loads) < 2 and not sizes:

@@ -36,6 +36,17 @@ def test_parse_values():
             parse_values(bad, "rf")
 
 
+def test_the_command_line_overrides_the_study_file(tmp_path):
+    """--levels 1 --ratio 1.3 beside a study file with levels = 8, ratio = 3 (whose
+    coarsest error-bar mesh, 3 x 3^7, would be refused): the command line wins, as it
+    does for the axes, the mesh factor and the output folder."""
+    study = tmp_path / "s.toml"
+    study.write_text('[sweep]\nsize = "05"\ndims = { rf = "1.0,1.5" }\nmesh_factor = 3.0\nlevels = 8\nratio = 3.0\n')
+    sweep(tmp_path / "out", "--study", str(study), "--levels", "1", "--ratio", "1.3", "--quiet")
+    rows = json.loads((tmp_path / "out" / "sweep.json").read_text(encoding="utf-8"))["rows"]
+    assert [r["status"] for r in rows] == ["done", "done"]
+
+
 def test_a_study_file_takes_an_array_of_values_like_a_list(tmp_path):
     """``rf = [1.0, 1.5]`` in a study file means what ``rf = "1.0,1.5"`` means."""
     a, b = tmp_path / "a.toml", tmp_path / "b.toml"
