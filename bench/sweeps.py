@@ -17,6 +17,7 @@ targets are those of the design-studies issue: 19 sizes â‰¤ 60 s, 24 variants â‰
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import os
 import shutil
@@ -25,6 +26,8 @@ import subprocess
 import sys
 import time
 from pathlib import Path
+
+from pipeline.outdir import MARKER
 
 ROOT = Path(__file__).resolve().parents[1]
 GRID = ["--size", "05", "--dim", "rf=0.5:2.5:6", "--dim", "dj=16,17,18,19"]
@@ -43,11 +46,21 @@ def command(ranks: int, args: list[str], out: Path) -> list[str]:
     return head + ["sweep", *args, "--out", str(out), "--quiet"]
 
 
+def remove_study(out: Path) -> None:
+    """Delete a sweep folder this bench made (it carries the sweep's marker); refuse to
+    touch anything else found at that path."""
+    if not out.exists():
+        return
+    if not (out / MARKER).is_file():
+        raise SystemExit(f"bench.sweeps: {out} exists and is not a sweep folder; choose another --out")
+    shutil.rmtree(out)
+
+
 def time_study(name: str, work: Path) -> dict:
     """Run one study into a fresh folder under ``work``; its wall time (s) and row counts."""
     ranks, args = STUDIES[name]
     out = work / name
-    shutil.rmtree(out, ignore_errors=True)   # made by this tool in the previous repeat
+    remove_study(out)  # the previous repeat's
     env = dict(os.environ, CROSSHEAD_NO_CACHE="1")
     t0 = time.perf_counter()
     p = subprocess.run(command(ranks, args, out), cwd=ROOT, env=env, capture_output=True, text=True)
@@ -56,7 +69,7 @@ def time_study(name: str, work: Path) -> dict:
         raise SystemExit(f"{name}: exit {p.returncode}: {(p.stderr.strip().splitlines() or ['?'])[-1]}")
     rows = json.loads((out / "sweep.json").read_text(encoding="utf-8"))["rows"]
     statuses = [r.get("status") for r in rows]
-    shutil.rmtree(out, ignore_errors=True)
+    remove_study(out)
     return {"wall_s": wall, "variants": len(rows), "ok": statuses.count("done")}
 
 
@@ -119,7 +132,8 @@ def main(argv: list[str] | None = None) -> int:
             runs[name].append(r)
             print(f"[{time.perf_counter() - t_all:7.1f} s] repeat {k + 1}/{args.repeats} {name}: "
                   f"{r['wall_s']:.1f} s, {r['ok']}/{r['variants']} variants ok", flush=True)
-    shutil.rmtree(work, ignore_errors=True)
+    with contextlib.suppress(OSError):
+        work.rmdir()  # empty now: each study removed its own folder
     summary = summarise(runs)
     (args.out / "sweeps.json").write_text(json.dumps({"runs": runs, "summary": summary}, indent=2) + "\n",
                                           encoding="utf-8")

@@ -28,6 +28,7 @@ CSV_COLUMNS = (
     "fe_critical_last_change_MPa", "fe_critical_feature", "allowable_MPa", "safety_factor", "critical_safety_factor",
     "mesh_min_jacobian_ratio", "mesh_factor", "meshes", "dofs", "time_s", "warnings", "source")
 
+SUMMARY_FILES = frozenset({"summary.md", "summary.csv", "summary.png"})
 JACOBIAN_SUSPECT = 0.01   # worst det J ratio of a curved tet below this: nearly inverted
 BAND_TOO_WIDE = 0.25      # error bar above this fraction of the value: not usable
 
@@ -341,6 +342,22 @@ def plot(rows: list[dict], path: Path) -> bool:
     return True
 
 
+def refusal(out: Path) -> str | None:
+    """Why the summary may not write into ``out``, or None: it writes only into a new or
+    empty folder, one it wrote before (the tool's marker, or nothing but its own three
+    files), never into a protected folder (pipeline.outdir)."""
+    from .outdir import MARKER, protected_reason
+    reason = protected_reason(out.expanduser().resolve(), str(out))
+    if reason is None and out.exists():
+        if not out.is_dir():
+            reason = "it exists and is not a folder"
+        else:
+            names = {q.name for q in out.iterdir()}
+            if MARKER not in names and not names <= SUMMARY_FILES:
+                reason = f"it holds files crosshead did not write (no {MARKER} marker); choose a new or empty folder"
+    return None if reason is None else f"error: out: refusing {out}: {reason}"
+
+
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(prog="python -m pipeline.summary", description=__doc__.split("\n\n")[0])
     p.add_argument("results", type=Path, nargs="?", default=Path("results"),
@@ -356,7 +373,13 @@ def main(argv: list[str] | None = None) -> int:
     if not rows:
         sys.stderr.write(f"error: results: no results/<size>/results.json under {args.results}\n")
         return 2
+    why = refusal(out)
+    if why is not None:
+        sys.stderr.write(why + "\n")
+        return 2
+    from .outdir import MARKER
     out.mkdir(parents=True, exist_ok=True)
+    (out / MARKER).write_text('{"tool": "crosshead", "summary": true}\n', encoding="utf-8")
     write_csv(rows, out / "summary.csv")
     have_png = plot(rows, out / "summary.png")
     md = markdown(rows, skipped, "summary.png" if have_png else None)

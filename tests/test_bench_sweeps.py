@@ -1,6 +1,9 @@
 """make bench-sweeps' arithmetic (bench/sweeps.py): medians, the paired throughput ratio
 and the targets' verdicts, on made-up wall times (s) whose answers are worked out here."""
-from bench.sweeps import STUDIES, command, summarise
+import pytest
+
+from bench.sweeps import STUDIES, command, remove_study, summarise
+from pipeline.outdir import MARKER
 
 
 def _runs(*walls):
@@ -22,3 +25,18 @@ def test_commands_use_the_launcher_for_two_ranks(tmp_path):
     two = command(*STUDIES["sizes-2"], tmp_path)
     assert one[1:3] == ["-m", "pipeline"] and "sweep" in one
     assert two[1:4] == ["-m", "pipeline.launch", "2"] and two[-3:] == ["--out", str(tmp_path), "--quiet"]
+
+
+def test_only_a_sweep_folder_is_removed_between_repeats(tmp_path):
+    """The bench deletes its previous repeat's sweep folder (the sweep's marker inside),
+    never a folder of the user's that happens to sit at that path."""
+    user = tmp_path / "sizes-2"
+    user.mkdir()
+    (user / "data.csv").write_text("1\n")
+    with pytest.raises(SystemExit):
+        remove_study(user)
+    assert (user / "data.csv").read_text() == "1\n"
+    (user / MARKER).write_text("{}\n")
+    remove_study(user)
+    assert not user.exists()
+    remove_study(user)  # nothing there: nothing to do

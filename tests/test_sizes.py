@@ -178,6 +178,29 @@ def test_summary_tables_and_plot(tmp_path):
     assert (tmp_path / "sum" / "summary.png").stat().st_size > 10_000
 
 
+def test_summary_never_writes_into_a_folder_it_did_not_make(tmp_path, capsys):
+    """A user's folder holding a summary.md of their own: exit 2, one line, their file as
+    it was. A folder the summary wrote (its marker) or holding only its three files (an
+    earlier version's, without a marker) is written again."""
+    from pipeline import summary
+    _fake_results(tmp_path / "res" / "05", "05", 66.0, "converged")
+    user = tmp_path / "mine"
+    user.mkdir()
+    (user / "summary.md").write_text("my notes\n")
+    (user / "thesis.tex").write_text("x\n")
+    assert summary.main([str(tmp_path / "res"), "--out", str(user)]) == 2
+    err = capsys.readouterr().err
+    assert len(err.strip().splitlines()) == 1 and "refusing" in err and "did not write" in err, err
+    assert (user / "summary.md").read_text() == "my notes\n" and sorted(p.name for p in user.iterdir()) == \
+        ["summary.md", "thesis.tex"]
+    old = tmp_path / "old"
+    old.mkdir()
+    (old / "summary.md").write_text("an earlier summary\n")
+    for out in (old, old, tmp_path / "new"):
+        assert summary.main([str(tmp_path / "res"), "--out", str(out)]) == 0
+        assert (out / "summary.md").read_text().startswith("# Crosshead stresses across hook sizes")
+
+
 # ---------------------------------------------------------------- FE (coarse meshes)
 
 _SOLVES: dict = {}
