@@ -34,8 +34,8 @@ def constrained_diagonal(mat: Material) -> float:
 
     Why not 1 (DOLFINx's default): with a large E the other entries stand so far above
     the constrained rows' 1 that the p-multigrid's CG stopped on an indefinite
-    preconditioner (docs/decisions.md). The constraints are homogeneous (u = 0), so the
-    solution does not depend on this value."""
+    preconditioner (docs/decisions.md). The load vector carries this value × the imposed
+    displacement on those rows (solve._assemble), so the solution does not depend on it."""
     return float(mat.E)
 
 

@@ -172,7 +172,7 @@ def _assemble(mesh, facet_tags, order: int, mat: Material, tractions: Sequence[T
     b = assemble_vector(L)
     apply_lifting(b, [a], bcs=[bcs])
     b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
-    set_bc(b, bcs)
+    set_bc(b, bcs, scale=diagonal)  # b = diagonal × g on a constrained row: u = g there
     if solver in ("gamg", "hypre"):  # pmg gives its coarse (P1) matrix its own
         A.setNearNullSpace(rigid_body_nullspace(V))
     return _System(V, v, dx_split, L_form, A, b, bcs, bc_dofs)
