@@ -27,7 +27,7 @@ from pipeline.environment import configure  # noqa: E402
 configure()  # before numpy, PETSc or DOLFINx load (pipeline/environment.py)
 
 from pipeline.choices import MODELS, SOLVERS, SUPPORTS, WANTS  # noqa: E402
-from pipeline.interrupts import install as install_interrupts, stop_line, yield_to_stop  # noqa: E402
+from pipeline.interrupts import install as install_interrupts, new_command, stop_line, yield_to_stop  # noqa: E402
 
 DESCRIPTION = """\
 Finite-element stress analysis of a DIN 15412 crane hook-block crosshead.
@@ -248,6 +248,7 @@ def _dispatch(args: argparse.Namespace) -> int:
     from pipeline.errors import InputError, NumericalError
     from pipeline.rankfailure import RankFailures
     rank0 = MPI.COMM_WORLD.rank == 0
+    new_command()
     with RankFailures(MPI.COMM_WORLD) as failures:
         try:
             with contextlib.ExitStack() as stack:  # clean-ups that last as long as this command

@@ -51,7 +51,7 @@ class _Watcher:
         self.cleanups: list[Callable[[], None]] = []
         self.lock = threading.RLock()  # re-entrant: a guarded block may declare its outcome
         self.speak = True
-        self.outcome = NOTHING_WRITTEN  # what a stop says became of the output (stop_outcome)
+        self.outcome: str | None = None  # what a stop says became of the output (stop_outcome)
         self.stopping = threading.Event()  # set when a signal's stop has begun
 
 
@@ -61,14 +61,24 @@ _ENDING = threading.Lock()  # held by the thread that ends the process (end_proc
 
 def stop_line(signum: int) -> str:
     """The line a stop by ``signum`` writes now: how it stopped, and what became of the output."""
-    return f"{STOPPED[signal.Signals(signum)]}: {_WATCHER.outcome}"
+    return f"{STOPPED[signal.Signals(signum)]}: {_WATCHER.outcome or NOTHING_WRITTEN}"
 
 
 def stop_outcome(text: str) -> None:
     """Declare what a stop from now on says became of the output (after "interrupted
-    (Ctrl-C): "); the default is NOTHING_WRITTEN."""
+    (Ctrl-C): "; until then NOTHING_WRITTEN). The first declaration of a command stands:
+    a study declares at its start, and its variants' runs, which publish their folders
+    inside it, do not replace it."""
     with _WATCHER.lock:
-        _WATCHER.outcome = text
+        if _WATCHER.outcome is None:
+            _WATCHER.outcome = text
+
+
+def new_command() -> None:
+    """Forget the outcome a previous command in this process declared (tests call the
+    command line several times in one process)."""
+    with _WATCHER.lock:
+        _WATCHER.outcome = None
 
 
 def yield_to_stop() -> None:

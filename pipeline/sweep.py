@@ -13,6 +13,7 @@ fatal. Results: ``sweep.csv``, ``sweep.json``, one plot per peak and swept param
 """
 from __future__ import annotations
 
+import contextlib
 import csv
 import hashlib
 import itertools
@@ -30,7 +31,7 @@ from mpi4py import MPI
 from .atomicfile import replacing, write_text
 from .case import Case, check, resolve
 from .errors import InputError, NumericalError
-from .interrupts import stop_outcome
+from .interrupts import on_stop, stop_outcome
 
 Progress = Callable[[str], None]
 # A study file's [sweep] keys and their TOML types.
@@ -357,6 +358,9 @@ def execute_sweep(size: str | None, case_file: Path | None, base: dict, axes: di
             (out / MARKER).write_text(json.dumps({"tool": "crosshead", "sweep": True}) + "\n")
             stop_outcome(f"the study in {out} keeps the variants finished so far; the same command resumes it")
         except (InputError, OSError) as exc:
+            if lock is not None:
+                lock.release()
+                lock = None
             error = exc if isinstance(exc, InputError) else InputError(f"out: cannot write {out}: {exc}")
     error = comm.bcast(error, root=0)
     if error is not None:
@@ -365,17 +369,20 @@ def execute_sweep(size: str | None, case_file: Path | None, base: dict, axes: di
     valid = sum(t.case is not None for t in tasks)
     say(f"sweep: {len(tasks)} variants ({valid} valid, {len(tasks) - valid} invalid), "
         f"{sum(_done(out, t.key) for t in tasks if t.case is not None)} already done, {comm.size} rank(s)")
-    try:
-        work(tasks, out, levels, ratio, say if comm.rank == 0 else (lambda s: None), comm)
-        request = comm.Ibarrier()
-        while not request.Test():
-            time.sleep(0.05)
-        if comm.rank == 0:
-            allowable = next((t.case.allowable_MPa for t in tasks if t.case is not None), 80.0)
-            axes_out = dict(axes, **({"load_N": loads} if len(loads) > 1 else {}))
-            return write_outputs(tasks, out, axes_out, allowable)
-        return None
-    finally:
-        if lock is not None:
-            shutil.rmtree(out / ".claims", ignore_errors=True)
-            lock.release()
+    with contextlib.ExitStack() as stack:
+        if lock is not None:  # a stop ends the process with os._exit: the finally below never runs
+            stack.enter_context(on_stop(lock.release))
+        try:
+            work(tasks, out, levels, ratio, say if comm.rank == 0 else (lambda s: None), comm)
+            request = comm.Ibarrier()
+            while not request.Test():
+                time.sleep(0.05)
+            if comm.rank == 0:
+                allowable = next((t.case.allowable_MPa for t in tasks if t.case is not None), 80.0)
+                axes_out = dict(axes, **({"load_N": loads} if len(loads) > 1 else {}))
+                return write_outputs(tasks, out, axes_out, allowable)
+            return None
+        finally:
+            if lock is not None:
+                shutil.rmtree(out / ".claims", ignore_errors=True)
+                lock.release()

@@ -182,21 +182,24 @@ def test_staging_left_by_sigkill_is_removed_by_the_next_run(tmp_path, earlier):
 
 
 def test_a_stopped_sweep_says_it_keeps_what_it_finished_and_resumes(tmp_path):
-    """Ctrl-C in a study: its folder keeps the finished variants (it is resumable), so the
-    line says so instead of "nothing written"; the same command then finishes the study."""
+    """Ctrl-C in a study after its first variant is finished: its folder keeps the finished
+    variants (it is resumable), so the line says so, not "nothing written" nor that one
+    variant's results were written (each variant publishes its own folder); the lock
+    beside the folder is gone; the same command then finishes the study."""
     out = tmp_path / "study"
     args = ["sweep", "--size", "05", "--dim", "rf=0.8,1.0,1.5,2.0", "--mesh-factor", "3", "--levels", "1",
             "--out", out]
     proc = start(args)
     t0 = time.monotonic()
-    while not list((out / ".claims").glob("*")) if (out / ".claims").is_dir() else True:
+    while not list(out.glob("variants/*/results.json")):
         assert proc.poll() is None and time.monotonic() - t0 < 120, proc.communicate()
-        time.sleep(0.05)
+        time.sleep(0.02)
     proc.send_signal(signal.SIGINT)
     _, err = proc.communicate(timeout=120)
     assert proc.returncode == 130, err
     lines = err.strip().splitlines()
     assert len(lines) == 1 and "resumes" in lines[0] and str(out) in lines[0], err
+    assert debris(tmp_path, "study") == []
     again = cli(args[:-2] + ["--out", out, "--quiet"])
     assert again.returncode == 0, again.stderr
     rows = json.loads((out / "sweep.json").read_text(encoding="utf-8"))["rows"]
