@@ -11,10 +11,13 @@ from __future__ import annotations
 
 import argparse
 import csv
+import io
 import json
 import math
 import re
+import signal
 import sys
+import tempfile
 from pathlib import Path
 
 SCALED_TAG = "scaled from No. 05 by geometric similarity"
@@ -29,6 +32,7 @@ CSV_COLUMNS = (
     "mesh_min_jacobian_ratio", "mesh_factor", "meshes", "dofs", "time_s", "warnings", "source")
 
 SUMMARY_FILES = frozenset({"summary.md", "summary.csv", "summary.png"})
+TITLE = "# Crosshead stresses across hook sizes"  # summary.md's first line
 JACOBIAN_SUSPECT = 0.01   # worst det J ratio of a curved tet below this: nearly inverted
 BAND_TOO_WIDE = 0.25      # error bar above this fraction of the value: not usable
 
@@ -84,6 +88,26 @@ def row_of(folder: Path, res: dict) -> dict:
     }
 
 
+TEXT_COLUMNS = frozenset({"size", "folder", "dimensions", "fe_peak_status", "fe_peak_feature", "fe_critical_status",
+                          "fe_critical_feature", "source"})
+NEEDED_COLUMNS = frozenset({"load_N", "approximate_MPa", "exact_MPa", "fe_peak_MPa", "fe_critical_MPa"})
+
+
+def checked(row: dict) -> dict:
+    """``row`` if every value has the type its column needs (text, or a finite number or
+    nothing), else ValueError naming the first that does not: a results.json edited or
+    cut short by hand must not stop the summary half-way."""
+    for k, v in row.items():
+        if k in TEXT_COLUMNS:
+            ok = isinstance(v, str)
+        else:
+            ok = (v is None and k not in NEEDED_COLUMNS) or (
+                isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v))
+        if not ok:
+            raise ValueError(f"{k} = {v!r}")
+    return row
+
+
 def warnings_of(r: dict) -> list[str]:
     """Short reasons a person should not trust a row's FE numbers as they stand."""
     out = []
@@ -113,11 +137,11 @@ def collect(results_dir: Path, take_all: bool = False) -> tuple[list[dict], list
             skipped.append(f"{sub.name} (not a hook number of the size table; use --all)")
             continue
         try:
-            row = row_of(sub, json.loads(f.read_text(encoding="utf-8")))
+            row = checked(row_of(sub, json.loads(f.read_text(encoding="utf-8"))))
             row["warnings"] = "; ".join(warnings_of(row))
             rows.append(row)
-        except (KeyError, TypeError, ValueError) as exc:
-            skipped.append(f"{sub.name} (unreadable results.json: {exc})")
+        except (OSError, KeyError, TypeError, ValueError, AttributeError) as exc:
+            skipped.append(f"{sub.name} (unreadable results.json: {type(exc).__name__}: {exc})")
     rows.sort(key=lambda r: (hook_value(r["size"]), r["folder"]))
     return rows, skipped
 
@@ -138,12 +162,14 @@ def _fe_cell(r: dict, key: str) -> str:
     return f"{value:.2f} ± {band:.2f}"
 
 
-def write_csv(rows: list[dict], path: Path) -> None:
-    with open(path, "w", newline="", encoding="utf-8") as fh:
-        w = csv.DictWriter(fh, fieldnames=CSV_COLUMNS, extrasaction="ignore")
-        w.writeheader()
-        for r in rows:
-            w.writerow({k: ("" if r[k] is None else r[k]) for k in CSV_COLUMNS})
+def csv_text(rows: list[dict]) -> str:
+    """summary.csv: one line per row, CSV_COLUMNS (N, MPa, s; empty where there is no value)."""
+    fh = io.StringIO(newline="")
+    w = csv.DictWriter(fh, fieldnames=CSV_COLUMNS, extrasaction="ignore")
+    w.writeheader()
+    for r in rows:
+        w.writerow({k: ("" if r[k] is None else r[k]) for k in CSV_COLUMNS})
+    return fh.getvalue()
 
 
 def markdown(rows: list[dict], skipped: list[str], png_name: str | None) -> str:
@@ -170,7 +196,7 @@ def _table_lines(rows: list[dict]) -> list[str]:
     """The title, what the columns mean, and the table: one line per row, ⚠ on the rows
     with warnings (N, MPa, s)."""
     lines = [
-        "# Crosshead stresses across hook sizes",
+        TITLE,
         "",
         "Units: N, MPa, s. Formulas: the paper's approximate (span b1 + b2) and exact "
         "(curved bar, span b6) hand formulas. FE: peak von Mises at element nodes on the finest "
@@ -343,9 +369,10 @@ def plot(rows: list[dict], path: Path) -> bool:
 
 
 def refusal(out: Path) -> str | None:
-    """Why the summary may not write into ``out``, or None: it writes only into a new or
-    empty folder, one it wrote before (the tool's marker, or nothing but its own three
-    files), never into a protected folder (pipeline.outdir)."""
+    """Why the summary may not write into ``out``, or None. It writes into a new or empty
+    folder, or one that holds a summary it wrote (its marker says "summary"; an earlier
+    version's: nothing but its files, summary.md under its title), never into another
+    kind of results folder, a user's folder or a protected one (pipeline.outdir)."""
     from .outdir import MARKER, protected_reason
     reason = protected_reason(out.expanduser().resolve(), str(out))
     if reason is None and out.exists():
@@ -353,39 +380,101 @@ def refusal(out: Path) -> str | None:
             reason = "it exists and is not a folder"
         else:
             names = {q.name for q in out.iterdir()}
-            if MARKER not in names and not names <= SUMMARY_FILES:
+            if MARKER in names:
+                try:
+                    mine = json.loads((out / MARKER).read_text(encoding="utf-8")).get("summary") is True
+                except (OSError, ValueError, AttributeError):
+                    mine = False
+                if not mine:
+                    reason = "it is a results folder of a run or a sweep, not a summary's"
+            elif names and not (names <= SUMMARY_FILES and _earlier_summary(out / "summary.md")):
                 reason = f"it holds files crosshead did not write (no {MARKER} marker); choose a new or empty folder"
     return None if reason is None else f"error: out: refusing {out}: {reason}"
 
 
+def _earlier_summary(md: Path) -> bool:
+    """Whether ``md`` is a summary.md this tool wrote (its first line)."""
+    try:
+        with md.open(encoding="utf-8") as fh:
+            return fh.readline().rstrip("\n") == TITLE
+    except (OSError, ValueError):
+        return False
+
+
+STOPS = {signal.SIGINT: (130, "interrupted (Ctrl-C)"), signal.SIGTERM: (143, "terminated (SIGTERM)")}
+
+
+class _Stopped(Exception):
+    """SIGTERM, raised in the main thread like Ctrl-C's KeyboardInterrupt."""
+
+
+def _terminated(signum, frame) -> None:
+    raise _Stopped
+
+
 def main(argv: list[str] | None = None) -> int:
+    """The command line: exit 0 written, 2 bad input or an output folder it may not use,
+    130 / 143 stopped (one line each time). The three files are made in memory, then
+    written with Ctrl-C and SIGTERM held off, so a stop leaves the earlier summary whole."""
     p = argparse.ArgumentParser(prog="python -m pipeline.summary", description=__doc__.split("\n\n")[0])
     p.add_argument("results", type=Path, nargs="?", default=Path("results"),
                    help="folder holding one sub-folder per size (default results)")
     p.add_argument("--out", type=Path, help="output folder (default <results>/summary)")
     p.add_argument("--all", action="store_true", help="every sub-folder with a results.json, not only table sizes")
     args = p.parse_args(argv)
+    previous = signal.signal(signal.SIGTERM, _terminated)
+    try:
+        return _summarise(args)
+    except (KeyboardInterrupt, _Stopped) as exc:
+        code, word = STOPS[signal.SIGTERM if isinstance(exc, _Stopped) else signal.SIGINT]
+        sys.stderr.write(f"{word}: nothing written, the output folder is as it was\n")
+        return code
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
+def _summarise(args: argparse.Namespace) -> int:
+    from .atomicfile import replacing, write_text
+    from .outdir import MARKER
     if not args.results.is_dir():
         sys.stderr.write(f"error: results: no such folder {args.results}\n")
         return 2
     out = args.out or args.results / "summary"
-    rows, skipped = collect(args.results, args.all)
-    if not rows:
-        sys.stderr.write(f"error: results: no results/<size>/results.json under {args.results}\n")
-        return 2
     why = refusal(out)
     if why is not None:
         sys.stderr.write(why + "\n")
         return 2
-    from .outdir import MARKER
-    out.mkdir(parents=True, exist_ok=True)
-    (out / MARKER).write_text('{"tool": "crosshead", "summary": true}\n', encoding="utf-8")
-    write_csv(rows, out / "summary.csv")
-    have_png = plot(rows, out / "summary.png")
-    md = markdown(rows, skipped, "summary.png" if have_png else None)
-    (out / "summary.md").write_text(md, encoding="utf-8")
-    print(md, end="")
-    print(f"written to {out}/ (summary.md, summary.csv{', summary.png' if have_png else ''})")
+    rows, skipped = collect(args.results, args.all)
+    if not rows:
+        sys.stderr.write(f"error: results: no usable results/<size>/results.json under {args.results}"
+                         + (f" ({'; '.join(skipped)})" if skipped else "") + "\n")
+        return 2
+    with tempfile.TemporaryDirectory(prefix="crosshead-summary-") as tmp:
+        png = Path(tmp) / "summary.png"
+        have_png = plot(rows, png)
+        files = {"summary.csv": csv_text(rows).encode("utf-8"),
+                 "summary.md": markdown(rows, skipped, "summary.png" if have_png else None).encode("utf-8")}
+        if have_png:
+            files["summary.png"] = png.read_bytes()
+    held = signal.pthread_sigmask(signal.SIG_BLOCK, set(STOPS))  # a stop waits until all is written
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+        write_text(out / MARKER, '{"tool": "crosshead", "summary": true}\n')
+        for name, data in files.items():
+            with replacing(out / name, "wb") as fh:
+                fh.write(data)
+    except OSError as exc:
+        sys.stderr.write(f"error: out: cannot write {out}: {exc.strerror or exc}\n")
+        return 2
+    finally:
+        came = signal.sigtimedwait(set(STOPS), 0)  # taken here, so it cannot strike after the unblocking
+        signal.pthread_sigmask(signal.SIG_SETMASK, held)
+    if came is not None:
+        code, word = STOPS[signal.Signals(came.si_signo)]
+        sys.stderr.write(f"{word}: the summary was already written to {out}\n")
+        return code
+    print(files["summary.md"].decode("utf-8"), end="")
+    print(f"written to {out}/ ({', '.join(files)})")
     return 0
 
 

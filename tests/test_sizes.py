@@ -179,26 +179,58 @@ def test_summary_tables_and_plot(tmp_path):
 
 
 def test_summary_never_writes_into_a_folder_it_did_not_make(tmp_path, capsys):
-    """A user's folder holding a summary.md of their own: exit 2, one line, their file as
-    it was. A folder the summary wrote (its marker) or holding only its three files (an
-    earlier version's, without a marker) is written again."""
+    """A user's folder (a summary.md of their own, alone or beside other files) or a run's
+    results folder: exit 2, one line, the folder as it was. A folder the summary wrote
+    (its marker), an earlier version's summary (its files only, summary.md under its
+    title) or a new folder is written."""
     from pipeline import summary
+    from pipeline.outdir import MARKER
     _fake_results(tmp_path / "res" / "05", "05", 66.0, "converged")
-    user = tmp_path / "mine"
-    user.mkdir()
-    (user / "summary.md").write_text("my notes\n")
-    (user / "thesis.tex").write_text("x\n")
-    assert summary.main([str(tmp_path / "res"), "--out", str(user)]) == 2
-    err = capsys.readouterr().err
-    assert len(err.strip().splitlines()) == 1 and "refusing" in err and "did not write" in err, err
-    assert (user / "summary.md").read_text() == "my notes\n" and sorted(p.name for p in user.iterdir()) == \
-        ["summary.md", "thesis.tex"]
+    alone, beside, run = tmp_path / "alone", tmp_path / "beside", tmp_path / "res" / "05"
+    alone.mkdir()
+    (alone / "summary.md").write_text("my own summary\n")
+    beside.mkdir()
+    (beside / "summary.md").write_text("my notes\n")
+    (beside / "thesis.tex").write_text("x\n")
+    (run / MARKER).write_text('{"tool": "crosshead"}\n')
+    for user in (alone, beside, run):
+        before = {q.name: q.read_bytes() for q in user.iterdir()}
+        assert summary.main([str(tmp_path / "res"), "--out", str(user)]) == 2
+        err = capsys.readouterr().err
+        assert len(err.strip().splitlines()) == 1 and "refusing" in err, err
+        assert {q.name: q.read_bytes() for q in user.iterdir()} == before
     old = tmp_path / "old"
     old.mkdir()
-    (old / "summary.md").write_text("an earlier summary\n")
+    (old / "summary.md").write_text(summary.TITLE + "\n\nan earlier summary\n")
+    (old / "summary.csv").write_text("size\n")
     for out in (old, old, tmp_path / "new"):
         assert summary.main([str(tmp_path / "res"), "--out", str(out)]) == 0
-        assert (out / "summary.md").read_text().startswith("# Crosshead stresses across hook sizes")
+        assert (out / "summary.md").read_text().startswith(summary.TITLE)
+        assert "an earlier summary" not in (out / "summary.md").read_text()
+
+
+def test_summary_skips_a_results_json_of_the_wrong_shape(tmp_path, capsys):
+    """A results.json edited or cut short (a value of the wrong type, NaN, a list where a
+    table belongs): that folder is skipped with its reason, the others are summarised;
+    with none left, exit 2 and one line naming the reason, nothing written."""
+    from pipeline import summary
+    _fake_results(tmp_path / "res" / "05", "05", 66.0, "converged")
+    bad = {"1": lambda r: r["fe"].update(peak_MPa=None), "1.6": lambda r: r["case"].update(load_N="10 kN"),
+           "4": lambda r: r["fe"].update(critical_peak_MPa=float("nan")), "2.5": lambda r: r.update(case=[]),
+           "6": lambda r: r["case"].update(size=5)}
+    for size, spoil in bad.items():
+        _fake_results(tmp_path / "res" / size, size, 66.0, "converged")
+        res = json.loads((tmp_path / "res" / size / "results.json").read_text())
+        spoil(res)
+        (tmp_path / "res" / size / "results.json").write_text(json.dumps(res))
+    assert summary.main([str(tmp_path / "res"), "--out", str(tmp_path / "sum")]) == 0
+    md = (tmp_path / "sum" / "summary.md").read_text()
+    assert all(f"{size} (unreadable results.json" in md for size in bad), md
+    (tmp_path / "res" / "05" / "results.json").write_text("{}")
+    assert summary.main([str(tmp_path / "res"), "--out", str(tmp_path / "sum2")]) == 2
+    err = capsys.readouterr().err
+    assert len(err.strip().splitlines()) == 1 and "no usable" in err and "KeyError" in err, err
+    assert not (tmp_path / "sum2").exists()
 
 
 # ---------------------------------------------------------------- FE (coarse meshes)
