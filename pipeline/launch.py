@@ -37,17 +37,51 @@ def children(pid: int) -> list[int]:
     return found
 
 
-def main(argv: list[str] | None = None) -> int:
-    argv = sys.argv[1:] if argv is None else argv
+USAGE = "usage: python -m pipeline.launch RANKS ARGS... (RANKS >= 1; ARGS: those of python -m pipeline)"
+
+
+def refusal(argv: list[str]) -> tuple[int, str] | None:
+    """(exit status, line) when the launch cannot start: RANKS not a whole number from 1
+    to the cores this process may use (mpirun refuses more, silently under --quiet), or
+    ARGS that the command line refuses (checked here once, not once per rank)."""
     try:
         ranks = int(argv[0])
         if ranks < 1:
             raise ValueError
     except (IndexError, ValueError):
-        sys.stderr.write("error: ranks: usage: python -m pipeline.launch RANKS ARGS... (RANKS >= 1)\n")
-        return 2
+        return 2, f"error: ranks: {USAGE}"
+    cores = len(os.sched_getaffinity(0))
+    if ranks > cores:
+        return 2, (f"error: ranks: {ranks} ranks, but this machine gives {cores} cores; pipeline.launch runs "
+                   "one rank per core here (on a cluster: mpirun or srun, docs/sweeps.md)")
+    from pipeline.cli import make_parser  # argparse only: no numerics are loaded
+    try:
+        args = make_parser().parse_args(argv[1:])
+    except SystemExit as exc:  # the parser wrote its one line (or the help, status 0)
+        return int(exc.code or 0), ""
+    if args.command is None:
+        return 2, "error: command: choose run, converge or sweep (see python -m pipeline --help)"
+    return None
+
+
+def main(argv: list[str] | None = None) -> int:
+    argv = sys.argv[1:] if argv is None else argv
+    if argv[:1] in (["-h"], ["--help"]):
+        print(__doc__.split("\n\n")[0] + "\n" + USAGE)
+        return 0
+    refused = refusal(argv)
+    if refused is not None:
+        code, line = refused
+        if line:
+            sys.stderr.write(line + "\n")
+        return code
+    ranks = int(argv[0])
     received: list[int] = []
-    proc = subprocess.Popen(mpirun_command(ranks, argv[1:]), start_new_session=True)
+    try:
+        proc = subprocess.Popen(mpirun_command(ranks, argv[1:]), start_new_session=True)
+    except FileNotFoundError:
+        sys.stderr.write("error: mpirun: not found on PATH (make setup installs Open MPI)\n")
+        return 2
 
     def forward(signum: int, frame) -> None:
         if received:

@@ -14,6 +14,7 @@ import contextlib
 import io
 import json
 import math
+import os
 import subprocess
 import sys
 from dataclasses import fields
@@ -314,6 +315,28 @@ def test_bad_input_subprocess(tmp_path, argv, toml, expect):
                        capture_output=True, text=True, timeout=120)
     assert_exit_2(p.returncode, p.stderr, expect)
     assert_nothing_written(tmp_path, before, out)
+
+
+def launch(*args: str) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "pipeline.launch", *map(str, args)], cwd=ROOT,
+                          capture_output=True, text=True, timeout=120)
+
+
+def test_launch_refuses_more_ranks_than_cores_with_one_line(tmp_path):
+    """mpirun under --quiet refused silently (exit 1, nothing said) to start more ranks
+    than the machine has cores."""
+    too_many = len(os.sched_getaffinity(0)) + 1
+    p = launch(too_many, "run", "--size", "05", "--out", tmp_path / "out")
+    assert_exit_2(p.returncode, p.stderr, ("ranks", f"{too_many} ranks", "cores"))
+    assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize("args,expect", [(["run", "--bogus"], ("--bogus",)), (["bogus"], ("invalid choice",)),
+                                         ([], ("command", "run, converge or sweep"))])
+def test_launch_checks_the_arguments_once_not_once_per_rank(tmp_path, args, expect):
+    """A usage error under N ranks was written N times (every rank parsed the arguments)."""
+    p = launch(min(2, len(os.sched_getaffinity(0))), *args)
+    assert_exit_2(p.returncode, p.stderr, expect)
 
 
 def test_default_out_folder_not_created_on_bad_input(tmp_path, tripwire, monkeypatch):
