@@ -465,16 +465,14 @@ def _print(line: str) -> None:
 
 
 def _summary(res: dict, out: Path) -> None:
-    from pipeline.report import error_bar_text
+    from pipeline.report import error_bar_text, no_safety_factor_reason
     fe = res["fe"]
     _print(f"global peak   {fe['peak']['value_MPa']:8.2f} MPa  {error_bar_text(fe['peak'])}  [{fe['peak']['feature']}]")
     _print(f"critical peak {fe['critical']['value_MPa']:8.2f} MPa  {error_bar_text(fe['critical'])}  [{fe['critical']['feature']}]")
     an = res["analytic"]
 
     def sf(key: str) -> str:
-        if fe[key] is not None:
-            return f"{fe[key]:.2f}"
-        return "none (not asked for)" if "want =" in fe.get(f"{key}_note", "") else "none (singular peak)"
+        return f"{fe[key]:.2f}" if fe[key] is not None else f"none ({no_safety_factor_reason(fe, key)})"
     _print(f"formulas: approximate {an['approximate_MPa']:.2f} MPa, exact {an['exact_MPa']:.2f} MPa; "
            f"safety factor {sf('safety_factor')} (global), {sf('critical_safety_factor')} (critical)")
     named = res.get("files") or {"results": "results.json"}

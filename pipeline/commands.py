@@ -233,7 +233,7 @@ def execute_converge(case: Case, out_dir: Path, levels: int = 5, ratio: float = 
                 conv["plot"] = "convergence.png"
         res["convergence"] = conv
         res["files"] = {"results": "results.json", "report": "report.md", "report_html": "report.html",
-                        "mesh": "mesh.msh"}
+                        "mesh": "mesh.msh", **({"convergence_plot": conv["plot"]} if "plot" in conv else {})}
         res["timings_s"]["total"] = time.perf_counter() - t_all
         write_json(stage / "results.json", res, comm)
         if comm.rank == 0:

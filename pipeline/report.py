@@ -65,8 +65,14 @@ def _trend_text(est: dict) -> str:
     return f"NOT CONVERGED (status {st}, observed order {est['order_observed']:.2f})"
 
 
-def _sf(value: float | None) -> str:
-    return "none (singular)" if value is None else f"{value:.2f}"
+def no_safety_factor_reason(fe: dict, key: str) -> str:
+    """Why ``fe[key]`` (a safety factor) is missing, in two or three words: the peak was
+    not asked for (want), or it sits at a singularity."""
+    return "not asked for" if "want =" in fe.get(f"{key}_note", "") else "singular peak"
+
+
+def _sf(value: float | None, fe: dict, key: str) -> str:
+    return f"none ({no_safety_factor_reason(fe, key)})" if value is None else f"{value:.2f}"
 
 
 def safety_text(fe: dict, key: str) -> str:
@@ -339,7 +345,7 @@ def _load_sweep_lines(res: dict) -> list[str]:
     """The loads solved by scaling one solution (linear elasticity); empty without a load sweep."""
     L: list[str] = []
     add = L.append
-    c = res["case"]
+    c, fe = res["case"], res["fe"]
     sweep = res.get("load_sweep")
     if sweep:
         add("## Load sweep\n")
@@ -349,7 +355,8 @@ def _load_sweep_lines(res: dict) -> list[str]:
         add("|---|---|---|---|---|---|")
         for r in sweep:
             add(f"| {_f(r['load_N'], 0)} | {_f(r['peak_MPa'])} | {_f(r['critical_peak_MPa'])} | "
-                f"{_f(r['approximate_MPa'])} | {_f(r['exact_MPa'])} | {_sf(r['safety_factor'])} / {_sf(r['critical_safety_factor'])} |")
+                f"{_f(r['approximate_MPa'])} | {_f(r['exact_MPa'])} | {_sf(r['safety_factor'], fe, 'safety_factor')} / "
+                f"{_sf(r['critical_safety_factor'], fe, 'critical_safety_factor')} |")
         add("")
     return L
 

@@ -191,13 +191,15 @@ def verdict(allowable_MPa: float, load_N: float, checks: dict[str, tuple[float, 
                    if block.get("singular_feature") else block["not_wanted"])
             out[name] = {"value_MPa": value, "verdict": "none", "why": why}
             continue
-        band = ((block or {}).get("error_estimate") or {}).get("band") or 0.0
-        lo, hi = value - band, value + band
+        # No band (a nominal stress, or a peak read on one mesh): null, not a band of zero.
+        band = ((block or {}).get("error_estimate") or {}).get("band")
+        lo, hi = value - (band or 0.0), value + (band or 0.0)
         status = "pass" if hi <= allowable_MPa else "fail" if lo > allowable_MPa else "undecided"
         out[name] = {"value_MPa": value, "band_MPa": band, "verdict": status,
                      "margin_pct": 100 * (allowable_MPa / value - 1),
                      "capacity_N": load_N * allowable_MPa / value,
-                     "capacity_range_N": [load_N * allowable_MPa / hi, load_N * allowable_MPa / lo] if lo > 0 else None}
+                     "capacity_range_N": [load_N * allowable_MPa / hi, load_N * allowable_MPa / lo]
+                     if band is not None and lo > 0 else None}
     return out
 
 

@@ -647,7 +647,8 @@ def test_singular_peak_has_no_safety_factor():
 def test_verdict_pass_fail_undecided_and_capacity():
     """results.verdict against 80 MPa at Q = 10 000 N, worked by hand: 40 ± 1 passes with
     margin +100 % and capacity 20 000 N (19 512-20 513 N from the band); 100 fails; 79 ± 2
-    straddles 80 (undecided); a singular peak and a nominal stress without band."""
+    straddles 80 (undecided); a singular peak and a nominal stress without band (null,
+    not 0: a band of zero would claim an exact value)."""
     from pipeline.results import verdict
     v = verdict(80.0, 10_000.0, {"a": (40.0, {"error_estimate": {"band": 1.0}}),
                                  "b": (100.0, {}), "c": (79.0, {"error_estimate": {"band": 2.0}}),
@@ -659,7 +660,8 @@ def test_verdict_pass_fail_undecided_and_capacity():
     assert v["b"]["verdict"] == "fail" and v["b"]["margin_pct"] == pytest.approx(-20.0)
     assert v["c"]["verdict"] == "undecided"
     assert v["s"]["verdict"] == "none" and "capacity_N" not in v["s"]
-    assert v["n"]["verdict"] == "pass" and v["n"]["band_MPa"] == 0.0
+    assert v["n"]["verdict"] == "pass" and v["n"]["band_MPa"] is None and v["n"]["capacity_range_N"] is None
+    assert v["b"]["band_MPa"] is None and v["b"]["capacity_range_N"] is None  # one mesh: no band, not a band of 0
 
 
 def test_rigid_support_run_gives_no_global_safety_factor(tmp_path):
