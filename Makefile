@@ -55,8 +55,17 @@ sizes: $(SETUP)
 	$(RUN) sweep --sizes all --out results/sizes
 	$(PY) -m pipeline.summary results/sizes/variants --all --out results/summary
 
+# Removes the results folders crosshead wrote (those carrying its .crosshead-results marker),
+# staging folders and locks left by killed runs; names and keeps anything else in results/.
 clean:
-	rm -rf results
+	@for d in results/* results/.[!.]*; do \
+	  [ -e "$$d" ] || continue; \
+	  if [ -d "$$d" ] && [ ! -L "$$d" ] && { [ -e "$$d/.crosshead-results" ] || [ -e "$$d/.crosshead-staging" ]; }; then \
+	    rm -rf "$$d"; \
+	  elif [ -f "$$d" ] && case "$$d" in results/.*.lock) true;; *) false;; esac; then \
+	    rm -f "$$d"; \
+	  else echo "make clean: kept $$d (no .crosshead-results marker: not a folder crosshead wrote)"; fi; \
+	done; rmdir results 2>/dev/null || true
 
 # Meshes and pilot places kept for runs that change only load, E or the allowable.
 clean-cache:
