@@ -27,6 +27,7 @@ from pipeline.environment import configure  # noqa: E402
 configure()  # before numpy, PETSc or DOLFINx load (pipeline/environment.py)
 
 from pipeline.choices import MODELS, SOLVERS, SUPPORTS, WANTS  # noqa: E402
+from pipeline.errors import OneLineParser  # noqa: E402
 from pipeline.interrupts import install as install_interrupts, new_command, stop_line, yield_to_stop  # noqa: E402
 
 DESCRIPTION = """\
@@ -50,14 +51,6 @@ exit status: 0 done; 2 bad input or an output folder that cannot be used (nothin
 3 numerical failure (nothing written); 130 interrupted (Ctrl-C), 143 terminated (SIGTERM):
 the earlier result in the output folder is left as it was
 """
-
-
-class OneLineParser(argparse.ArgumentParser):
-    """argparse that reports a usage error as one line and exit status 2."""
-
-    def error(self, message: str) -> None:  # type: ignore[override]
-        sys.stderr.write(f"error: {' '.join(message.split())} (see --help)\n")
-        sys.exit(2)
 
 
 def _positive_float(text: str) -> float:
