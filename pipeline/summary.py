@@ -20,6 +20,8 @@ import sys
 import tempfile
 from pathlib import Path
 
+from .errors import OneLineParser
+
 SCALED_TAG = "scaled from No. 05 by geometric similarity"
 _S_RE = re.compile(r"s = sqrt\(Q/1000 kg\) = ([0-9.]+)")
 
@@ -416,7 +418,7 @@ def main(argv: list[str] | None = None) -> int:
     """The command line: exit 0 written, 2 bad input or an output folder it may not use,
     130 / 143 stopped (one line each time). The three files are made in memory, then
     written with Ctrl-C and SIGTERM held off, so a stop leaves the earlier summary whole."""
-    p = argparse.ArgumentParser(prog="python -m pipeline.summary", description=__doc__.split("\n\n")[0])
+    p = OneLineParser(prog="python -m pipeline.summary", description=__doc__.split("\n\n")[0])
     p.add_argument("results", type=Path, nargs="?", default=Path("results"),
                    help="folder holding one sub-folder per size (default results)")
     p.add_argument("--out", type=Path, help="output folder (default <results>/summary)")

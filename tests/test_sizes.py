@@ -209,6 +209,15 @@ def test_summary_never_writes_into_a_folder_it_did_not_make(tmp_path, capsys):
         assert "an earlier summary" not in (out / "summary.md").read_text()
 
 
+@pytest.mark.parametrize("argv", [["a", "b"], ["--bogus"], ["--out"]])
+def test_summary_usage_errors_are_one_line(argv, capsys):
+    from pipeline import summary
+    with pytest.raises(SystemExit) as exc:
+        summary.main(argv)
+    err = capsys.readouterr().err
+    assert exc.value.code == 2 and len(err.strip().splitlines()) == 1 and err.startswith("error: "), err
+
+
 def test_summary_skips_a_results_json_of_the_wrong_shape(tmp_path, capsys):
     """A results.json edited or cut short (a value of the wrong type, NaN, a list where a
     table belongs): that folder is skipped with its reason, the others are summarised;
