@@ -396,8 +396,8 @@ def _sweep(args, rank0: bool) -> int:
     if args.sizes:
         from geometry.table import load_table
         table = list(load_table())
-        if args.size is not None:
-            raise InputError("size: give --size or --sizes, not both")
+        if args.size is not None or "size" in study:
+            raise InputError("size: give --size (or a study file's size) or --sizes, not both")
         sizes = table if args.sizes == "all" else [s.strip() for s in args.sizes.split(",")]
         if "" in sizes:
             raise InputError(f"sizes: {args.sizes!r} has an empty item")
