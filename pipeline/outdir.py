@@ -24,12 +24,10 @@ from typing import Iterator
 from mpi4py import MPI
 
 from .errors import InputError
+from .folders import MARKER, REPOSITORY, STAGING_MARK, protected_reason
 from .idle import wait_for_ranks
 from .interrupts import on_stop, signals_wait, stop_outcome
 
-MARKER = ".crosshead-results"  # written last into every results folder: "this folder is ours"
-STAGING_MARK = ".crosshead-staging"  # written first into every staging folder
-REPOSITORY = Path(__file__).resolve().parents[1]
 # Files a run writes; a folder holding nothing else (and a results.json) is a results folder
 # of a version of the tool that wrote no marker yet.
 RUN_FILES = frozenset({"results.json", "report.md", "report.html", "mesh.msh", "displacement.pvd",
@@ -45,38 +43,6 @@ def default_out(name: str) -> Path:
     """The default output folder of a case: ``results/<name>`` in the repository, wherever
     the command is started from (a run from ``/`` must not write ``/results``)."""
     return REPOSITORY / "results" / name
-
-
-def _is_same_or_above(folder: Path, other: Path) -> bool:
-    """True when ``folder`` is ``other`` or one of its ancestors."""
-    return other == folder or folder in other.parents
-
-
-def protected_reason(out: Path, raw: str) -> str | None:
-    """Why ``out`` (resolved, symlinks followed) must never be a results folder, or None.
-
-    Refused whatever they hold: the working folder and every folder above it, the
-    repository, its source folders and everything above it, ``/``, the home folder and
-    above, and mount points. ``raw`` is the text the user gave (``''`` and ``.`` refused).
-    """
-    if raw.strip() in ("", "."):
-        return "the current folder cannot be an output folder"
-    if out == Path(out.anchor):
-        return "the file-system root cannot be an output folder"
-    if _is_same_or_above(out, Path.cwd().resolve()):
-        return "it is the working folder or above it"
-    home = Path.home().resolve()
-    if _is_same_or_above(out, home):
-        return "it is the home folder or above it"
-    if _is_same_or_above(out, REPOSITORY):
-        return "it is the crosshead repository or above it"
-    if REPOSITORY in out.parents:
-        top = out.relative_to(REPOSITORY).parts[0]
-        if top != "results" and (REPOSITORY / top).exists():
-            return f"it is inside the crosshead source tree ({top}/); use a folder under results/"
-    if out.exists() and os.path.ismount(out):
-        return "it is a mount point"
-    return None
 
 
 def ownership_reason(out: Path) -> str | None:

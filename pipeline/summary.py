@@ -375,7 +375,7 @@ def refusal(out: Path) -> str | None:
     folder, or one that holds a summary it wrote (its marker says "summary"; an earlier
     version's: nothing but its files, summary.md under its title), never into another
     kind of results folder, a user's folder or a protected one (pipeline.outdir)."""
-    from .outdir import MARKER, protected_reason
+    from .folders import MARKER, protected_reason
     reason = protected_reason(out.expanduser().resolve(), str(out))
     if reason is None and out.exists():
         if not out.is_dir():
@@ -437,7 +437,7 @@ def main(argv: list[str] | None = None) -> int:
 
 def _summarise(args: argparse.Namespace) -> int:
     from .atomicfile import replacing, write_text
-    from .outdir import MARKER
+    from .folders import MARKER
     if not args.results.is_dir():
         sys.stderr.write(f"error: results: no such folder {args.results}\n")
         return 2

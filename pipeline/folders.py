@@ -1,0 +1,46 @@
+"""Folders the tool must never write into, and the marks by which it knows its own.
+
+No MPI here (pipeline/outdir.py, which imports this, does the writing under MPI): the
+bench tools check their output folders with it without starting MPI in their parent
+process, whose children would inherit MPI's environment.
+"""
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+MARKER = ".crosshead-results"  # written last into every results folder: "this folder is ours"
+STAGING_MARK = ".crosshead-staging"  # written first into every staging folder
+REPOSITORY = Path(__file__).resolve().parents[1]
+
+
+def _is_same_or_above(folder: Path, other: Path) -> bool:
+    """True when ``folder`` is ``other`` or one of its ancestors."""
+    return other == folder or folder in other.parents
+
+
+def protected_reason(out: Path, raw: str) -> str | None:
+    """Why ``out`` (resolved, symlinks followed) must never be a results folder, or None.
+
+    Refused whatever they hold: the working folder and every folder above it, the
+    repository, its source folders and everything above it, ``/``, the home folder and
+    above, and mount points. ``raw`` is the text the user gave (``''`` and ``.`` refused).
+    """
+    if raw.strip() in ("", "."):
+        return "the current folder cannot be an output folder"
+    if out == Path(out.anchor):
+        return "the file-system root cannot be an output folder"
+    if _is_same_or_above(out, Path.cwd().resolve()):
+        return "it is the working folder or above it"
+    home = Path.home().resolve()
+    if _is_same_or_above(out, home):
+        return "it is the home folder or above it"
+    if _is_same_or_above(out, REPOSITORY):
+        return "it is the crosshead repository or above it"
+    if REPOSITORY in out.parents:
+        top = out.relative_to(REPOSITORY).parts[0]
+        if top != "results" and (REPOSITORY / top).exists():
+            return f"it is inside the crosshead source tree ({top}/); use a folder under results/"
+    if out.exists() and os.path.ismount(out):
+        return "it is a mount point"
+    return None
