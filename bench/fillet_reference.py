@@ -43,7 +43,10 @@ configure()  # before numpy, PETSc or DOLFINx load (pipeline/environment.py)
 
 import numpy as np  # noqa: E402
 
+from bench.outfolder import refusal  # noqa: E402
+
 ROOT = Path(__file__).resolve().parents[1]
+OWN_FILES = frozenset({"points.jsonl", "reference.json"})  # what it writes into --out
 OUTER_FACTOR = 1.3          # the fixed mesh outside the ball: default sizes × this
 OUTER_CHECKS = (1.0, 0.77)  # the middle P3 level again with finer outer meshes: the far field's share
 BALL_RADIUS_MM = 2.5        # the refined ball around the hot spot (at rf = 0.06·h3: × fillet_scale)
@@ -373,6 +376,10 @@ def main(argv: list[str] | None = None) -> int:
     radius = a.radius if a.radius is not None else _scaled(BALL_RADIUS_MM, scale)
     if a.point:
         return _print_point(a, dims, radius)
+    why = refusal(Path(a.out), OWN_FILES)
+    if why is not None:
+        sys.stderr.write(why + "\n")
+        return 2
     study = _Study.open(a.out, radius=radius, ranks=a.ranks, size=a.size, dims=dims)
     centres = _ball_centres(study, a.centre, a.outer, a.crest)
     orders = [int(o) for o in a.orders.split(",")]

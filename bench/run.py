@@ -54,6 +54,7 @@ from pipeline.choices import SOLVERS  # noqa: E402
 from pipeline.jsonio import json_safe  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
+OWN_FILES = frozenset({"bench.json", "bench.csv", "bench.png", "bench.md"})  # written into --out (bench.md: earlier versions)
 # The files that decide a reference study's numbers: the part, its mesh, the loads, the
 # solve, how peaks are read and how the study extrapolates.
 REFERENCE_INPUTS = ("geometry/part.py", "geometry/sizing.py", "geometry/curved.py", "pipeline/meshing.py",
@@ -65,6 +66,7 @@ P3_FACTORS = (2.0, 1.5)
 QUICK_FACTORS = (2.0, 1.5)
 
 
+from bench.outfolder import refusal  # noqa: E402
 from bench.point import point_env, spawn_point  # noqa: E402
 from bench.tables import aggregate, label, pareto_plot, summary, summary_text, table, write_csv  # noqa: E402
 
@@ -207,10 +209,14 @@ def main(argv: list[str] | None = None) -> int:
     if error is not None:
         sys.stderr.write(error)
         return 2
-    ref = _reference(args)
     out = Path(args.out)
     if not out.is_absolute():
         out = ROOT / out
+    why = refusal(out, OWN_FILES)
+    if why is not None:
+        sys.stderr.write(why + "\n")
+        return 2
+    ref = _reference(args)
     out.mkdir(parents=True, exist_ok=True)
     load_before = os.getloadavg()
     fingerprint = source_fingerprint()

@@ -27,6 +27,7 @@ import sys
 import time
 from pathlib import Path
 
+from bench.outfolder import refusal
 from pipeline.folders import MARKER
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -38,6 +39,7 @@ STUDIES = {
 }
 TARGETS_S = {"sizes-2": 60.0, "grid-2": 90.0}
 TARGET_SPEEDUP = 1.8
+OWN_FILES = frozenset({"sweeps.json", "work"})  # what it writes into --out
 
 
 def command(ranks: int, args: list[str], out: Path) -> list[str]:
@@ -121,6 +123,10 @@ def main(argv: list[str] | None = None) -> int:
     if unknown or args.repeats < 1:
         print(f"bench.sweeps: unknown study {unknown}" if unknown else "bench.sweeps: --repeats must be >= 1",
               file=sys.stderr)
+        return 2
+    why = refusal(args.out, OWN_FILES)
+    if why is not None:
+        print(why, file=sys.stderr)
         return 2
     args.out.mkdir(parents=True, exist_ok=True)
     work = args.out / "work"

@@ -40,3 +40,17 @@ def test_only_a_sweep_folder_is_removed_between_repeats(tmp_path):
     remove_study(user)
     assert not user.exists()
     remove_study(user)  # nothing there: nothing to do
+
+
+@pytest.mark.parametrize("module", ["bench.run", "bench.sweeps", "bench.fillet_reference"])
+def test_a_bench_tool_refuses_a_folder_it_did_not_write(tmp_path, module, capsys):
+    """--out holding a user's file: exit 2 and one line before any work, the file as it
+    was (the bench tools wrote their files into any folder before)."""
+    import importlib
+    user = tmp_path / "mine"
+    user.mkdir()
+    (user / "thesis.tex").write_text("x\n")
+    assert importlib.import_module(module).main(["--out", str(user)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "refusing" in err and "thesis.tex" in err, err
+    assert [p.name for p in user.iterdir()] == ["thesis.tex"]
