@@ -21,6 +21,7 @@ import tempfile
 from pathlib import Path
 
 from .errors import OneLineParser
+from .interrupts import EXIT_FOR, NOTHING_WRITTEN, STOPPED
 
 SCALED_TAG = "scaled from No. 05 by geometric similarity"
 _S_RE = re.compile(r"s = sqrt\(Q/1000 kg\) = ([0-9.]+)")
@@ -403,9 +404,6 @@ def _earlier_summary(md: Path) -> bool:
         return False
 
 
-STOPS = {signal.SIGINT: (130, "interrupted (Ctrl-C)"), signal.SIGTERM: (143, "terminated (SIGTERM)")}
-
-
 class _Stopped(Exception):
     """SIGTERM, raised in the main thread like Ctrl-C's KeyboardInterrupt."""
 
@@ -428,9 +426,9 @@ def main(argv: list[str] | None = None) -> int:
     try:
         return _summarise(args)
     except (KeyboardInterrupt, _Stopped) as exc:
-        code, word = STOPS[signal.SIGTERM if isinstance(exc, _Stopped) else signal.SIGINT]
-        sys.stderr.write(f"{word}: nothing written, the output folder is as it was\n")
-        return code
+        signum = signal.SIGTERM if isinstance(exc, _Stopped) else signal.SIGINT
+        sys.stderr.write(f"{STOPPED[signum]}: {NOTHING_WRITTEN}\n")
+        return EXIT_FOR[signum]
     finally:
         signal.signal(signal.SIGTERM, previous)
 
@@ -458,7 +456,7 @@ def _summarise(args: argparse.Namespace) -> int:
                  "summary.md": markdown(rows, skipped, "summary.png" if have_png else None).encode("utf-8")}
         if have_png:
             files["summary.png"] = png.read_bytes()
-    held = signal.pthread_sigmask(signal.SIG_BLOCK, set(STOPS))  # a stop waits until all is written
+    held = signal.pthread_sigmask(signal.SIG_BLOCK, set(EXIT_FOR))  # a stop waits until all is written
     try:
         out.mkdir(parents=True, exist_ok=True)
         write_text(out / MARKER, '{"tool": "crosshead", "summary": true}\n')
@@ -469,12 +467,12 @@ def _summarise(args: argparse.Namespace) -> int:
         sys.stderr.write(f"error: out: cannot write {out}: {exc.strerror or exc}\n")
         return 2
     finally:
-        came = signal.sigtimedwait(set(STOPS), 0)  # taken here, so it cannot strike after the unblocking
+        came = signal.sigtimedwait(set(EXIT_FOR), 0)  # taken here, so it cannot strike after the unblocking
         signal.pthread_sigmask(signal.SIG_SETMASK, held)
     if came is not None:
-        code, word = STOPS[signal.Signals(came.si_signo)]
-        sys.stderr.write(f"{word}: the summary was already written to {out}\n")
-        return code
+        signum = signal.Signals(came.si_signo)
+        sys.stderr.write(f"{STOPPED[signum]}: the summary was already written to {out}\n")
+        return EXIT_FOR[signum]
     print(files["summary.md"].decode("utf-8"), end="")
     print(f"written to {out}/ ({', '.join(files)})")
     return 0
