@@ -404,12 +404,10 @@ def _earlier_summary(md: Path) -> bool:
         return False
 
 
-class _Stopped(Exception):
-    """SIGTERM, raised in the main thread like Ctrl-C's KeyboardInterrupt."""
-
-
-def _terminated(signum, frame) -> None:
-    raise _Stopped
+class _Stopped(BaseException):
+    """A stop (Ctrl-C or SIGTERM), raised in the main thread. Code that swallows it (a
+    library's broad except while matplotlib loads, say) does not lose it: the signal is
+    also recorded, and nothing is written once one has come."""
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -422,18 +420,27 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--out", type=Path, help="output folder (default <results>/summary)")
     p.add_argument("--all", action="store_true", help="every sub-folder with a results.json, not only table sizes")
     args = p.parse_args(argv)
-    previous = signal.signal(signal.SIGTERM, _terminated)
+    received: list[int] = []
+
+    def stop(signum: int, frame) -> None:
+        received.append(signum)
+        raise _Stopped
+
+    previous = {s: signal.signal(s, stop) for s in EXIT_FOR}
     try:
-        return _summarise(args)
-    except (KeyboardInterrupt, _Stopped) as exc:
-        signum = signal.SIGTERM if isinstance(exc, _Stopped) else signal.SIGINT
-        sys.stderr.write(f"{STOPPED[signum]}: {NOTHING_WRITTEN}\n")
+        return _summarise(args, received)
+    except _Stopped:
+        signum = received[0]
+        sys.stderr.write(f"{STOPPED[signal.Signals(signum)]}: {NOTHING_WRITTEN}\n")
         return EXIT_FOR[signum]
     finally:
-        signal.signal(signal.SIGTERM, previous)
+        for s, handler in previous.items():
+            signal.signal(s, handler)
 
 
-def _summarise(args: argparse.Namespace) -> int:
+def _summarise(args: argparse.Namespace, received: list[int]) -> int:
+    """Check, read, make the files in memory, write them; ``received``: the stop signals
+    that have come (none may have come when the writing starts)."""
     from .atomicfile import replacing, write_text
     from .folders import MARKER
     if not args.results.is_dir():
@@ -456,6 +463,8 @@ def _summarise(args: argparse.Namespace) -> int:
                  "summary.md": markdown(rows, skipped, "summary.png" if have_png else None).encode("utf-8")}
         if have_png:
             files["summary.png"] = png.read_bytes()
+    if received:  # a stop that something above swallowed
+        raise _Stopped
     held = signal.pthread_sigmask(signal.SIG_BLOCK, set(EXIT_FOR))  # a stop waits until all is written
     try:
         out.mkdir(parents=True, exist_ok=True)

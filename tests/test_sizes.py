@@ -218,6 +218,30 @@ def test_summary_usage_errors_are_one_line(argv, capsys):
     assert exc.value.code == 2 and len(err.strip().splitlines()) == 1 and err.startswith("error: "), err
 
 
+def test_a_stop_swallowed_while_the_summary_draws_still_writes_nothing(tmp_path, monkeypatch, capsys):
+    """Ctrl-C while the plot is drawn, and the drawing code swallows the exception (as
+    matplotlib's import did, with a broad except): before, the summary went on and wrote
+    its files with exit 0; the signal is recorded, so it is exit 130, one line, no folder."""
+    import os
+    import signal
+    import time
+    from pipeline import summary
+
+    def plot_swallowing_a_stop(rows, path):
+        try:
+            os.kill(os.getpid(), signal.SIGINT)
+            time.sleep(1.0)
+        except BaseException:  # noqa: BLE001  (the point: code that swallows the stop)
+            pass
+        return False
+    monkeypatch.setattr(summary, "plot", plot_swallowing_a_stop)
+    _fake_results(tmp_path / "res" / "05", "05", 66.0, "converged")
+    assert summary.main([str(tmp_path / "res"), "--out", str(tmp_path / "sum")]) == 130
+    err = capsys.readouterr().err
+    assert err.strip().splitlines() == ["interrupted (Ctrl-C): nothing written, the output folder is as it was"]
+    assert not (tmp_path / "sum").exists()
+
+
 def test_summary_skips_a_results_json_of_the_wrong_shape(tmp_path, capsys):
     """A results.json edited or cut short (a value of the wrong type, NaN, a list where a
     table belongs): that folder is skipped with its reason, the others are summarised;
