@@ -264,3 +264,15 @@ def check(case: Case) -> Case:
             not case.name.isprintable() or len(case.name.encode("utf-8", "replace")) > 200:
         raise InputError(f"name: {case.name!r} cannot be used as a folder name")
     return case
+
+
+def check_error_bar_meshes(case: Case, levels: int, ratio: float) -> None:
+    """Raise InputError unless the coarsest mesh of the error bar (mesh factor ×
+    ratio^(levels − 1)) passes the case's checks: a run never solves a mesh it refuses."""
+    coarsest = case.mesh_factor * ratio ** (levels - 1)
+    try:
+        check(replace(case, mesh_factor=coarsest))
+    except InputError as exc:
+        raise InputError(f"levels: the coarsest error-bar mesh (mesh factor {case.mesh_factor:g} x "
+                         f"{ratio:g}^{levels - 1} = {coarsest:.3g}) is not allowed: {exc}; "
+                         "use fewer levels or a smaller ratio") from None

@@ -319,7 +319,7 @@ def _check_levels(args: argparse.Namespace, case: Case) -> None:
     coarsest error-bar mesh of a run, must pass the case's mesh checks too."""
     from dataclasses import replace
 
-    from pipeline.case import check
+    from pipeline.case import check, check_error_bar_meshes
     from pipeline.errors import InputError
     if args.levels < 1 or args.levels > 8:
         raise InputError(f"levels: must lie in 1..8, got {args.levels}")
@@ -329,15 +329,9 @@ def _check_levels(args: argparse.Namespace, case: Case) -> None:
         raise InputError("load_N: a convergence study takes one load (a run or a sweep takes several)")
     if not 1.1 <= args.ratio <= 3:
         raise InputError(f"ratio: must lie in [1.1, 3], got {args.ratio:g}")
-    coarsest = case.mesh_factor * args.ratio ** (args.levels - 1)
-    if args.command != "converge":  # the error bar's coarsest mesh must be one the case allows
-        try:
-            check(replace(case, mesh_factor=coarsest))
-        except InputError as exc:
-            raise InputError(f"levels: the coarsest error-bar mesh (mesh factor {case.mesh_factor:g} x "
-                             f"{args.ratio:g}^{args.levels - 1} = {coarsest:.3g}) is not allowed: {exc}; "
-                             "use fewer --levels or a smaller --ratio") from None
-    if args.command == "converge":  # the study's finest mesh must pass the case's mesh checks too
+    if args.command != "converge":
+        check_error_bar_meshes(case, args.levels, args.ratio)
+    else:  # the study's finest mesh must pass the case's mesh checks too
         finest = case.mesh_factor / args.ratio ** max(args.levels - 3, 0)
         try:
             check(replace(case, mesh_factor=finest))

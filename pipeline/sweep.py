@@ -29,7 +29,7 @@ from typing import Callable
 from mpi4py import MPI
 
 from .atomicfile import replacing, write_text
-from .case import Case, check, resolve
+from .case import Case, check_error_bar_meshes, resolve
 from .errors import InputError, NumericalError
 from .interrupts import on_stop, stop_outcome
 
@@ -105,13 +105,7 @@ def plan(size: str | None, case_file: Path | None, base: dict, axes: dict[str, l
     valid = [t.case for t in tasks if t.case is not None]
     if not valid:  # refused before the output folder is touched: nothing to analyse
         raise InputError(f"sweep: every variant is invalid; the first: {tasks[0].note}")
-    coarsest = valid[0].mesh_factor * ratio ** (levels - 1)
-    try:
-        check(replace(valid[0], mesh_factor=coarsest))
-    except InputError as exc:
-        raise InputError(f"levels: the coarsest error-bar mesh (mesh factor {valid[0].mesh_factor:g} x "
-                         f"{ratio:g}^{levels - 1} = {coarsest:.3g}) is not allowed: {exc}; "
-                         "use fewer levels or a smaller ratio") from None
+    check_error_bar_meshes(valid[0], levels, ratio)
     return tasks
 
 
