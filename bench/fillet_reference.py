@@ -43,7 +43,7 @@ configure()  # before numpy, PETSc or DOLFINx load (pipeline/environment.py)
 
 import numpy as np  # noqa: E402
 
-from bench.outfolder import refusal  # noqa: E402
+from pipeline.folders import refusal  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 OWN_FILES = frozenset({"points.jsonl", "reference.json"})  # what it writes into --out

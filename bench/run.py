@@ -51,6 +51,7 @@ import sys  # noqa: E402
 from pathlib import Path  # noqa: E402
 
 from pipeline.choices import SOLVERS  # noqa: E402
+from pipeline.folders import refusal  # noqa: E402
 from pipeline.jsonio import json_safe  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -66,7 +67,6 @@ P3_FACTORS = (2.0, 1.5)
 QUICK_FACTORS = (2.0, 1.5)
 
 
-from bench.outfolder import refusal  # noqa: E402
 from bench.point import point_env, spawn_point  # noqa: E402
 from bench.tables import aggregate, label, pareto_plot, summary, summary_text, table, write_csv  # noqa: E402
 

@@ -27,8 +27,7 @@ import sys
 import time
 from pathlib import Path
 
-from bench.outfolder import refusal
-from pipeline.folders import MARKER
+from pipeline.folders import MARKER, refusal
 
 ROOT = Path(__file__).resolve().parents[1]
 GRID = ["--size", "05", "--dim", "rf=0.5:2.5:6", "--dim", "dj=16,17,18,19"]

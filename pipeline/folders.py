@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
+from typing import Callable
 
 MARKER = ".crosshead-results"  # written last into every results folder: "this folder is ours"
 STAGING_MARK = ".crosshead-staging"  # written first into every staging folder
@@ -44,3 +45,23 @@ def protected_reason(out: Path, raw: str) -> str | None:
     if out.exists() and os.path.ismount(out):
         return "it is a mount point"
     return None
+
+
+def refusal(out: Path, own: frozenset[str], not_mine: Callable[[Path], str | None] | None = None) -> str | None:
+    """The one line (exit 2) that refuses ``out`` to a tool that writes the files named
+    ``own`` into it, or None: a protected folder, something that is not a folder, or a
+    folder holding any other file is refused; ``not_mine`` (the folder -> why, or None)
+    refuses one holding only those names that the tool still knows is not its own."""
+    reason = protected_reason(out.expanduser().resolve(), str(out))
+    if reason is None and out.exists():
+        if not out.is_dir():
+            reason = "it exists and is not a folder"
+        else:
+            foreign = sorted(p.name for p in out.iterdir() if p.name not in own)
+            if foreign:
+                reason = (f"it holds files this tool did not write ({', '.join(foreign[:3])}"
+                          f"{', ...' if len(foreign) > 3 else ''}); choose a new or empty folder")
+            elif not_mine is not None and foreign == [] and any(out.iterdir()):
+                reason = not_mine(out)
+    return None if reason is None else f"error: out: refusing {out}: {reason}"
+

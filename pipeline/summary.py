@@ -375,24 +375,23 @@ def refusal(out: Path) -> str | None:
     """Why the summary may not write into ``out``, or None. It writes into a new or empty
     folder, or one that holds a summary it wrote (its marker says "summary"; an earlier
     version's: nothing but its files, summary.md under its title), never into another
-    kind of results folder, a user's folder or a protected one (pipeline.outdir)."""
-    from .folders import MARKER, protected_reason
-    reason = protected_reason(out.expanduser().resolve(), str(out))
-    if reason is None and out.exists():
-        if not out.is_dir():
-            reason = "it exists and is not a folder"
-        else:
-            names = {q.name for q in out.iterdir()}
-            if MARKER in names:
-                try:
-                    mine = json.loads((out / MARKER).read_text(encoding="utf-8")).get("summary") is True
-                except (OSError, ValueError, AttributeError):
-                    mine = False
-                if not mine:
-                    reason = "it is a results folder of a run or a sweep, not a summary's"
-            elif names and not (names <= SUMMARY_FILES and _earlier_summary(out / "summary.md")):
-                reason = f"it holds files crosshead did not write (no {MARKER} marker); choose a new or empty folder"
-    return None if reason is None else f"error: out: refusing {out}: {reason}"
+    kind of results folder, a user's folder or a protected one (pipeline.folders)."""
+    from .folders import MARKER, refusal as folder_refusal
+    return folder_refusal(out, SUMMARY_FILES | {MARKER}, _not_a_summary)
+
+
+def _not_a_summary(out: Path) -> str | None:
+    """Why ``out``, holding only a summary's file names, is still not a summary's folder."""
+    from .folders import MARKER
+    if (out / MARKER).exists():
+        try:
+            mine = json.loads((out / MARKER).read_text(encoding="utf-8")).get("summary") is True
+        except (OSError, ValueError, AttributeError):
+            mine = False
+        return None if mine else "its marker is a run's or a sweep's, not a summary's"
+    if not _earlier_summary(out / "summary.md"):
+        return f"it holds files crosshead did not write (no {MARKER} marker); choose a new or empty folder"
+    return None
 
 
 def _earlier_summary(md: Path) -> bool:
