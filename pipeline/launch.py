@@ -15,7 +15,8 @@ import subprocess
 import sys
 from pathlib import Path
 
-EXIT_FOR = {signal.SIGINT: 130, signal.SIGTERM: 143}
+from pipeline.interrupts import EXIT_FOR
+
 
 
 def mpirun_command(ranks: int, args: list[str]) -> list[str]:

@@ -144,7 +144,7 @@ def remove_leftovers(out: Path) -> list[Path]:
         ours = (p.name.endswith(".partial") and ((p / STAGING_MARK).exists() or (p / MARKER).exists())) or (
             ".old-" in p.name and (p / MARKER).exists())
         if p.is_dir() and not p.is_symlink() and ours:
-            shutil.rmtree(p, ignore_errors=True)
+            _remove_marked(p, STAGING_MARK if (p / STAGING_MARK).exists() else MARKER)
             removed.append(p)
     return removed
 
