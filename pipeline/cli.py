@@ -27,7 +27,7 @@ from pipeline.environment import configure  # noqa: E402
 configure()  # before numpy, PETSc or DOLFINx load (pipeline/environment.py)
 
 from pipeline.choices import MODELS, SOLVERS, SUPPORTS, WANTS  # noqa: E402
-from pipeline.errors import OneLineParser  # noqa: E402
+from pipeline.errors import OneLineParser, given_twice  # noqa: E402
 from pipeline.interrupts import install as install_interrupts, new_command, stop_line, yield_to_stop  # noqa: E402
 
 DESCRIPTION = """\
@@ -91,7 +91,7 @@ def _loads(text: str) -> list[float]:
     values = [_positive_float(v) for v in text.split(",")]
     if not values or len(values) > 1000:
         raise argparse.ArgumentTypeError("load_N: give between 1 and 1000 loads")
-    twice = sorted({v for v in values if values.count(v) > 1})
+    twice = given_twice(values)
     if twice:
         raise argparse.ArgumentTypeError(f"load_N: {', '.join(f'{v:g}' for v in twice)} given twice")
     return values
@@ -399,14 +399,14 @@ def _sweep(args, rank0: bool) -> int:
         if unknown or not sizes:
             raise InputError(f"sizes: unknown hook number(s) {', '.join(unknown) or '(none given)'}; "
                              f"known: {', '.join(table)}")
-        twice = sorted({s for s in sizes if sizes.count(s) > 1})
+        twice = given_twice(sizes)
         if twice:
             raise InputError(f"sizes: {', '.join(twice)} given twice")
         size = size or sizes[0]
     if size is None and case_file is None:
         raise InputError("size: give --size, --case or a study file with size = ...")
     names = [k for k, _ in args.dim]
-    twice = sorted({k for k in names if names.count(k) > 1})
+    twice = given_twice(names)
     if twice:
         raise InputError(f"dim: {', '.join(twice)} given twice; give each dimension's values in one --dim")
     dims = dict(study.get("dims", {}))

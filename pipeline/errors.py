@@ -7,10 +7,15 @@ NaN, loads out of balance); nothing is written.
 """
 import argparse
 import sys
+from collections import Counter
+from collections.abc import Hashable, Iterable
+from typing import TypeVar
 
 from geometry.table import InputError  # one class for table, case file and CLI errors
 
-__all__ = ["InputError", "NumericalError", "OneLineParser"]
+__all__ = ["InputError", "NumericalError", "OneLineParser", "given_twice"]
+
+T = TypeVar("T", bound=Hashable)
 
 
 class NumericalError(RuntimeError):
@@ -23,3 +28,10 @@ class OneLineParser(argparse.ArgumentParser):
     def error(self, message: str) -> None:  # type: ignore[override]
         sys.stderr.write(f"error: {' '.join(message.split())} (see --help)\n")
         sys.exit(2)
+
+
+def given_twice(items: Iterable[T]) -> list[T]:
+    """The items that occur more than once, sorted: every list the user gives (loads, sizes,
+    dimension values, dimension names) names each value once, since a repeated one would be
+    analysed once and listed twice."""
+    return sorted(v for v, n in Counter(items).items() if n > 1)

@@ -30,7 +30,7 @@ from mpi4py import MPI
 
 from .atomicfile import replacing, write_text
 from .case import Case, check_error_bar_meshes, resolve
-from .errors import InputError, NumericalError
+from .errors import InputError, NumericalError, given_twice
 from .interrupts import on_stop, stop_outcome
 
 Progress = Callable[[str], None]
@@ -63,8 +63,8 @@ def parse_values(text: str, name: str) -> list[float]:
         raise InputError(f"{name}: {text!r}: give START:STOP:COUNT or a list v1,v2,...") from None
     if not values or not all(math.isfinite(v) for v in values):
         raise InputError(f"{name}: {text!r}: every value must be a finite number")
-    twice = sorted({v for v in values if values.count(v) > 1})
-    if twice:  # the same variant twice would be analysed once and listed twice
+    twice = given_twice(values)
+    if twice:
         raise InputError(f"{name}: {text!r}: {', '.join(f'{v:g}' for v in twice)} given twice")
     return values
 
