@@ -5,9 +5,6 @@ Both write into a staging folder that replaces the output folder only when compl
 from __future__ import annotations
 
 import contextlib
-import os
-import subprocess
-import sys
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -18,12 +15,13 @@ from .case import Case
 from .meshing import Mesher
 from .interrupts import on_stop
 from .outdir import staged_dir
-from .fields import write_json
+from .jsonio import write_json
 from .fields import write_fields as write_field_files
 from .report import write_report
 from .level import Level, Progress
 from .analysis import analyse
-from .results import build_results, sum_timings
+from .results import build_results, load_sweep, sum_timings
+from .drawing import Picture, finish_picture, start_picture
 from .features import describe_location
 from .pilot import Pilot, refinement_places
 
@@ -55,7 +53,7 @@ def execute_run(case: Case, out_dir: Path, levels: int = 3, ratio: float = 1.3,
         res = _run_results(case, lv, pl, comm, loads, write_fields, requested.files, requested.t_output)
         requested.finish(res)
         res["timings_s"]["total"] = time.perf_counter() - t_all
-        write_json(stage / "results.json", res, comm)
+        write_json(stage / "results.json", res, comm.rank)
         if write_fields and comm.rank == 0:
             write_report(stage)
         say(f"output: {', '.join(requested.files.values())} ({res['timings_s']['output']:.2f} s"
@@ -91,7 +89,7 @@ class _RequestedOutput:
                                             whole_part=self.case.model == "quarter" and not self.quarter_fields))
         # The picture process reads results.json: the requested mesh's peaks for now,
         # the full results (same peaks) replace it below.
-        write_json(self.stage / "results.json", build_results(self.case, [fine], {}, self.comm, pl), self.comm)
+        write_json(self.stage / "results.json", build_results(self.case, [fine], {}, self.comm, pl), self.comm.rank)
         self.t_output = time.perf_counter() - t0
         if self.comm.rank == 0:
             self.picture = start_picture(self.stage)
@@ -110,7 +108,7 @@ class _RequestedOutput:
         ``res``."""
         if self.picture is None:
             return
-        write_json(self.stage / "results.json", res, self.comm)
+        write_json(self.stage / "results.json", res, self.comm.rank)
         res["timings_s"]["picture"] = finish_picture(self.picture, self.stage)
         for key, name in (("sections_plot", "sections.png"), ("peaks_plot", "peaks.png")):
             if (self.stage / name).exists():  # drawn by the plots process
@@ -133,67 +131,6 @@ def _run_results(case: Case, lv: list[Level], pl: Pilot, comm: MPI.Comm, loads: 
     res["files"] = files
     res["timings_s"]["output"] = t_output
     return res
-
-
-def load_sweep(res: dict, case: Case, loads: list[float]) -> list[dict]:
-    """Peaks, formula stresses and safety factors (MPa) at each load (N), scaled linearly."""
-    fe, an = res["fe"], res["analytic"]
-    rows = []
-    for q in loads:
-        k = q / case.load_N
-        row = {"load_N": q, "peak_MPa": k * fe["peak_MPa"], "critical_peak_MPa": k * fe["critical_peak_MPa"],
-               "approximate_MPa": k * an["approximate_MPa"], "exact_MPa": k * an["exact_MPa"]}
-        for key, name in (("peak", "peak_band_MPa"), ("critical", "critical_band_MPa")):
-            band = (fe[key].get("error_estimate") or {}).get("band")
-            row[name] = None if band is None else k * band
-        for key, peak in (("safety_factor", "peak_MPa"), ("critical_safety_factor", "critical_peak_MPa")):
-            row[key] = None if fe[key] is None else case.allowable_MPa / row[peak]
-        rows.append(row)
-    return rows
-
-
-@dataclass
-class Picture:
-    """The drawing processes started by :func:`start_picture` (the picture, the plots), and
-    when (perf_counter, s)."""
-
-    procs: list[subprocess.Popen]
-    started: float
-
-    def kill(self) -> None:
-        """Stop every drawing process (a failed or stopped run draws nothing)."""
-        for proc in self.procs:
-            proc.kill()
-
-
-def start_picture(folder: Path) -> Picture:
-    """Start pipeline.picture (VTK: it cannot share a process with DOLFINx) and
-    pipeline.plots (matplotlib) in two processes of their own: side by side they finish
-    sooner than one after the other once the ranks' solves leave the cores free."""
-    procs = [subprocess.Popen([sys.executable, "-m", module, str(folder)],
-                              stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
-                              cwd=Path(__file__).resolve().parents[1])
-             for module in ("pipeline.picture", "pipeline.plots")]
-    # mpirun binds each rank to one core, and a child inherits its parent's binding: the
-    # drawing then shared rank 0's core while rank 1's core idled once its mesh was
-    # solved. Let them run on any core.
-    for proc in procs:
-        with contextlib.suppress(AttributeError, OSError):  # no affinity outside Linux
-            os.sched_setaffinity(proc.pid, range(os.cpu_count() or 1))
-    return Picture(procs=procs, started=time.perf_counter())
-
-
-def finish_picture(pic: Picture, folder: Path) -> float:
-    """Wait for the drawing processes; their wall time (s) from start. Raises if one failed
-    or no picture was made."""
-    for proc in pic.procs:
-        _, err = proc.communicate()
-        if proc.returncode != 0:
-            tail = (err.strip().splitlines() or ["no message"])[-1]
-            raise RuntimeError(f"drawing failed ({proc.args[2]}): {tail}")
-    if not (folder / "von_mises.png").exists():
-        raise RuntimeError("picture rendering failed: no von_mises.png")
-    return time.perf_counter() - pic.started
 
 
 def execute_converge(case: Case, out_dir: Path, levels: int = 5, ratio: float = 1.3,
@@ -235,7 +172,7 @@ def execute_converge(case: Case, out_dir: Path, levels: int = 5, ratio: float = 
         res["files"] = {"results": "results.json", "report": "report.md", "report_html": "report.html",
                         "mesh": "mesh.msh", **({"convergence_plot": conv["plot"]} if "plot" in conv else {})}
         res["timings_s"]["total"] = time.perf_counter() - t_all
-        write_json(stage / "results.json", res, comm)
+        write_json(stage / "results.json", res, comm.rank)
         if comm.rank == 0:
             write_report(stage)
     return res

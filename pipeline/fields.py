@@ -1,23 +1,12 @@
-"""Writing a run's files: results.json and the ParaView fields (into the staging folder
-that pipeline.outdir puts in place when the run is complete)."""
+"""The ParaView fields of a run (into the staging folder that pipeline.outdir puts in place
+when the run is complete)."""
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
-from mpi4py import MPI
 
-from .atomicfile import write_text
-from .jsonio import json_safe
 from .mirror import mirror_quarter
 from .vtu import write_vtu
-
-
-def write_json(path: Path, data: dict, comm=MPI.COMM_WORLD) -> None:
-    """Write results as indented strict JSON (rank 0), whole or not at all: a reader (the
-    picture process) never sees half a file."""
-    if comm.rank == 0:
-        write_text(path, json.dumps(json_safe(data), indent=2, allow_nan=False) + "\n")
 
 
 def write_fields(folder: Path, u, vm, whole_part: bool = False) -> dict[str, str]:

@@ -211,3 +211,20 @@ def sum_timings(levels: list[Level], pl: Pilot | None = None) -> dict[str, float
         out["pilot"] = pl.time_s
     out["error_bar_meshes"] = sum(sum(lv.timings.values()) for lv in levels[1:])
     return out
+
+
+def load_sweep(res: dict, case: Case, loads: list[float]) -> list[dict]:
+    """Peaks, formula stresses and safety factors (MPa) at each load (N), scaled linearly."""
+    fe, an = res["fe"], res["analytic"]
+    rows = []
+    for q in loads:
+        k = q / case.load_N
+        row = {"load_N": q, "peak_MPa": k * fe["peak_MPa"], "critical_peak_MPa": k * fe["critical_peak_MPa"],
+               "approximate_MPa": k * an["approximate_MPa"], "exact_MPa": k * an["exact_MPa"]}
+        for key, name in (("peak", "peak_band_MPa"), ("critical", "critical_band_MPa")):
+            band = (fe[key].get("error_estimate") or {}).get("band")
+            row[name] = None if band is None else k * band
+        for key, peak in (("safety_factor", "peak_MPa"), ("critical_safety_factor", "critical_peak_MPa")):
+            row[key] = None if fe[key] is None else case.allowable_MPa / row[peak]
+        rows.append(row)
+    return rows
