@@ -187,27 +187,36 @@ def _krylov(system: _System, mat: Material, facet_tags, constraints: Sequence[Co
     prefix = f"crosshead_{ksp.handle}_"  # unique while this KSP lives (its options are removed after set-up)
     ksp.setOptionsPrefix(prefix)
     opts = PETSc.Options()
-    for k, val in solver_options(solver, rtol).items():
-        opts[prefix + k] = val
-    ksp.setOperators(A)
-    mg_parts = p_multigrid(ksp, V, mat, facet_tags, constraints, system.dx_split) if solver == "pmg" else ()
-    ksp.setFromOptions()
-    # PCSetUp reads the multigrid levels' options (mg_levels_*): set up before deleting them.
-    ksp.setUp()
-    for k in solver_options(solver, rtol):
-        del opts[prefix + k]
-    uh = fem.Function(V, name="displacement_mm")
-    ksp.solve(b, uh.vector)
-    uh.x.scatter_forward()
-    reason, its = ksp.getConvergedReason(), ksp.getIterationNumber()
-    r = b.duplicate()
-    A.mult(uh.vector, r)
-    r.axpy(-1.0, b)
-    bnorm = b.norm()
-    res_rel = r.norm() / bnorm if bnorm > 0 else r.norm()
-    ksp.destroy()
-    for obj in mg_parts:
-        obj.destroy()
+    options = solver_options(solver, rtol)
+    mg_parts: tuple = ()
+    try:
+        try:
+            for k, val in options.items():
+                opts[prefix + k] = val
+            ksp.setOperators(A)
+            mg_parts = p_multigrid(ksp, V, mat, facet_tags, constraints, system.dx_split) if solver == "pmg" else ()
+            ksp.setFromOptions()
+            # PCSetUp reads the multigrid levels' options (mg_levels_*): set up before deleting them.
+            ksp.setUp()
+        finally:
+            # The options database is the process's: a failed set-up must not leave them
+            # to the next solve (a sweep goes on after a failed variant).
+            for k in options:
+                del opts[prefix + k]
+        uh = fem.Function(V, name="displacement_mm")
+        ksp.solve(b, uh.vector)
+        uh.x.scatter_forward()
+        reason, its = ksp.getConvergedReason(), ksp.getIterationNumber()
+        r = b.duplicate()
+        A.mult(uh.vector, r)
+        r.axpy(-1.0, b)
+        bnorm = b.norm()
+        res_rel = r.norm() / bnorm if bnorm > 0 else r.norm()
+        r.destroy()
+    finally:
+        ksp.destroy()
+        for obj in mg_parts:
+            obj.destroy()
     return uh, reason, its, res_rel
 
 
