@@ -382,7 +382,8 @@ def _sweep(args, rank0: bool) -> int:
     """The sweep command: a grid from --dim/--load (or a study file), then pipeline.sweep."""
     from pipeline.errors import InputError
     from pipeline.outdir import default_out
-    from pipeline.sweep import execute_sweep, parse_values, read_study
+    from pipeline.study import parse_values, read_study
+    from pipeline.sweep import execute_sweep
     study = read_study(args.study) if args.study else {}
     size = args.size or study.get("size")
     case_file = args.case or (Path(study["case"]) if "case" in study else None)

@@ -12,7 +12,8 @@ from pathlib import Path
 import pytest
 
 from pipeline.errors import InputError
-from pipeline.sweep import COLUMNS, crossings, parse_values, read_study
+from pipeline.study import parse_values, read_study
+from pipeline.sweepresults import COLUMNS, crossings
 
 ROOT = Path(__file__).resolve().parents[1]
 GRID = ["--size", "05", "--dim", "rf=1.0,1.5,2.5", "--mesh-factor", "3", "--levels", "1"]

@@ -1,0 +1,126 @@
+"""A design study's inputs (mm, N): the axes of the grid (``START:STOP:COUNT`` or lists),
+study files (TOML, one ``[sweep]`` table), and the plan: one task per geometry and
+material, each at every load, keyed by a hash of all its resolved inputs so that a
+re-run recognises a finished task and re-runs one whose inputs changed. Invalid variants
+(rules of docs/design.md §2) are planned with the rule they break, never analysed.
+"""
+from __future__ import annotations
+
+import hashlib
+import itertools
+import json
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+from .case import Case, check_error_bar_meshes, resolve
+from .errors import InputError, given_twice
+
+# A study file's [sweep] keys and their TOML types.
+TOML_NAMES = {str: "a string", int: "an integer", float: "a number", dict: "a table"}
+STUDY_KEYS = {"size": (str,), "case": (str,), "dims": (dict,), "load": (str, int, float), "levels": (int,),
+              "ratio": (int, float), "mesh_factor": (int, float), "out": (str,)}
+
+
+def parse_values(text: str, name: str) -> list[float]:
+    """A sweep axis: ``START:STOP:COUNT`` (COUNT values, both ends included) or ``a,b,c``."""
+    parts = text.split(":")
+    if len(parts) == 1 and any(not v.strip() for v in text.split(",")):
+        raise InputError(f"{name}: {text!r} has an empty item")
+    try:
+        if len(parts) == 3:
+            a, b, n = float(parts[0]), float(parts[1]), int(parts[2])
+            if not 2 <= n <= 200:
+                raise InputError(f"{name}: a range needs 2..200 values, got {n}")
+            values = [a + (b - a) * k / (n - 1) for k in range(n)]
+        elif len(parts) == 1:
+            values = [float(v) for v in text.split(",")]
+        else:
+            raise ValueError
+    except ValueError:
+        raise InputError(f"{name}: {text!r}: give START:STOP:COUNT or a list v1,v2,...") from None
+    if not values or not all(math.isfinite(v) for v in values):
+        raise InputError(f"{name}: {text!r}: every value must be a finite number")
+    twice = given_twice(values)
+    if twice:
+        raise InputError(f"{name}: {text!r}: {', '.join(f'{v:g}' for v in twice)} given twice")
+    return values
+
+
+@dataclass(frozen=True)
+class Task:
+    """One geometry and material of the grid, with every load it is asked at."""
+
+    key: str
+    params: dict  # the swept non-load parameters, name -> value
+    case: Case | None  # None: invalid (see note)
+    loads: tuple[float, ...]
+    note: str = ""
+
+
+def plan(size: str | None, case_file: Path | None, base: dict, axes: dict[str, list[float]],
+         loads: list[float], levels: int, ratio: float, sizes: list[str] | None = None) -> list[Task]:
+    """The grid's tasks: the product of ``axes`` (``dims.<name>`` or case fields, values),
+    each at every load of ``loads`` (or the case's own load); with ``sizes``, that grid for
+    every hook number (each at its own rated load unless loads are given)."""
+    names = list(axes)
+    tasks = []
+    for hook, combo in itertools.product(sizes or [size], itertools.product(*(axes[n] for n in names))):
+        params = dict(zip(names, combo), **({"size": hook} if sizes else {}))
+        over = dict(base, **{k: v for k, v in params.items() if k != "size"})
+        try:
+            case = resolve(hook, case_file, over)
+            qs = tuple(loads) or (case.load_N,)
+            for q in qs:
+                resolve(hook, case_file, dict(over, load_N=q))
+            note = ""
+        except InputError as exc:
+            case, qs, note = None, tuple(loads), " ".join(str(exc).split())
+        ident = {"case": None if case is None else case.as_dict(), "loads": qs, "levels": levels,
+                 "ratio": ratio, "params": params}
+        key = hashlib.sha1(json.dumps(ident, sort_keys=True, default=str).encode()).hexdigest()[:12]
+        tasks.append(Task(key=key, params=params, case=case, loads=qs, note=note))
+    valid = [t.case for t in tasks if t.case is not None]
+    if not valid:  # refused before the output folder is touched: nothing to analyse
+        raise InputError(f"sweep: every variant is invalid; the first: {tasks[0].note}")
+    check_error_bar_meshes(valid[0], levels, ratio)
+    return tasks
+
+
+def read_study(path: Path) -> dict:
+    """A study file (TOML, e.g. cases/sweep-rf.toml): its [sweep] table with ``size`` or
+    ``case``, ``dims`` (NAME = "START:STOP:COUNT" or "a,b,c"), ``load``, ``levels``,
+    ``ratio``, ``mesh_factor``, ``out``."""
+    import tomllib
+
+    from geometry.table import Dimensions
+    try:
+        data = tomllib.loads(Path(path).read_text(encoding="utf-8").removeprefix("\ufeff"))
+    except (OSError, UnicodeDecodeError, ValueError) as exc:
+        raise InputError(f"study: cannot read {path}: {exc}") from None
+    s = data.get("sweep")
+    if not isinstance(s, dict) or set(data) != {"sweep"}:
+        extra = ", ".join(sorted(set(data) - {"sweep"}))
+        raise InputError(f"study: {path} holds one [sweep] table and nothing else"
+                         + (f" (found {extra}; material and mesh options go in a case file, case = ...)"
+                            if extra else ""))
+    for key, value in s.items():
+        types = STUDY_KEYS.get(key)
+        if types is None:
+            raise InputError(f"sweep.{key}: unknown key in {path}; known: {', '.join(STUDY_KEYS)}")
+        if isinstance(value, bool) or not isinstance(value, types):
+            raise InputError(f"sweep.{key}: expected {' or '.join(TOML_NAMES[t] for t in types)} in {path}, "
+                             f"got {value!r}")
+    names = list(Dimensions.__dataclass_fields__)
+    dims = {}
+    for name, values in s.get("dims", {}).items():
+        if name not in names:
+            raise InputError(f"sweep.dims.{name}: unknown dimension in {path}; known: {', '.join(names)}")
+        if isinstance(values, list) and values and all(
+                isinstance(v, (int, float)) and not isinstance(v, bool) for v in values):
+            values = ",".join(repr(v) for v in values)  # a TOML array of numbers is a list
+        if isinstance(values, bool) or not isinstance(values, (str, int, float)):
+            raise InputError(f"sweep.dims.{name}: expected \"START:STOP:COUNT\", \"v1,v2,...\", an array of "
+                             f"numbers or a number in {path}, got {values!r}")
+        dims[name] = values
+    return dict(s, **({"dims": dims} if "dims" in s else {}))

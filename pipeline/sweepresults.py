@@ -1,0 +1,160 @@
+"""A design study's results (mm, N, MPa), built only from the files its variants wrote:
+one row per variant and load (sweep.csv, sweep.json), where each peak crosses the
+allowable along each swept parameter, one plot per peak and parameter, and report.md.
+"""
+from __future__ import annotations
+
+import csv
+import json
+from pathlib import Path
+
+from .atomicfile import replacing, write_text
+from .study import Task
+
+PEAKS = (("peak_MPa", "peak_band_MPa", "global peak"), ("critical_peak_MPa", "critical_band_MPa", "critical peak"))
+COLUMNS = ("variant", "status", "size", "load_N", "parameters", "peak_MPa", "peak_band_MPa", "critical_peak_MPa",
+           "critical_band_MPa", "critical_section_nominal_MPa", "safety_factor", "critical_safety_factor",
+           "time_s", "note")
+
+
+def rows_of(tasks: list[Task], out: Path) -> list[dict]:
+    """One row per variant and load: inputs, peaks with bands, safety factors, status."""
+    rows = []
+    for t in tasks:
+        base = {"variant": t.key, "parameters": json.dumps(t.params, sort_keys=True),
+                **{k: v for k, v in t.params.items()},
+                "size": t.params.get("size") or (None if t.case is None else t.case.size)}
+        if t.case is None:
+            rows += [dict(base, status="invalid", load_N=q, note=t.note) for q in (t.loads or (None,))]
+            continue
+        failed = out / "variants" / f"{t.key}.failed.json"
+        res_path = out / "variants" / t.key / "results.json"
+        if failed.is_file():
+            note = json.loads(failed.read_text())["error"]
+            rows += [dict(base, status="failed", load_N=q, note=note) for q in t.loads]
+            continue
+        if not res_path.is_file():
+            rows += [dict(base, status="not run", load_N=q) for q in t.loads]
+            continue
+        res = json.loads(res_path.read_text())
+        fe = res["fe"]
+        nominal = ((fe.get("sections") or {}).get("critical_section") or {}).get("nominal_MPa")
+        per_load = res.get("load_sweep") or [{
+            "load_N": res["case"]["load_N"], "peak_MPa": fe["peak_MPa"], "critical_peak_MPa": fe["critical_peak_MPa"],
+            "peak_band_MPa": (fe["peak"].get("error_estimate") or {}).get("band"),
+            "critical_band_MPa": (fe["critical"].get("error_estimate") or {}).get("band"),
+            "safety_factor": fe["safety_factor"], "critical_safety_factor": fe["critical_safety_factor"]}]
+        q0 = res["case"]["load_N"]
+        for r in per_load:
+            rows.append(dict(base, status="done", time_s=res["timings_s"]["total"],
+                             critical_section_nominal_MPa=None if nominal is None else nominal * r["load_N"] / q0,
+                             **{k: r.get(k) for k in ("load_N", "peak_MPa", "peak_band_MPa", "critical_peak_MPa",
+                                                      "critical_band_MPa", "safety_factor", "critical_safety_factor")}))
+    return rows
+
+
+def crossings(rows: list[dict], axis: str, allowable: float) -> list[dict]:
+    """Where each peak crosses the allowable along ``axis`` (the other parameters fixed):
+    linear interpolation between neighbouring variants; the range from the peaks' bands
+    (value ± band crossing the allowable) when both neighbours have one."""
+    found = []
+    others = [k for k in rows[0] if k not in COLUMNS and k != axis] if rows else []
+    done = [r for r in rows if r["status"] == "done"]
+    groups: dict = {}
+    for r in done:
+        groups.setdefault(tuple((k, r.get(k)) for k in others + (["load_N"] if axis != "load_N" else [])), []).append(r)
+    for fixed, group in groups.items():
+        group = sorted(group, key=lambda r: r[axis])
+        for key, band_key, label in PEAKS:
+            for a, b in zip(group, group[1:]):
+                ya, yb = a[key] - allowable, b[key] - allowable
+                if ya == 0 or ya * yb < 0:
+                    def at(da: float, db: float) -> float | None:
+                        y1, y2 = a[key] + da - allowable, b[key] + db - allowable
+                        return None if y1 == y2 else a[axis] + (0 - y1) * (b[axis] - a[axis]) / (y2 - y1)
+                    x = at(0, 0)
+                    lo_hi = None
+                    if a.get(band_key) is not None and b.get(band_key) is not None:
+                        ends = [v for v in (at(a[band_key], b[band_key]), at(-a[band_key], -b[band_key])) if v is not None]
+                        lo_hi = [min(ends), max(ends)] if len(ends) == 2 else None
+                    found.append({"peak": label, "axis": axis, "at": x, "range": lo_hi,
+                                  "falls_below": yb < ya, "fixed": dict(fixed)})
+    return found
+
+
+def write_outputs(tasks: list[Task], out: Path, axes: dict[str, list[float]], allowable: float) -> dict:
+    """sweep.csv, sweep.json, plots and report.md from the variants' results (rank 0)."""
+    rows = rows_of(tasks, out)
+    names = [n for n in axes]
+    cols = list(COLUMNS) + [n for n in names if n not in COLUMNS]
+    with replacing(out / "sweep.csv", "w", newline="", encoding="utf-8") as f:
+        w = csv.DictWriter(f, fieldnames=cols, extrasaction="ignore")
+        w.writeheader()
+        w.writerows(rows)
+    swept = [n for n in names if len(axes[n]) > 1 and n != "size"]  # numeric axes only
+    cross = [c for n in swept for c in crossings(rows, n, allowable)]
+    summary = {"units": {"length": "mm", "force": "N", "stress": "MPa"}, "allowable_MPa": allowable,
+               "axes": axes, "rows": rows, "crossings": cross,
+               "counts": {s: sum(r["status"] == s for r in rows) for s in ("done", "invalid", "failed", "not run")}}
+    write_text(out / "sweep.json", json.dumps(summary, indent=2, default=str) + "\n")
+    plots = [p for n in swept for p in _plots(rows, n, allowable, out)]
+    write_text(out / "report.md", _report(summary, swept, plots))
+    return summary
+
+
+def _plots(rows: list[dict], axis: str, allowable: float, out: Path) -> list[str]:
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    done = [r for r in rows if r["status"] == "done"]
+    if not done:
+        return []
+    names = []
+    for key, band_key, label in PEAKS:
+        fig, ax = plt.subplots(figsize=(6.5, 4))
+        groups: dict = {}
+        for r in done:
+            groups.setdefault(r["parameters"] if axis == "load_N" else (r["parameters"], r["load_N"]), []).append(r)
+        for g in groups.values():
+            g = sorted(g, key=lambda r: r[axis])
+            ax.errorbar([r[axis] for r in g], [r[key] for r in g], yerr=[r.get(band_key) or 0 for r in g],
+                        marker="o", capsize=3, lw=1)
+        ax.axhline(allowable, color="red", ls="--", label=f"allowable {allowable:g} MPa")
+        ax.set_xlabel(axis.replace("dims.", "") + (" (N)" if axis == "load_N" else " (mm)"))
+        ax.set_ylabel(f"{label} von Mises (MPa)")
+        ax.legend(fontsize=8)
+        fig.tight_layout()
+        name = f"{key.replace('_MPa', '')}_vs_{axis.replace('dims.', '')}.png"
+        fig.savefig(out / name, dpi=100)
+        plt.close(fig)
+        names.append(name)
+    return names
+
+
+def _report(summary: dict, swept: list[str], plots: list[str]) -> str:
+    c = summary["counts"]
+    L = ["# Design study\n", "Units: mm, N, MPa.\n",
+         f"{c['done']} variants analysed, {c['invalid']} invalid (skipped), {c['failed']} failed, "
+         f"{c['not run']} not run. Allowable {summary['allowable_MPa']:g} MPa.\n", "## Crossing the allowable\n"]
+    if not summary["crossings"]:
+        L.append("No peak crosses the allowable inside the swept ranges.\n")
+    for x in summary["crossings"]:
+        fixed = ", ".join(f"{k.replace('dims.', '')} = {v:g}" for k, v in x["fixed"].items() if v is not None)
+        rng = f" (between {x['range'][0]:.4g} and {x['range'][1]:.4g} within the error bars)" if x["range"] else ""
+        word = "falls below" if x["falls_below"] else "rises above"
+        L.append(f"- The {x['peak']} {word} {summary['allowable_MPa']:g} MPa at {x['axis'].replace('dims.', '')} "
+                 f"≈ {x['at']:.4g}{rng}" + (f" ({fixed})" if fixed else "") + ".")
+    L.append("")
+    L.append("## Variants\n")
+    L.append("| variant | status | parameters | load (N) | global peak (MPa) | critical peak (MPa) | note |")
+    L.append("|---|---|---|---|---|---|---|")
+    for r in summary["rows"]:
+        def f(v, band=None):
+            return "" if v is None else f"{v:.2f}" + (f" ± {band:.2f}" if band else "")
+        L.append(f"| {r['variant']} | {r['status']} | {r['parameters']} | {r.get('load_N') or ''} | "
+                 f"{f(r.get('peak_MPa'), r.get('peak_band_MPa'))} | {f(r.get('critical_peak_MPa'), r.get('critical_band_MPa'))} | "
+                 f"{r.get('note') or ''} |")
+    L.append("")
+    for p in plots:
+        L.append(f"![{p}]({p})\n")
+    return "\n".join(L) + "\n"
