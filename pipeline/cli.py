@@ -176,7 +176,7 @@ def make_parser() -> argparse.ArgumentParser:
     run.add_argument("--ratio", type=_positive_float, default=1.3, help="mesh-size ratio between those meshes (default 1.3)")
     run.add_argument("--no-fields", action="store_true", help="skip ParaView files, picture and report (benchmarks)")
     run.add_argument("--quarter-fields", action="store_true",
-                     help="picture and von_mises.vtu of the quarter model only (default: mirrored to the whole part)")
+                     help="picture and both .vtu files of the quarter model only (default: mirrored to the whole part)")
     conv = sub.add_parser("converge", help="mesh convergence study: >= 4 meshes, extrapolation, GCI, plot",
                           description=DESCRIPTION, epilog=EPILOG,
                           formatter_class=argparse.RawDescriptionHelpFormatter)

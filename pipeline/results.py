@@ -25,11 +25,11 @@ DEFINITION = {
 }
 ERROR_BAR_METHOD = {
     MIDPOINT: "the larger of the trend of the values over the requested mesh and the coarser ones "
-              "(Richardson/GCI, docs/design.md §6; with four or more meshes, as in make converge, a "
+              "(Richardson/GCI, docs/design.md §5; with four or more meshes, as in make converge, a "
               "least-squares fit of both readings to one common limit) and half the gap between the "
               "unaveraged and averaged readings on the requested mesh",
     UNAVERAGED: "the trend of the values over the requested mesh and the coarser ones "
-                "(Richardson/GCI, docs/design.md §6)",
+                "(Richardson/GCI, docs/design.md §5)",
 }
 
 
