@@ -36,7 +36,7 @@ def estimate_levels(levels: list[Level], case: Case, attr: str) -> Estimate:
 
 
 def analyse(case: Case, levels: int = 3, ratio: float = 1.3, msh_path: Path | None = None,
-            progress: Progress | None = None, comm=MPI.COMM_WORLD,
+            progress: Progress | None = None, comm: MPI.Comm = MPI.COMM_WORLD,
             pl: Pilot | None = None,
             on_requested: Callable[[Level, Pilot], None] | None = None,
             mesher: Mesher | None = None) -> tuple[list[Level], Pilot]:

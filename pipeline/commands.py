@@ -28,7 +28,7 @@ from .pilot import Pilot, refinement_places
 
 def execute_run(case: Case, out_dir: Path, levels: int = 3, ratio: float = 1.3,
                 progress: Progress | None = None, write_fields: bool = True,
-                loads: list[float] | None = None, comm=MPI.COMM_WORLD, quarter_fields: bool = False) -> dict:
+                loads: list[float] | None = None, comm: MPI.Comm = MPI.COMM_WORLD, quarter_fields: bool = False) -> dict:
     """Analyse ``case`` and write results.json, report.md, mesh.msh, VTK fields and a PNG.
 
     ``loads`` (N): a load sweep. The case is solved once at case.load_N; since the model is
@@ -134,7 +134,7 @@ def _run_results(case: Case, lv: list[Level], pl: Pilot, comm: MPI.Comm, loads: 
 
 
 def execute_converge(case: Case, out_dir: Path, levels: int = 5, ratio: float = 1.3,
-                     progress: Progress | None = None, comm=MPI.COMM_WORLD) -> dict:
+                     progress: Progress | None = None, comm: MPI.Comm = MPI.COMM_WORLD) -> dict:
     """Solve on ``levels`` meshes refined by ``ratio`` from the case's mesh, finest first.
 
     Writes results.json (with a ``convergence`` block), report.md and convergence.png.

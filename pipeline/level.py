@@ -82,7 +82,7 @@ class Problem:
     loads_s: float
 
 
-def set_up(case: Case, factor: float, msh_path: Path | None = None, comm=MPI.COMM_WORLD,
+def set_up(case: Case, factor: float, msh_path: Path | None = None, comm: MPI.Comm = MPI.COMM_WORLD,
            hotspots: Hotspots = (), load_mesh: Callable[[], ImportedMesh] | None = None,
            mesher: Mesher | None = None) -> Problem:
     """The case's mesh at ``factor`` (made, or ``load_mesh()`` if given), its material and its
@@ -129,7 +129,7 @@ def solve_or_scale(case: Case, prob: Problem, reuse: bool = True) -> Solution:
 
 
 def solve_level(case: Case, factor: float, msh_path: Path | None = None,
-                keep_fields: bool = False, with_sections: bool = False, comm=MPI.COMM_WORLD,
+                keep_fields: bool = False, with_sections: bool = False, comm: MPI.Comm = MPI.COMM_WORLD,
                 progress: Progress | None = None, hotspots: Hotspots = (),
                 load_mesh: Callable[[], ImportedMesh] | None = None,
                 mesher: Mesher | None = None, problem: Problem | None = None, reuse: bool = True) -> Level:

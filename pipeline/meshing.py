@@ -255,7 +255,7 @@ def generate(d: Dimensions, model: str, spec: MeshSpec, msh_path: Path | None = 
         return m.generate(spec, msh_path)
 
 
-def distribute(part: MeshedPart | None, owner: int, model: str, comm=MPI.COMM_WORLD) -> ImportedMesh:
+def distribute(part: MeshedPart | None, owner: int, model: str, comm: MPI.Comm = MPI.COMM_WORLD) -> ImportedMesh:
     """The DOLFINx mesh of ``part`` (held by rank ``owner``), shared over comm. Collective.
 
     What dolfinx.io.gmshio.model_to_mesh does from a live gmsh model, here from arrays.
@@ -297,7 +297,7 @@ def distribute(part: MeshedPart | None, owner: int, model: str, comm=MPI.COMM_WO
                         jacobian_ratio=quality, timings=timings)
 
 
-def make_mesh(d: Dimensions, model: str, spec: MeshSpec, comm=MPI.COMM_WORLD,
+def make_mesh(d: Dimensions, model: str, spec: MeshSpec, comm: MPI.Comm = MPI.COMM_WORLD,
               msh_path: Path | None = None, mesher: Mesher | None = None) -> ImportedMesh:
     """Geometry → gmsh mesh (on rank 0) → DOLFINx mesh. Times each of the three stages (s).
 
@@ -316,7 +316,7 @@ def owners(costs: Sequence[float], ranks: int) -> list[int]:
     return out
 
 
-def make_meshes(d: Dimensions, model: str, specs: Sequence[MeshSpec], comm=MPI.COMM_WORLD,
+def make_meshes(d: Dimensions, model: str, specs: Sequence[MeshSpec], comm: MPI.Comm = MPI.COMM_WORLD,
                 msh_paths: Sequence[Path | None] | None = None,
                 solve_on: Sequence[int | None] | None = None,
                 mesher: Mesher | None = None) -> list[Callable[[], ImportedMesh] | None]:

@@ -247,7 +247,7 @@ def _publish(staging: Path, out: Path) -> None:
 
 
 @contextlib.contextmanager
-def staged_dir(out_dir: str | os.PathLike, comm=MPI.COMM_WORLD,
+def staged_dir(out_dir: str | os.PathLike, comm: MPI.Comm = MPI.COMM_WORLD,
                notice=lambda s: None) -> Iterator[Path]:
     """Yield a fresh staging folder; on success it replaces ``out_dir``, on any error or
     interrupt it is removed and ``out_dir`` stays as it was.

@@ -63,7 +63,7 @@ class Pilot:
     bridging: int = 0  # of the hotspots, how many were added between the found ones (bridged)
 
 
-def refinement_places(case: Case, comm=MPI.COMM_WORLD, progress: Progress | None = None,
+def refinement_places(case: Case, comm: MPI.Comm = MPI.COMM_WORLD, progress: Progress | None = None,
                       mesher: Mesher | None = None) -> Pilot:
     """The places a run refines: for the critical peak alone (``want`` critical) the two
     bore edges in the plane x = 0, known from the dimensions; otherwise the pilot's.
@@ -97,7 +97,7 @@ def inside_refinement(place_mm: Sequence[float], pl: Pilot, radius_mm: float) ->
     return any(math.dist((abs(x), abs(y), z), q) <= radius_mm for q in pl.hotspots)
 
 
-def pilot(case: Case, comm=MPI.COMM_WORLD, progress: Progress | None = None,
+def pilot(case: Case, comm: MPI.Comm = MPI.COMM_WORLD, progress: Progress | None = None,
           mesher: Mesher | None = None) -> Pilot:
     """Find the global and the critical peak on a mesh PILOT_RATIO times coarser than the case's.
 

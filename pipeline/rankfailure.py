@@ -42,7 +42,7 @@ class RankFailures:
     """The failure channel of one command on ``comm`` (collective to create: every rank
     creates it at the same point). Use as a context manager around the command."""
 
-    def __init__(self, comm=MPI.COMM_WORLD) -> None:
+    def __init__(self, comm: MPI.Comm = MPI.COMM_WORLD) -> None:
         self.rank = comm.rank
         self.comm = comm.Dup() if comm.size > 1 else None
         self._done = threading.Event()

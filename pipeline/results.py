@@ -39,7 +39,7 @@ def pct(a: float, b: float) -> float:
 
 
 def build_results(case: Case, levels: list[Level], timings: dict[str, float],
-                  comm=MPI.COMM_WORLD, pl: Pilot | None = None) -> dict:
+                  comm: MPI.Comm = MPI.COMM_WORLD, pl: Pilot | None = None) -> dict:
     """The results.json content of docs/design.md §7 from the solved levels (finest first)."""
     fine = levels[0]
     hand = formulas.hand_results(case.dims, case.load_N, case.approximate_span_mm,

@@ -62,7 +62,7 @@ def run_task(task: Task, out: Path, levels: int, ratio: float) -> None:
                    json.dumps({"error": " ".join(str(exc).split())}) + "\n")
 
 
-def work(tasks: list[Task], out: Path, levels: int, ratio: float, say: Progress, comm=MPI.COMM_WORLD) -> None:
+def work(tasks: list[Task], out: Path, levels: int, ratio: float, say: Progress, comm: MPI.Comm = MPI.COMM_WORLD) -> None:
     """Every rank takes the next unclaimed, unfinished task until none is left."""
     todo = [t for t in tasks if t.case is not None]
     t0 = time.perf_counter()
@@ -80,7 +80,7 @@ def work(tasks: list[Task], out: Path, levels: int, ratio: float, say: Progress,
 
 def execute_sweep(size: str | None, case_file: Path | None, base: dict, axes: dict[str, list[float]],
                   loads: list[float], out: Path, levels: int, ratio: float, say: Progress,
-                  comm=MPI.COMM_WORLD, sizes: list[str] | None = None) -> dict | None:
+                  comm: MPI.Comm = MPI.COMM_WORLD, sizes: list[str] | None = None) -> dict | None:
     """Plan, check the output folder, work on every rank, summarise on rank 0."""
     from .outdir import MARKER, acquire_lock, check_out
     tasks = plan(size, case_file, base, axes, loads, levels, ratio, sizes)
