@@ -33,15 +33,19 @@ def test_contract_keys(coarse_run):
     for k in ("approximate_MPa", "exact_MPa", "approximate_span_mm", "exact_span_mm"):
         assert isinstance(an[k], float)
     assert set(an["exact_terms"]) >= {"N1_N", "M1_Nmm", "N2_N", "M2_Nmm"}
-    assert an["exact_MPa"] == pytest.approx(43.81, abs=0.05)
+    assert an["exact_MPa"] == pytest.approx(43.81, abs=0.05)   # worked by hand in docs/design.md §4 (paper: 43.75)
     fe = res["fe"]
     for k in ("peak_MPa", "critical_peak_MPa", "dofs", "cells", "order", "equilibrium_error_N"):
         assert k in fe
     assert len(fe["peak_location_mm"]) == 3 and len(fe["critical_location_mm"]) == 3
     assert fe["model"] == "quarter" and fe["support"] == "bearing" and fe["order"] == 2
     assert fe["equilibrium_error_N"] < 1e-6 * 10_000
-    assert fe["peak_MPa"] >= fe["critical_peak_MPa"] > 0
-    assert abs(fe["critical_location_mm"][0]) <= 10.5 + 1e-9
+    # Where curved-bar theory and the stress raisers put them (not where the code looks):
+    # the global peak on the journal's shoulder fillet, b1/2 <= x <= b1/2 + rf; the
+    # critical one at the bore edge in the section x = 0, y = d2/2, on a face z = 0 or h3.
+    assert 22.5 <= fe["peak_location_mm"][0] <= 24.0
+    x, y, z = fe["critical_location_mm"]
+    assert abs(x) < 1e-6 and abs(y - 10.5) < 1e-6 and min(abs(z), abs(z - 25.0)) < 1e-6
     assert fe["critical"]["error_estimate"]["status"] in ("converged", "oscillatory", "settled")
     for k in ("geometry", "mesh", "import", "assemble", "solve", "post", "output", "total"):
         assert res["timings_s"][k] >= 0
@@ -60,6 +64,7 @@ def test_msh_has_physical_names(coarse_run):
 def test_report_mentions_inputs_formulas_and_units(coarse_run):
     out, _ = coarse_run
     rep = (out / "report.md").read_text()
+    # 43.8 and 37.76 MPa: the two formulas worked by hand (docs/design.md §4, §6)
     for s in ("mm", "MPa", "assumed", "43.8", "37.76", "Safety factor", "Timings", "von_mises.png"):
         assert s in rep, s
 

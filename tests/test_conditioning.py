@@ -28,8 +28,12 @@ MAX_ITERATIONS = 100
 
 
 def residual_limit(rtol: float) -> float:
-    """The pipeline's own acceptance limit for an iterative solve (pipeline/solve.py)."""
-    return max(1e3 * rtol, 1e-6)
+    """What CG's stopping test promises for the true residual: it stops when the residual of
+    its recurrence is below rtol·‖b‖ (unpreconditioned norm, zero initial guess), and the
+    true residual drifts from the recurrence's by far less than 10× in double precision.
+    Not the pipeline's own acceptance limit (max(1000·rtol, 1e-6), pipeline/solve.py), which
+    every returned solve meets by construction."""
+    return 10 * rtol
 
 
 def test_results_json_reports_iterations_and_residual(tmp_path):

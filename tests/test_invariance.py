@@ -19,6 +19,7 @@ minutes on two cores; one module fixture holds the reference solve.
 from __future__ import annotations
 
 import json
+import math
 import os
 import shutil
 import subprocess
@@ -71,7 +72,7 @@ def assert_same_peaks(got, ref, tol: float, length_scale: float = 1.0, what: str
 
 @pytest.fixture(scope="module")
 def base():
-    """The reference: No. 05, quarter model, GAMG, one rank, mesh factor 2."""
+    """The reference: No. 05, quarter model, the default solver (CG + p-multigrid), one rank, mesh factor 2."""
     return solve_level(case(), FACTOR, keep_fields=True)
 
 
@@ -108,10 +109,13 @@ def test_quarter_and_full_model_agree_within_discretisation_error(base):
     point supports) solve the same problem, on different meshes.
 
     Compared: the critical peak (bore ligament, |x| <= d2/2). Tolerance: the quarter's own
-    GCI (Roache, safety factor 1.25) from three quarter meshes (factors 2, 2.6, 3.38). Both
-    models are meshed with the same size fields, so both converge monotonically from the same
-    side at the same rate: their difference is at most the larger of the two errors, which
-    GCI bounds. (Measured: 0.7 % against a GCI of 2.5 %.)
+    error bar from three quarter meshes (factors 2, 2.6, 3.38; GCI, or the largest change
+    when the values oscillate). Both
+    models are meshed with the same size fields, refined at the bore edges where the
+    dimensions put the critical peak (features.known_raisers, as a run with want =
+    critical does), so both converge monotonically from the same side at the same rate:
+    their difference is at most the larger of the two errors, which GCI bounds. Without
+    that refinement the GCI at these factors was 5.9 % and the comparison said little.
 
     Not compared: the global peak at the journal-root fillet. At mesh factor 2 the fillet
     (rf 1.5 mm) has ~2 elements across and its nodal peak depends on the worst element there:
@@ -119,18 +123,24 @@ def test_quarter_and_full_model_agree_within_discretisation_error(base):
     123 MPa (5 %), converging together, so it is mesh error, not a model difference. Its
     three-mesh estimate at these factors is "oscillatory", no usable error bar.
     """
-    coarse = [solve_level(case(), FACTOR * RATIO ** k) for k in (1, 2)]
-    levels = [base] + coarse
-    full = solve_level(case(model="full"), FACTOR)
-    assert full.dofs > 3 * base.dofs
+    from pipeline.features import known_raisers
+    bore = known_raisers(case(want="critical"))     # the two bore edges in x = 0 (quarter coordinates)
+    levels = [solve_level(case(), FACTOR * RATIO ** k, hotspots=bore) for k in (0, 1, 2)]
+    full = solve_level(case(model="full"), FACTOR, hotspots=bore)
+    assert full.dofs > 3 * levels[0].dofs
     assert full.constraint_reaction_N <= 1e-6 * ROW.load_N
-    assert abs(full.critical.location_mm[0]) <= ROW.dims.d2 / 2 * (1 + 1e-9)
+    x, y, z = full.critical.location_mm   # at the bore's edge, both halves of the full part alike
+    assert abs(math.hypot(x, y) - ROW.dims.d2 / 2) < 1e-3 * ROW.dims.d2 and abs(x) < 0.1 * ROW.dims.d2
+    assert min(abs(z), abs(z - ROW.dims.h3)) < 1e-6 * ROW.dims.h3
     est = estimate_levels(levels, case(), "critical")
-    q, f = base.critical.value_MPa, full.critical.value_MPa
+    q, f = levels[0].critical.value_MPa, full.critical.value_MPa
     print(f"critical: quarter {q:.3f} MPa ({est.status}, GCI {100 * (est.gci_fine or 0):.2f} %), "
           f"full {f:.3f} MPa, difference {100 * rel(f, q):.2f} %; global peak (not compared): "
-          f"quarter {base.peak.value_MPa:.1f}, full {full.peak.value_MPa:.1f} MPa")
-    assert est.status == "converged", f"critical peak estimate is {est.status}: no error bar to compare with"
+          f"quarter {levels[0].peak.value_MPa:.1f}, full {full.peak.value_MPa:.1f} MPa")
+    assert est.gci_fine is not None, f"critical peak estimate is {est.status}: no error bar to compare with"
+    # A band this wide would let any full-model value pass (the difference of the two
+    # models' nodal peaks on coarse meshes is a fraction of a per cent).
+    assert est.gci_fine <= 0.02, f"GCI {100 * est.gci_fine:.1f} %: too wide to compare the models"
     assert rel(f, q) <= est.gci_fine, \
         f"full {f:.3f} vs quarter {q:.3f} MPa: {100 * rel(f, q):.2f} % > GCI {100 * est.gci_fine:.2f} %"
 
@@ -199,6 +209,7 @@ def test_one_and_two_mpi_ranks_agree(tmp_path):
     two = cli_run(tmp_path / "r2", 2, levels=3)
     assert (one["mpi_ranks"], two["mpi_ranks"]) == (1, 2)
     assert one["dofs"] == two["dofs"] and one["cells"] == two["cells"]
+    assert len(one["levels"]) == 3
     for a, b in zip(one["levels"], two["levels"], strict=True):
         assert (a["dofs"], a["cells"]) == (b["dofs"], b["cells"]), (a, b)
         # The averaged readings sum cells over both ranks (pipeline.peaks.averaged_von_mises).

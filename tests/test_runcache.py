@@ -42,6 +42,7 @@ def test_a_load_change_reuses_mesh_pilot_and_solution(cache, tmp_path, monkeypat
         assert second["fe"][key] == pytest.approx(fresh["fe"][key], rel=1e-7)
         assert second["fe"][key] == pytest.approx(2.5 * first["fe"][key], rel=1e-12)
     # The error-bar meshes: their results scaled, not solved; equal to a new solve's.
+    assert len(second["fe"]["levels"]) == len(fresh["fe"]["levels"]) == 3
     for coarse2, coarsef in zip(second["fe"]["levels"][1:], fresh["fe"]["levels"][1:], strict=True):
         assert coarse2["scaled_from"] == {"load_N": case.load_N, "E_MPa": case.E_MPa}
         assert coarse2["dofs"] == coarsef["dofs"]

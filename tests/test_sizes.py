@@ -16,12 +16,14 @@ import os
 import shutil
 import subprocess
 import sys
-from dataclasses import asdict
+from dataclasses import asdict, replace
 from pathlib import Path
 
 import pytest
 
-from geometry.part import analytic_volume, build
+import gmsh
+
+from geometry.part import build
 from geometry.table import G_MS2, TABLE_PATH, load_table, validate
 from pipeline import formulas
 from pipeline.case import resolve
@@ -30,6 +32,7 @@ from pipeline.errorbar import estimate, representative_size
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tools"))
 import scale_sizes  # noqa: E402
+from test_geometry import volume_by_quadrature  # noqa: E402
 
 TABLE = load_table()
 BASE = TABLE["05"]
@@ -85,9 +88,11 @@ def test_scaled_row_is_labelled_and_rounded_from_no05(size):
 def test_every_row_validates_and_builds(gmsh_session, size):
     d = validate(TABLE[size].dims)
     resolve(size)                                     # the whole case checks too
-    g = build(d, "quarter")
-    assert g.volume > 0
-    assert g.volume == pytest.approx(analytic_volume(d, "quarter"), rel=1e-6)
+    build(d, "quarter")
+    # The builder checks its CAD against the Pappus formula; this checks it against the
+    # fillet ring integrated numerically, a source independent of both.
+    vol = sum(gmsh.model.occ.getMass(3, t) for _, t in gmsh.model.getEntities(3))
+    assert vol == pytest.approx(volume_by_quadrature(d, "quarter"), rel=1e-7)
 
 
 def _log_sensitivities(method: str) -> dict[str, float]:
@@ -121,6 +126,18 @@ def test_formula_stresses_move_only_by_the_rounding(size):
         dev = getattr(hr, m).sigma_MPa / getattr(hb, m).sigma_MPa / similarity_ratio(size) - 1
         assert abs(dev - first) <= 0.2 * bound + 1e-12, (m, dev, first, bound)
         assert abs(dev) <= 1.2 * bound + 1e-12
+
+
+@pytest.mark.parametrize("s", [0.5, 2.0, 3.7])
+def test_formula_stresses_are_unchanged_under_exact_similarity(s):
+    """Dimensional analysis, independent of the formulas' code: every length of No. 05 × s
+    and the load × s² leave a stress unchanged, for both formulas and both spans (a wrong
+    power of a length anywhere in a formula breaks this)."""
+    scaled = type(BASE.dims)(**{k: v * s for k, v in asdict(BASE.dims).items()})
+    hb = formulas.hand_results(BASE.dims, BASE.load_N)
+    hs = formulas.hand_results(scaled, BASE.load_N * s ** 2)
+    for m in ("approximate", "exact", "approximate_at_exact_span", "exact_at_approximate_span"):
+        assert getattr(hs, m).sigma_MPa == pytest.approx(getattr(hb, m).sigma_MPa, rel=1e-12), m
 
 
 def test_makefile_has_a_target_per_row_and_sizes_sweeps_then_summarises():
@@ -273,6 +290,7 @@ _SOLVES: dict = {}
 
 def solved(key: str, factor: float = FACTOR):
     """Coarse solve of a table row, or of "05x2" (No. 05 with every length ×2, load ×4)."""
+    from pipeline.features import known_raisers
     from pipeline.level import solve_level
     if (key, factor) not in _SOLVES:
         if key == "05x2":
@@ -280,7 +298,11 @@ def solved(key: str, factor: float = FACTOR):
             case = resolve("05", overrides={**over, "load_N": 4 * BASE.load_N, "mesh_factor": factor})
         else:
             case = resolve(key, overrides={"mesh_factor": factor})
-        _SOLVES[key, factor] = (case, solve_level(case, factor))
+        # Refined at the bore edges, where the dimensions put the critical peak (as a run
+        # with want = critical does): unrefined, No. 05's critical peak moved 3.6 % between
+        # these coarse meshes and the rounding checks below could not see a 1 % change.
+        bore = known_raisers(replace(case, want="critical"))
+        _SOLVES[key, factor] = (case, solve_level(case, factor, hotspots=bore))
     return _SOLVES[key, factor]
 
 
@@ -291,11 +313,19 @@ def test_coarse_solve_of_smallest_and_largest_rows(size):
     assert lv.jacobian_ratio > 0
     assert lv.equilibrium_error_N <= 1e-6 * case.load_N
     assert lv.constraint_reaction_N <= 1e-6 * case.load_N
-    hand = formulas.hand_results(d, case.load_N)
     crit, glob = lv.critical.value_MPa, lv.peak.value_MPa
-    assert math.isfinite(glob) and glob >= crit
-    # Ligament peak: above the nominal formula stresses, not absurdly so (FE concentration).
-    assert hand.approximate.sigma_MPa < crit < 3 * hand.exact.sigma_MPa
+    assert math.isfinite(glob) and glob > 0
+    # Ligament peak: No. 05's P3 value (66.27 MPa, tests/test_regression.py) times the
+    # similarity ratio, moved by this row's rounding (the formulas' changes, as in
+    # test_rounded_row_matches_no05_within_its_rounding) and by two coarse meshes' error.
+    row, k = TABLE[size], similarity_ratio(size)
+    hr, hb = formulas.hand_results(row.dims, row.load_N), formulas.hand_results(BASE.dims, BASE.load_N)
+    rounding = max(abs(getattr(hr, m).sigma_MPa / getattr(hb, m).sigma_MPa / k - 1) for m in ("approximate", "exact"))
+    allowance = rounding + 2 * _mesh_error_rel()
+    # + 0.3 %: the regression test's tolerance of the P3 value itself (0.2 MPa).
+    assert crit == pytest.approx(66.27 * k, rel=allowance + 0.003), (crit, 66.27 * k, allowance)
+    # The global peak on the journal's shoulder fillet: b1/2 <= x <= b1/2 + rf.
+    assert d.b1 / 2 - 1e-6 <= lv.peak.location_mm[0] <= d.b1 / 2 + d.rf + 1e-6, lv.peak.location_mm
     # ... and where the curved-bar theory puts it: the bore edge, top or bottom face.
     x, y, z = lv.critical.location_mm
     assert math.hypot(x, y) == pytest.approx(d.d2 / 2, abs=0.02 * d.d2)
@@ -317,8 +347,8 @@ def test_exact_similarity_copy_gives_the_same_stresses():
 def test_unrounded_row_matches_no05_by_similarity(size):
     """No. 50 is No. 05 × 10 exactly (nothing to round): both peaks = No. 05's × 0.981."""
     row, s = TABLE[size], nominal_scale(size)
-    if any(getattr(row.dims, k) != s * getattr(BASE.dims, k) for k in LENGTHS):
-        pytest.skip(f"No. {size} carries rounding")
+    assert all(getattr(row.dims, k) == s * getattr(BASE.dims, k) for k in LENGTHS), \
+        f"No. {size} is no longer No. 05 x {s:g} exactly: pick another unrounded row for this test"
     _, a = solved("05")
     _, b = solved(size)
     k = similarity_ratio(size)
@@ -351,6 +381,7 @@ def test_rounded_row_matches_no05_within_its_rounding(size):
     hr, hb = formulas.hand_results(row.dims, row.load_N), formulas.hand_results(BASE.dims, BASE.load_N)
     deltas = [getattr(hr, m).sigma_MPa / getattr(hb, m).sigma_MPa / k - 1 for m in ("approximate", "exact")]
     mesh = 2 * _mesh_error_rel()
+    assert mesh <= 0.01, f"mesh allowance {100 * mesh:.1f} %: too wide for the comparison to mean anything"
     _, a = solved("05")
     _, b = solved(size)
     dev = b.critical.value_MPa / a.critical.value_MPa / k - 1
