@@ -77,7 +77,7 @@ def von_mises_expr(u, mat: Material):
 STRAIGHT, CURVED = 1, 2  # cell markers of the quadrature split (volume_measures)
 
 
-def _local_cells(mesh) -> int:
+def local_cells(mesh) -> int:
     """Number of cells on this rank, owned and ghost (the rows of the cell dofmaps)."""
     cells = mesh.topology.index_map(mesh.topology.dim)
     return cells.size_local + cells.num_ghosts
@@ -89,7 +89,7 @@ def curved_cells(mesh) -> np.ndarray:
     A 10-node tet is affine when every mid-edge node sits at its edge's midpoint (to 1e-10
     of the cell's size); 4-node tets always are. Other cells count as curved.
     """
-    n = _local_cells(mesh)
+    n = local_cells(mesh)
     nodes = mesh.geometry.dofmap.array.reshape(n, -1)
     if mesh.topology.cell_type != CellType.tetrahedron or nodes.shape[1] not in (4, 10):
         return np.ones(n, dtype=bool)

@@ -15,7 +15,7 @@ from .assembly import assemble_aij, constrained_diagonal, dirichlet_bc, rigid_bo
 from .elasticity import (
     Constraint,
     Material,
-    _local_cells,
+    local_cells,
     strain,
     stress,
     volume_integral,
@@ -32,7 +32,7 @@ def p1_interpolation(V1, V) -> PETSc.Mat:
     vectorised: DOLFINx's took 0.28 s at No. 05 x1.3 on one core, for every solve.
     Rows: the Pk nodes this rank owns; columns: global P1 numbering.
     """
-    n_cells = _local_cells(V.mesh)
+    n_cells = local_cells(V.mesh)
     p1 = basix.create_element(basix.ElementFamily.P, basix.CellType.tetrahedron, 1)
     weights = p1.tabulate(0, V.element.interpolation_points())[0, :, :, 0]   # (Pk nodes, 4)
     nodes_k = V.dofmap.list.array.reshape(n_cells, -1)
