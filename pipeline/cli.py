@@ -280,14 +280,16 @@ def _run_or_converge(args: argparse.Namespace, rank0: bool, stack: contextlib.Ex
     _announce(args, case, say, rank0)
     if args.command == "run":
         from pipeline.commands import execute_run
-        res = execute_run(case, out, levels=args.levels, ratio=args.ratio, progress=say,
-                          write_fields=not args.no_fields, loads=loads if len(loads) > 1 else None,
-                          quarter_fields=args.quarter_fields)
+        execute_run(case, out, levels=args.levels, ratio=args.ratio, progress=say,
+                    write_fields=not args.no_fields, loads=loads if len(loads) > 1 else None,
+                    quarter_fields=args.quarter_fields)
     else:
         from pipeline.commands import execute_converge
-        res = execute_converge(case, out, levels=args.levels, ratio=args.ratio, progress=say)
+        execute_converge(case, out, levels=args.levels, ratio=args.ratio, progress=say)
     if rank0 and not args.quiet:
-        _summary(res, out)
+        # What the run wrote, not what it holds: the lines say what results.json says.
+        import json
+        _summary(json.loads((Path(out) / "results.json").read_text(encoding="utf-8")), out)
     return 0
 
 
