@@ -376,8 +376,12 @@ def _announce(args: argparse.Namespace, case: Case, say: Callable[[str], None], 
                if case.want == "critical" else " (the pilot refines the fillet only)")
             + "; that peak is shown without a verdict")
     _progress(f"imports {time.perf_counter() - T_START:.2f} s; case {case.name}: hook No. {case.size}, "
-              f"Q = {case.load_N:g} N, {case.model} model, {case.support} support, P{case.order}") \
+              f"Q = {case.load_N:g} N, {case.model} model, {case.support} support, P{case.order}"
+              + (" (a scaled row: NOT DIN 15412 dimensions)" if "NOT a DIN 15412 value" in case.source else "")) \
         if not args.quiet and rank0 else None
+    if case.mesh_factor > 1.3 and case.want != "critical":
+        say(f"note: mesh factor {case.mesh_factor:g} > 1.3: the global (fillet) peak is not resolved on meshes "
+            "this coarse (README, Known limits); its value and verdict are rough")
 
 
 def _sweep(args, rank0: bool) -> int:
@@ -455,16 +459,20 @@ def _print(line: str) -> None:
 
 
 def _summary(res: dict, out: Path) -> None:
-    from pipeline.report import error_bar_text, no_safety_factor_reason
+    from pipeline.report import error_bar_text, feature_text, no_safety_factor_reason
     fe = res["fe"]
-    _print(f"global peak   {fe['peak']['value_MPa']:8.2f} MPa  {error_bar_text(fe['peak'])}  [{fe['peak']['feature']}]")
-    _print(f"critical peak {fe['critical']['value_MPa']:8.2f} MPa  {error_bar_text(fe['critical'])}  [{fe['critical']['feature']}]")
+    _print(f"global peak   {fe['peak']['value_MPa']:8.2f} MPa  {error_bar_text(fe['peak'])}  [{feature_text(fe['peak'])}]")
+    _print(f"critical peak {fe['critical']['value_MPa']:8.2f} MPa  {error_bar_text(fe['critical'])}  [{feature_text(fe['critical'])}]")
     an = res["analytic"]
 
     def sf(key: str) -> str:
         return f"{fe[key]:.2f}" if fe[key] is not None else f"none ({no_safety_factor_reason(fe, key)})"
     _print(f"formulas: approximate {an['approximate_MPa']:.2f} MPa, exact {an['exact_MPa']:.2f} MPa; "
            f"safety factor {sf('safety_factor')} (global), {sf('critical_safety_factor')} (critical)")
+    if res.get("load_sweep"):
+        _print(f"the lines above are at Q = {res['case']['load_N']:g} N; every load (global / critical peak, MPa): "
+               + "; ".join(f"{r['load_N']:g} N {r['peak_MPa']:.2f} / {r['critical_peak_MPa']:.2f}"
+                           for r in res["load_sweep"]))
     named = res.get("files") or {"results": "results.json"}
     files = [named[k] for k in ("report", "results") if k in named] + \
         [f for k, f in named.items() if k not in ("report", "results")]

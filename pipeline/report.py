@@ -40,10 +40,13 @@ def _trend_text(est: dict) -> str:
     """error_bar_text of an estimate's band from the meshes' trend."""
     st = est["status"]
     if st == "converged":
-        capped = (f", band uses order {est['order_used']:g} (the element's formal order)"
-                  if est["order_used"] < est["order_observed"] - 1e-9 else "")
+        if est["order_used"] < est["order_observed"] - 1e-9:
+            return (f"± {_f(est['band'])} MPa (GCI {100 * est['gci_fine']:.2f} %), extrapolated "
+                    f"{_f(est['extrapolated'])} MPa with the element's formal order {est['order_used']:g}: the "
+                    f"observed order {est['order_observed']:.2f} is above it (a coarse mesh off the trend), "
+                    "so neither the limit nor the band uses it")
         return (f"± {_f(est['band'])} MPa (GCI {100 * est['gci_fine']:.2f} %), extrapolated "
-                f"{_f(est['extrapolated'])} MPa, observed order {est['order_observed']:.2f}{capped}")
+                f"{_f(est['extrapolated'])} MPa, observed order {est['order_observed']:.2f}")
     if st == "exact":
         return "unchanged across meshes"
     if st == "settled":
@@ -63,6 +66,13 @@ def _trend_text(est: dict) -> str:
         return (f"NOT CONVERGED: grows with refinement (observed order "
                 f"{est['order_observed']:.2f}); the peak sits at a singular feature and has no finite value")
     return f"NOT CONVERGED (status {st}, observed order {est['order_observed']:.2f})"
+
+
+def feature_text(block: dict) -> str:
+    """Where a peak sits, in words; a singular one says at which singular feature (the
+    location's name alone, e.g. the fillet, would hide that the peak is not finite)."""
+    where = block.get("singular_feature")
+    return f"{block['feature']} (singular: {where})" if where else block["feature"]
 
 
 def no_safety_factor_reason(fe: dict, key: str) -> str:
@@ -113,7 +123,7 @@ def comparison_section(res: dict) -> str:
          "The hand formulas give a *nominal* stress; the FE field gives the same quantity from the "
          "section's force and moment (reactions of the symmetry plane, exact for the FE solution) "
          "and from the linearised stress through the section, plus the concentration on top of it.\n",
-         "| section | formula, nominal (MPa) | FE nominal: N/A + 6M/(w·h²) (MPa) | FE linearised σ_xx, m + b (MPa) | FE peak von Mises (MPa) | Kt = peak / nominal |",
+         "| section | formula, nominal (MPa) | FE nominal: N/(w·h) + 6M/(w·h²) (MPa) | FE linearised σ_xx, m + b (MPa) | FE peak von Mises (MPa) | Kt = peak / nominal |",
          "|---|---|---|---|---|---|"]
     cs, lines, root = sec.get("critical_section"), sec["lines"], sec["journal_root"]
     crit = fe["critical"]
@@ -129,7 +139,9 @@ def comparison_section(res: dict) -> str:
     kt_p = f"; Peterson's chart {root['Kt_peterson']:.2f}" if "Kt_peterson" in root else ""
     L.append(f"| journal root, x = b1/2 (M = {_f(root['M_Nmm'], 0)} N·mm) | none (the formulas do not check the "
              f"journal) | **{_f(root['nominal_MPa'])}** (32·M/(π·dj³)) | | {_f(pk['value_MPa'])} "
-             f"{error_bar_text(pk)} | {root['Kt']:.2f}{kt_p} |")
+             f"{error_bar_text(pk)} | "
+             + (f"none: the peak is singular{kt_p}" if pk.get("singular_feature") else f"{root['Kt']:.2f}{kt_p}")
+             + " |")
     L.append("")
     if cs:
         L.append(f"The approximate formula is the beam-bending stress of this section, 6·Me/((b − di)·h²) with "
@@ -167,6 +179,14 @@ def verdict_section(res: dict) -> str:
         rng = row.get("capacity_range_N")
         cap = _f(row["capacity_N"], 0) + (f" ({_f(rng[0], 0)}–{_f(rng[1], 0)})" if rng and band else "")
         L.append(f"| {name} | {_f(row['value_MPa'])}{band} | **{row['verdict']}** | {row['margin_pct']:+.1f} % | {cap} |")
+    decided = {k: r for k, r in v.items() if r["verdict"] != "none" and r.get("capacity_N") is not None}
+    if decided:
+        k = min(decided, key=lambda key: decided[key]["capacity_N"])
+        L.append(f"\nLowest capacity: **{VERDICT_NAMES.get(k, k)}**, {_f(decided[k]['capacity_N'], 0)} N "
+                 f"({decided[k]['margin_pct']:+.1f} % margin at {_f(c['load_N'], 0)} N). The peak rows are local "
+                 "values at a stress raiser (concentration included), the nominal rows the section's average "
+                 "stress as the hand formulas define it; which one the design must satisfy is the engineer's "
+                 "rule (static strength, fatigue), not this tool's.")
     L.append("\nCapacity scales the hook load linearly (linear elasticity, loads only): the load at which "
              "that stress reaches the allowable; the range follows the error bar. \"undecided\": the "
              "error bar straddles the allowable.\n")
@@ -179,12 +199,16 @@ def _summary_lines(res: dict) -> list[str]:
     add = L.append
     c, an, fe, cmp_ = res["case"], res["analytic"], res["fe"], res["comparison_pct"]
     add(f"# Crosshead stress report: hook No. {c['size']} (case `{c['name']}`)\n")
-    add("Units: lengths mm, forces N, stresses MPa.\n")
+    add("Units: lengths mm, forces N, stresses MPa. Locations (x, y, z) in mm: x along the crosshead "
+        "(the journal axis), y across it, z up; origin on the bore axis at the bottom face.\n")
+    if "NOT a DIN 15412 value" in c.get("source", ""):
+        add(f"> **Note:** the dimensions of No. {c['size']} are No. 05's scaled by geometric similarity, "
+            "**not DIN 15412 values** (source in *Inputs*).\n")
     add("## Summary\n")
     add("| quantity | value (MPa) | error bar | where |")
     add("|---|---|---|---|")
-    add(f"| FE peak von Mises, whole part | **{_f(fe['peak']['value_MPa'])}** | {error_bar_text(fe['peak'])} | {fe['peak']['feature']} at {_loc(fe['peak']['location_mm'])} |")
-    add(f"| FE peak von Mises, critical region (\\|x\\| ≤ di/2) | **{_f(fe['critical']['value_MPa'])}** | {error_bar_text(fe['critical'])} | {fe['critical']['feature']} at {_loc(fe['critical']['location_mm'])} |")
+    add(f"| FE peak von Mises, whole part | **{_f(fe['peak']['value_MPa'])}** | {error_bar_text(fe['peak'])} | {feature_text(fe['peak'])} at {_loc(fe['peak']['location_mm'])} |")
+    add(f"| FE peak von Mises, critical region (\\|x\\| ≤ di/2) | **{_f(fe['critical']['value_MPa'])}** | {error_bar_text(fe['critical'])} | {feature_text(fe['critical'])} at {_loc(fe['critical']['location_mm'])} |")
     pub = an.get("published")
     add(f"| approximate formula (span {_f(an['approximate_span_mm'], 1)} mm) | {_f(an['approximate_MPa'])} | "
         f"{'published ' + _f(pub['approximate_MPa']) if pub else ''} | nominal, ligament beside bore |")
@@ -211,6 +235,9 @@ def _summary_lines(res: dict) -> list[str]:
         f"global peak {cmp_['peak_vs_exact']:+.1f} % vs exact, {cmp_['peak_vs_approximate']:+.1f} % vs approximate.\n")
     add(why_sentence(res) + "\n")
     add("![von Mises on the deformed part](von_mises.png)\n")
+    add("Colours: the element-node von Mises values without averaging, so the colour scale's top is the "
+        "unaveraged reading; the global peak reported at the fillet is the midpoint of the unaveraged and "
+        "averaged readings and lies below it.\n")
     return L
 
 
@@ -338,6 +365,11 @@ def _fe_lines(res: dict) -> list[str]:
     add("")
     if "peaks_plot" in res.get("files", {}):
         add("![peaks against degrees of freedom](peaks.png)\n")
+        add("The status in each panel's title: *converged* (monotone, observed order ≥ 0.5: GCI band), "
+            "*settled* (every mesh within 0.1 %), *oscillatory* (the changes alternate in sign: band = "
+            "largest change), *unsettled* (not yet in the asymptotic range: band = largest change, no "
+            "extrapolation), *scattered* (four or more meshes about a fit: band with Fs = 3), *singular* "
+            "(grows under refinement: no finite value); docs/design.md §5.\n")
     return L
 
 
@@ -349,8 +381,9 @@ def _load_sweep_lines(res: dict) -> list[str]:
     sweep = res.get("load_sweep")
     if sweep:
         add("## Load sweep\n")
-        add(f"Solved once at Q = {_f(c['load_N'], 0)} N; linear elasticity with traction loads only, so "
-            "every stress scales with the load.\n")
+        add(f"Analysed at the first load, Q = {_f(c['load_N'], 0)} N (the rest of this report is that "
+            "load's), and scaled to the others: linear elasticity with traction loads only, so every "
+            "stress scales with the load.\n")
         add("| load (N) | global peak (MPa) | critical peak (MPa) | approximate (MPa) | exact (MPa) | safety factor (global / critical) |")
         add("|---|---|---|---|---|---|")
         for r in sweep:

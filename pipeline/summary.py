@@ -202,10 +202,12 @@ def _table_lines(rows: list[dict]) -> list[str]:
         TITLE,
         "",
         "Units: N, MPa, s. Formulas: the paper's approximate (span b1 + b2) and exact "
-        "(curved bar, span b6) hand formulas. FE: peak von Mises at element nodes on the finest "
-        "mesh, over the whole part (global) and over the ligaments beside the bore (critical, "
-        "|x| ≤ d2/2), ± the GCI band of the mesh-refinement study with its status. "
-        "Safety factor = allowable / FE peak.",
+        "(curved bar, span b6) hand formulas. FE: peak von Mises on the finest mesh, over the "
+        "whole part (global) and over the ligaments beside the bore (critical, |x| ≤ d2/2); at the "
+        "fillet the midpoint of the unaveraged and averaged nodal readings, elsewhere the "
+        "unaveraged element-node value. ± the peak's error bar: the band of the mesh-refinement "
+        "study (its status in the next column, explained below) or, for a fillet peak, half the "
+        "gap between its two readings when that is larger. Safety factor = allowable / FE peak.",
         "",
         "| No. | dimensions | load (N) | approx. (MPa) | exact (MPa) | FE global peak (MPa) | status "
         "| FE critical peak (MPa) | status | SF global | SF critical | DOFs | time (s) |",

@@ -93,7 +93,9 @@ def write_outputs(tasks: list[Task], out: Path, axes: dict[str, list[float]], al
         w.writerows(rows)
     swept = [n for n in names if len(axes[n]) > 1 and n != "size"]  # numeric axes only
     cross = [c for n in swept for c in crossings(rows, n, allowable)]
+    first = next((t.case for t in tasks if t.case is not None), None)
     summary = {"units": {"length": "mm", "force": "N", "stress": "MPa"}, "allowable_MPa": allowable,
+               "mesh_factor": None if first is None else first.mesh_factor,
                "axes": axes, "rows": rows, "crossings": cross,
                "counts": {s: sum(r["status"] == s for r in rows) for s in ("done", "invalid", "failed", "not run")}}
     write_text(out / "sweep.json", json.dumps(summary, indent=2, default=str) + "\n")
@@ -135,7 +137,13 @@ def _report(summary: dict, swept: list[str], plots: list[str]) -> str:
     c = summary["counts"]
     L = ["# Design study\n", "Units: mm, N, MPa.\n",
          f"{c['done']} variants analysed, {c['invalid']} invalid (skipped), {c['failed']} failed, "
-         f"{c['not run']} not run. Allowable {summary['allowable_MPa']:g} MPa.\n", "## Crossing the allowable\n"]
+         f"{c['not run']} not run. Allowable {summary['allowable_MPa']:g} MPa.\n"]
+    mf = summary.get("mesh_factor")
+    if mf is not None:
+        L.append(f"Every variant at mesh factor {mf:g}"
+                 + (": coarser than 1.3, so the global (fillet) peak is not resolved (README, Known limits); "
+                    "its values, crossings and verdicts are rough.\n" if mf > 1.3 else ".\n"))
+    L.append("## Crossing the allowable\n")
     if not summary["crossings"]:
         L.append("No peak crosses the allowable inside the swept ranges.\n")
     for x in summary["crossings"]:

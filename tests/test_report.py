@@ -126,3 +126,32 @@ def test_load_arrows_point_where_the_loads_act():
         else:
             assert vec[2] > 0 and tip[2] == pytest.approx(d["h3"] / 2 - d["dj"] / 2)
             assert d["b1"] / 2 < abs(tip[0]) < d["b6"] / 2
+
+
+def test_verdict_capacities_follow_linearity_and_the_lowest_is_named(run_folder):
+    """Each row's capacity is the hook load at which that stress reaches the allowable:
+    Q·allowable/σ (linear elasticity, loads only); the report names the row with the lowest."""
+    from pipeline.report import VERDICT_NAMES
+    res = json.loads((run_folder / "results.json").read_text())
+    q, allow = res["case"]["load_N"], res["case"]["allowable_MPa"]
+    rows = {k: r for k, r in res["fe"]["verdict"].items() if r["verdict"] != "none"}
+    assert len(rows) >= 3
+    for r in rows.values():
+        assert r["capacity_N"] == pytest.approx(q * allow / r["value_MPa"], rel=1e-9)
+    lowest = min(rows, key=lambda k: q * allow / rows[k]["value_MPa"])
+    assert f"Lowest capacity: **{VERDICT_NAMES[lowest]}**" in (run_folder / "report.md").read_text()
+
+
+def test_report_flags_scaled_rows_and_singular_peaks(run_folder):
+    """A scaled row of the size table is said to be no DIN value at the top; a singular global
+    peak gets no Kt and names its singular feature where the peak is listed."""
+    from pipeline.report import render_markdown
+    res = json.loads((run_folder / "results.json").read_text())
+    plain = render_markdown(res)
+    assert "not DIN 15412 values" not in plain and "singular:" not in plain
+    res["case"]["source"] = "scaled from No. 05 by geometric similarity; NOT a DIN 15412 value"
+    res["fe"]["peak"]["singular_feature"] = "edge of the rigid support patch"
+    md = render_markdown(res)
+    assert "not DIN 15412 values" in md.split("## Summary")[0]
+    assert "(singular: edge of the rigid support patch)" in md
+    assert "none: the peak is singular" in md
