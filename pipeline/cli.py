@@ -287,9 +287,7 @@ def _run_or_converge(args: argparse.Namespace, rank0: bool, stack: contextlib.Ex
         from pipeline.commands import execute_converge
         execute_converge(case, out, levels=args.levels, ratio=args.ratio, progress=say)
     if rank0 and not args.quiet:
-        # What the run wrote, not what it holds: the lines say what results.json says.
-        import json
-        _summary(json.loads((Path(out) / "results.json").read_text(encoding="utf-8")), out)
+        _summary(Path(out))
     return 0
 
 
@@ -458,8 +456,13 @@ def _print(line: str) -> None:
         os.close(devnull)
 
 
-def _summary(res: dict, out: Path) -> None:
+def _summary(out: Path) -> None:
+    """The run's closing lines, from the results.json it wrote (not from what it holds in
+    memory: the lines say what the file says)."""
+    import json
+
     from pipeline.report import error_bar_text, feature_text, no_safety_factor_reason
+    res = json.loads((out / "results.json").read_text(encoding="utf-8"))
     fe = res["fe"]
     _print(f"global peak   {fe['peak']['value_MPa']:8.2f} MPa  {error_bar_text(fe['peak'])}  [{feature_text(fe['peak'])}]")
     _print(f"critical peak {fe['critical']['value_MPa']:8.2f} MPa  {error_bar_text(fe['critical'])}  [{feature_text(fe['critical'])}]")

@@ -603,7 +603,7 @@ def test_cli_random_arguments(monkeypatch, fuzz_dir, argv):
         return {}
     monkeypatch.setattr(pipeline.commands, "execute_run", stub)
     monkeypatch.setattr(pipeline.commands, "execute_converge", stub)
-    monkeypatch.setattr(cli_main, "_summary", lambda res, out: None)
+    monkeypatch.setattr(cli_main, "_summary", lambda out: None)
     argv = [a.replace("{valid}", str(fuzz_dir / "valid.toml")).replace("{bad}", str(fuzz_dir / "bad.toml"))
             .replace("{missing}", str(fuzz_dir / "missing.toml")).replace("{tmp}", str(fuzz_dir)) for a in argv]
     if "--out" not in argv:
