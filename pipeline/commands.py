@@ -100,7 +100,7 @@ class _RequestedOutput:
         if self.picture is not None:
             self.picture.kill()
             for proc in self.picture.procs:
-                proc.wait()
+                proc.wait()  # kill() waits a second at most; here the run waits for them to end
 
     def finish(self, res: dict) -> None:
         """If the drawing was started: write the full results (every mesh's peaks, for

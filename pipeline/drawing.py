@@ -21,9 +21,13 @@ class Picture:
     started: float
 
     def kill(self) -> None:
-        """Stop every drawing process (a failed or stopped run draws nothing)."""
+        """Stop every drawing process (a failed or stopped run draws nothing) and reap it, so
+        that none lingers as a zombie while the run ends."""
         for proc in self.procs:
             proc.kill()
+        for proc in self.procs:
+            with contextlib.suppress(subprocess.TimeoutExpired):
+                proc.wait(timeout=1.0)  # SIGKILL: gone within milliseconds
 
 
 def start_picture(folder: Path) -> Picture:
