@@ -64,7 +64,7 @@ clean:
 	    rm -rf "$$d"; \
 	  elif [ -f "$$d" ] && case "$$d" in results/.*.lock) true;; *) false;; esac; then \
 	    rm -f "$$d"; \
-	  else echo "make clean: kept $$d (no .crosshead-results marker: not a folder crosshead wrote)"; fi; \
+	  else echo "make clean: kept $$d (no .crosshead-results marker: not a run's folder; the outputs of make bench and make reference are kept on purpose, remove them by hand)"; fi; \
 	done; rmdir results 2>/dev/null || true
 
 # Meshes and pilot places kept for runs that change only load, E or the allowable.
