@@ -18,6 +18,14 @@ from pathlib import Path
 TABLE_PATH = Path(__file__).with_name("sizes.csv")
 MODELS = ("quarter", "full")  # the part as built: a quarter with symmetry planes, or whole
 G_MS2 = 9.81  # m/s², the gravity the issue fixes for kg → N
+# How a row that tools/scale_sizes.py made from No. 05 begins its source (such rows are not
+# DIN 15412 values; docs/design.md §2).
+SCALED_TAG = "scaled from No. 05 by geometric similarity"
+
+
+def is_scaled_row(source: str) -> bool:
+    """Whether a size-table row's ``source`` says it is No. 05 scaled (not a DIN value)."""
+    return source.strip().startswith(SCALED_TAG)
 
 
 class InputError(ValueError):

@@ -26,6 +26,7 @@ from pipeline.environment import configure  # noqa: E402
 
 configure()  # before numpy, PETSc or DOLFINx load (pipeline/environment.py)
 
+from geometry.table import is_scaled_row  # noqa: E402
 from pipeline.choices import MODELS, SOLVERS, SUPPORTS, WANTS  # noqa: E402
 from pipeline.errors import OneLineParser, given_twice  # noqa: E402
 from pipeline.interrupts import install as install_interrupts, new_command, stop_line, yield_to_stop  # noqa: E402
@@ -375,7 +376,7 @@ def _announce(args: argparse.Namespace, case: Case, say: Callable[[str], None], 
             + "; that peak is shown without a verdict")
     _progress(f"imports {time.perf_counter() - T_START:.2f} s; case {case.name}: hook No. {case.size}, "
               f"Q = {case.load_N:g} N, {case.model} model, {case.support} support, P{case.order}"
-              + (" (a scaled row: NOT DIN 15412 dimensions)" if "NOT a DIN 15412 value" in case.source else "")) \
+              + (" (a scaled row: NOT DIN 15412 dimensions)" if is_scaled_row(case.source) else "")) \
         if not args.quiet and rank0 else None
     if case.mesh_factor > 1.3 and case.want != "critical":
         say(f"note: mesh factor {case.mesh_factor:g} > 1.3: the global (fillet) peak is not resolved on meshes "

@@ -98,9 +98,7 @@ class _RequestedOutput:
     def abandon(self) -> None:
         """Kill the drawing processes, if started, and wait for them to end."""
         if self.picture is not None:
-            self.picture.kill()
-            for proc in self.picture.procs:
-                proc.wait()  # kill() waits a second at most; here the run waits for them to end
+            self.picture.kill(wait_s=None)
 
     def finish(self, res: dict) -> None:
         """If the drawing was started: write the full results (every mesh's peaks, for

@@ -20,14 +20,15 @@ class Picture:
     procs: list[subprocess.Popen]
     started: float
 
-    def kill(self) -> None:
+    def kill(self, wait_s: float | None = 1.0) -> None:
         """Stop every drawing process (a failed or stopped run draws nothing) and reap it, so
-        that none lingers as a zombie while the run ends."""
+        that none lingers as a zombie while the run ends; each is waited for ``wait_s``
+        seconds at most (None: until it has ended; after SIGKILL it takes milliseconds)."""
         for proc in self.procs:
             proc.kill()
         for proc in self.procs:
             with contextlib.suppress(subprocess.TimeoutExpired):
-                proc.wait(timeout=1.0)  # SIGKILL: gone within milliseconds
+                proc.wait(timeout=wait_s)
 
 
 def start_picture(folder: Path) -> Picture:

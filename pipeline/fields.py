@@ -4,7 +4,6 @@ from __future__ import annotations
 
 from pathlib import Path
 
-
 from .mirror import mirror_quarter
 from .vtu import write_vtu
 

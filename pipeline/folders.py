@@ -61,7 +61,7 @@ def refusal(out: Path, own: frozenset[str], not_mine: Callable[[Path], str | Non
             if foreign:
                 reason = (f"it holds files this tool did not write ({', '.join(foreign[:3])}"
                           f"{', ...' if len(foreign) > 3 else ''}); choose a new or empty folder")
-            elif not_mine is not None and foreign == [] and any(out.iterdir()):
+            elif not_mine is not None and any(out.iterdir()):
                 reason = not_mine(out)
     return None if reason is None else f"error: out: refusing {out}: {reason}"
 

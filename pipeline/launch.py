@@ -18,7 +18,6 @@ from pathlib import Path
 from pipeline.interrupts import EXIT_FOR
 
 
-
 def mpirun_command(ranks: int, args: list[str]) -> list[str]:
     """mpirun running ``python -m pipeline ARGS`` on ``ranks`` ranks."""
     root = ["--allow-run-as-root"] if os.geteuid() == 0 else []

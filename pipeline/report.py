@@ -5,6 +5,8 @@ import json
 import sys
 from pathlib import Path
 
+from geometry.table import is_scaled_row
+
 ASSUMED_WHY = {
     "dj": "journal diameter, 0.8·h (docs/design.md §2)",
     "rf": "shoulder fillet radius, 0.06·h (docs/design.md §2)",
@@ -201,7 +203,7 @@ def _summary_lines(res: dict) -> list[str]:
     add(f"# Crosshead stress report: hook No. {c['size']} (case `{c['name']}`)\n")
     add("Units: lengths mm, forces N, stresses MPa. Locations (x, y, z) in mm: x along the crosshead "
         "(the journal axis), y across it, z up; origin on the bore axis at the bottom face.\n")
-    if "NOT a DIN 15412 value" in c.get("source", ""):
+    if is_scaled_row(c.get("source", "")):
         add(f"> **Note:** the dimensions of No. {c['size']} are No. 05's scaled by geometric similarity, "
             "**not DIN 15412 values** (source in *Inputs*).\n")
     add("## Summary\n")

@@ -124,3 +124,13 @@ def read_study(path: Path) -> dict:
                              f"numbers or a number in {path}, got {values!r}")
         dims[name] = values
     return dict(s, **({"dims": dims} if "dims" in s else {}))
+
+
+def variant_folder(out: Path, key: str) -> Path:
+    """Where task ``key`` of the study in ``out`` writes its run (its results.json inside)."""
+    return out / "variants" / key
+
+
+def failure_file(out: Path, key: str) -> Path:
+    """Where task ``key`` of the study in ``out`` writes why it failed, instead of a run."""
+    return out / "variants" / f"{key}.failed.json"

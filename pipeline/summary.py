@@ -20,10 +20,11 @@ import sys
 import tempfile
 from pathlib import Path
 
-from .errors import OneLineParser
-from .interrupts import EXIT_FOR, NOTHING_WRITTEN, STOPPED
+from geometry.table import is_scaled_row
 
-SCALED_TAG = "scaled from No. 05 by geometric similarity"
+from .errors import OneLineParser
+from .interrupts import EXIT_FOR, STOPPED, stop_line
+
 _S_RE = re.compile(r"s = sqrt\(Q/1000 kg\) = ([0-9.]+)")
 
 CSV_COLUMNS = (
@@ -68,7 +69,7 @@ def row_of(folder: Path, res: dict) -> dict:
     case, fe, an = res["case"], res["fe"], res["analytic"]
     src = case.get("source", "")
     m = _S_RE.search(src)
-    scaled = src.startswith(SCALED_TAG)
+    scaled = is_scaled_row(src)
     pb, ps, pe, pd = _estimate(fe["peak"])
     cb, cs, ce, cd = _estimate(fe["critical"])
     return {
@@ -432,7 +433,7 @@ def main(argv: list[str] | None = None) -> int:
         return _summarise(args, received)
     except _Stopped:
         signum = received[0]
-        sys.stderr.write(f"{STOPPED[signal.Signals(signum)]}: {NOTHING_WRITTEN}\n")
+        sys.stderr.write(stop_line(signum) + "\n")
         return EXIT_FOR[signum]
     finally:
         for s, handler in previous.items():

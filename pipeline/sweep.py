@@ -28,7 +28,7 @@ from mpi4py import MPI
 from .atomicfile import write_text
 from .errors import InputError, NumericalError
 from .interrupts import on_stop, stop_outcome
-from .study import Task, plan
+from .study import Task, failure_file, plan, variant_folder
 from .sweepresults import write_outputs
 
 Progress = Callable[[str], None]
@@ -45,7 +45,7 @@ def _claim(out: Path, key: str) -> bool:
 
 def _done(out: Path, key: str) -> bool:
     """Has task ``key`` ended, with results or with its failure written?"""
-    return (out / "variants" / key / "results.json").is_file() or (out / "variants" / f"{key}.failed.json").is_file()
+    return (variant_folder(out, key) / "results.json").is_file() or failure_file(out, key).is_file()
 
 
 def run_task(task: Task, out: Path, levels: int, ratio: float) -> None:
@@ -55,10 +55,10 @@ def run_task(task: Task, out: Path, levels: int, ratio: float) -> None:
     from .commands import execute_run
     case = replace(task.case, load_N=task.loads[0])
     try:
-        execute_run(case, out / "variants" / task.key, levels=levels, ratio=ratio, write_fields=False,
+        execute_run(case, variant_folder(out, task.key), levels=levels, ratio=ratio, write_fields=False,
                     loads=list(task.loads) if len(task.loads) > 1 else None, comm=MPI.COMM_SELF)
     except (NumericalError, GeometryError, InputError) as exc:
-        write_text(out / "variants" / f"{task.key}.failed.json",
+        write_text(failure_file(out, task.key),
                    json.dumps({"error": " ".join(str(exc).split())}) + "\n")
 
 

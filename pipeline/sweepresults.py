@@ -9,7 +9,7 @@ import json
 from pathlib import Path
 
 from .atomicfile import replacing, write_text
-from .study import Task
+from .study import Task, failure_file, variant_folder
 
 PEAKS = (("peak_MPa", "peak_band_MPa", "global peak"), ("critical_peak_MPa", "critical_band_MPa", "critical peak"))
 COLUMNS = ("variant", "status", "size", "load_N", "parameters", "peak_MPa", "peak_band_MPa", "critical_peak_MPa",
@@ -27,8 +27,8 @@ def rows_of(tasks: list[Task], out: Path) -> list[dict]:
         if t.case is None:
             rows += [dict(base, status="invalid", load_N=q, note=t.note) for q in (t.loads or (None,))]
             continue
-        failed = out / "variants" / f"{t.key}.failed.json"
-        res_path = out / "variants" / t.key / "results.json"
+        failed = failure_file(out, t.key)
+        res_path = variant_folder(out, t.key) / "results.json"
         if failed.is_file():
             note = json.loads(failed.read_text())["error"]
             rows += [dict(base, status="failed", load_N=q, note=note) for q in t.loads]

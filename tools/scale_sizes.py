@@ -32,13 +32,12 @@ ROOT = Path(__file__).resolve().parents[1]
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
-from geometry.table import (TABLE_PATH, Dimensions, InputError,  # noqa: E402
-                            row_from_record, validate)
+from geometry.table import (SCALED_TAG, TABLE_PATH, Dimensions, InputError,  # noqa: E402
+                            is_scaled_row, row_from_record, validate)
 
 BASE_SIZE = "05"
 BASE_KG = 1000.0
 STEP_MM = 0.5
-SCALED_TAG = "scaled from No. 05 by geometric similarity"
 
 # DIN 15400 rated loads, kg, strength class S / mechanism group 2m (a transcription
 # of DIN 15400 Table 3), in hook-number order.
@@ -162,7 +161,7 @@ def read_rows(path: Path) -> list[tuple[dict[str, str], str]]:
 def generate(path: Path = TABLE_PATH) -> str:
     """The table's text with every scaled row (re)computed and other rows kept verbatim."""
     rows = read_rows(path)
-    kept = [(rec, raw) for rec, raw in rows if not rec["source"].strip().startswith(SCALED_TAG)]
+    kept = [(rec, raw) for rec, raw in rows if not is_scaled_row(rec["source"])]
     kept_sizes = [rec["size"].strip() for rec, _ in kept]
     dup = {s for s in kept_sizes if kept_sizes.count(s) > 1}
     if dup:
