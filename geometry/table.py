@@ -17,7 +17,7 @@ from pathlib import Path
 
 TABLE_PATH = Path(__file__).with_name("sizes.csv")
 MODELS = ("quarter", "full")  # the part as built: a quarter with symmetry planes, or whole
-G_MS2 = 9.81  # m/s², the gravity the issue fixes for kg → N
+G_MS2 = 9.81  # m/s², kg → N for the rated loads (docs/design.md §6)
 # How a row that tools/scale_sizes.py made from No. 05 begins its source (such rows are not
 # DIN 15412 values; docs/design.md §2).
 SCALED_TAG = "scaled from No. 05 by geometric similarity"

@@ -38,7 +38,7 @@ from pipeline.level import solve_level
 ROOT = Path(__file__).resolve().parents[1]
 FACTOR = 2.0              # coarse mesh for every solve in this file
 RATIO = 1.3               # mesh ratio of the quarter model's error-bar levels
-TOL = 1e-6                # the issue's tolerance on invariant peaks
+TOL = 1e-6                # the tolerance on invariant peaks (docs/design.md §6)
 ROW = lookup("05")
 
 
@@ -154,7 +154,7 @@ def test_iterative_and_mumps_agree_to_the_solver_tolerance(base):
     measured on these meshes, the peaks of the two solvers differ by 0.2-0.4·rtol with GAMG
     (3e-9 at rtol 1e-8, 2e-11 at rtol 1e-10) and 0.04-0.15·rtol with the p-multigrid
     (1.5e-9 and 4.4e-10 at rtol 1e-8). Tolerance 100·rtol: a 250-fold margin over that,
-    and the issue's 1e-6 at the default rtol of 1e-8.
+    and the 1e-6 of docs/design.md §6 at the default rtol of 1e-8.
     """
     rtol = case().rtol
     lv = solve_level(case(solver="mumps"), FACTOR)

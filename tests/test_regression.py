@@ -21,7 +21,7 @@ The global peak's baseline is the fillet reference of `make reference`
 P3 and P4 on meshes refined only at the fillet, the peak sampled on the exact torus.
 
 Tolerances come from measured errors and the project's target, no tighter:
-- global: 1 % of the reference (the project's accuracy target, issue "global peak"). The
+- global: 1 % of the reference (the project's accuracy target, docs/design.md §6). The
   default mesh reads 113.77 MPa (−0.04 %; `make run`, 2026-11-25); at mesh factors 0.8 … 1.3 `make run` reads
   within −0.04 … +0.60 % (docs/accuracy.md, 2026-11-25, with the fillet's crest bridged;
   before: 114.08 MPa, −0.27 … +0.68 %). The run's error bar must cover the reference.

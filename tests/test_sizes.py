@@ -54,7 +54,8 @@ def similarity_ratio(size: str) -> float:
 
 # ---------------------------------------------------------------- the table itself
 
-def test_issue_sizes_and_loads_present():
+def test_every_hook_number_with_its_rated_load():
+    # DIN 15400 rated loads, class S / group 2m, kg (docs/design.md §2), typed here from the standard
     expect = {"025": 500, "04": 800, "05": 1000, "08": 1600, "1": 2000, "1.6": 3200, "2.5": 5000,
               "4": 8000, "5": 10_000, "6": 12_500, "8": 16_000, "10": 20_000, "12": 25_000,
               "16": 32_000, "20": 40_000, "25": 50_000, "32": 63_000, "40": 80_000, "50": 100_000}
