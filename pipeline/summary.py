@@ -23,7 +23,7 @@ from pathlib import Path
 from geometry.table import is_scaled_row
 
 from .errors import OneLineParser
-from .interrupts import EXIT_FOR, STOPPED, stop_line
+from .interrupts import EXIT_FOR, NOTHING_WRITTEN, STOPPED
 
 _S_RE = re.compile(r"s = sqrt\(Q/1000 kg\) = ([0-9.]+)")
 
@@ -433,7 +433,7 @@ def main(argv: list[str] | None = None) -> int:
         return _summarise(args, received)
     except _Stopped:
         signum = received[0]
-        sys.stderr.write(stop_line(signum) + "\n")
+        sys.stderr.write(f"{STOPPED[signal.Signals(signum)]}: {NOTHING_WRITTEN}\n")  # not stop_line: no run's outcome applies
         return EXIT_FOR[signum]
     finally:
         for s, handler in previous.items():
