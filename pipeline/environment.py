@@ -8,6 +8,11 @@
   cache shared with every other FEniCS project on the machine is slow to search.
 - The form compiler's C build logs (about 50 INFO lines on a fresh machine) are not shown;
   warnings and errors still are.
+- Open MPI does not try its ``cm`` message layer, unless the user chose a layer
+  (OMPI_MCA_pml or OMPI_MCA_mtl set): trying it starts libfabric and PSM, which costs
+  every process about 0.2 s at MPI start-up on a machine without such a network, where
+  Open MPI then falls back to ``ob1`` anyway (docs/stack.md, which also says how to
+  choose ``cm`` on a cluster whose network needs it).
 """
 from __future__ import annotations
 
@@ -26,6 +31,8 @@ def configure() -> None:
     if "-no_signal_handler" not in opts.split():
         os.environ["PETSC_OPTIONS"] = f"{opts} -no_signal_handler".strip()
     os.environ["XDG_CACHE_HOME"] = str(CACHE_HOME)
+    if "OMPI_MCA_pml" not in os.environ and "OMPI_MCA_mtl" not in os.environ:
+        os.environ["OMPI_MCA_pml"] = "^cm"
     # Our handler first (basicConfig elsewhere then adds none); its own level stays at
     # WARNING even when setuptools lowers the root logger's level during a compile.
     logging.basicConfig(format="%(levelname)s: %(name)s: %(message)s")
