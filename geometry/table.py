@@ -110,10 +110,10 @@ def validate(d: Dimensions) -> Dimensions:
             f"({d.seat_inner:g}..{d.seat_outer:g} mm)")
     if d.dj / 2 + d.rf >= d.h3 / 2:
         raise InputError(
-            f"dj: journal radius plus fillet dj/2 + rf = {d.dj / 2 + d.rf:g} mm must be smaller than h3/2 = {d.h3 / 2:g} mm")
+            f"dj, rf: journal radius plus fillet dj/2 + rf = {d.dj / 2 + d.rf:g} mm must be smaller than h3/2 = {d.h3 / 2:g} mm")
     if d.dj / 2 + d.rf >= d.b1 / 2:
         raise InputError(
-            f"dj: journal radius plus fillet dj/2 + rf = {d.dj / 2 + d.rf:g} mm must be smaller than b1/2 = {d.b1 / 2:g} mm")
+            f"dj, rf: journal radius plus fillet dj/2 + rf = {d.dj / 2 + d.rf:g} mm must be smaller than b1/2 = {d.b1 / 2:g} mm")
     if d.rf >= d.b2:
         raise InputError(f"rf: fillet radius {d.rf:g} mm must be shorter than the journal b2 = {d.b2:g} mm")
     return d

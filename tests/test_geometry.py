@@ -66,7 +66,7 @@ def test_physical_groups_present_and_non_empty(gmsh_session, model, names):
 
 @pytest.mark.parametrize("field,over", [
     ("d2", {"d2": 45.0}), ("d2", {"d2": 50.0}), ("seat_inner", {"seat_inner": 20.0}),
-    ("seat_outer", {"seat_outer": 46.0}), ("dj", {"dj": 24.0}), ("dj", {"rf": 3.0, "dj": 19.0}),
+    ("seat_outer", {"seat_outer": 46.0}), ("dj, rf", {"dj": 24.0}), ("dj, rf", {"rf": 3.0, "dj": 19.0}),
     ("b6", {"b6": 71.0}), ("b1", {"b1": -45.0}), ("h3", {"h3": float("nan")}),
     ("b2", {"b2": float("inf")}), ("rf", {"rf": -1.0}), ("h3", {"h3": 0.0}),
 ])

@@ -44,7 +44,7 @@ ROWS = {
     "tall body": ({"h3": 80}, "solve", "h3/b1 = 1.8 (default 0.56)"),
     "flat body": ({"h3": 8, "dj": 6, "rf": 0.5}, "solve", "h3/b1 = 0.18, dj 6 mm to fit the height"),
     # Just past a limit: refused before any meshing, naming the field.
-    "fillet at the height limit": ({"rf": 2.5}, "refuse:dj", "dj/2 + rf = h3/2: fillet runs out on the faces"),
+    "fillet at the height limit": ({"rf": 2.5}, "refuse:dj, rf", "dj/2 + rf = h3/2: fillet runs out on the faces"),
     "bore as wide as the body": ({"d2": 45, "seat_inner": 45.5, "d14": 46, "seat_outer": 46.5},
                                  "refuse:d2", "no ligament"),
     "fillet longer than journal": ({"b2": 1.4, "b6": 47.8}, "refuse:rf", "rf = 1.5 > b2"),
