@@ -212,13 +212,16 @@ CASE_KEYS = ("want", "support", "model", "E_MPa", "nu", "allowable_MPa", "approx
              "size_fillet_mm", "grading_mm", "solver", "rtol")
 
 
+NO_COMMAND = "error: command: choose run, converge or sweep (see python -m pipeline --help)"
+
+
 def main(argv: list[str] | None = None, handle_signals: bool = False) -> int:
     """The command line; ``handle_signals`` (the program, not a test calling in) makes
     Ctrl-C and SIGTERM stop a run cleanly with exit 130 / 143 (pipeline.interrupts)."""
     args = make_parser().parse_args(argv)
     if args.command is None:
         make_parser().print_help()
-        sys.stderr.write("error: command: choose run, converge or sweep (see --help)\n")
+        sys.stderr.write(NO_COMMAND + "\n")
         return 2
     if handle_signals:
         install_interrupts(speak=os.environ.get("OMPI_COMM_WORLD_RANK", os.environ.get("PMI_RANK", "0")) == "0")

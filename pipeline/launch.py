@@ -54,13 +54,13 @@ def refusal(argv: list[str]) -> tuple[int, str] | None:
     if ranks > cores:
         return 2, (f"error: ranks: {ranks} ranks, but this machine gives {cores} cores; pipeline.launch runs "
                    "one rank per core here (on a cluster: mpirun or srun, docs/sweeps.md)")
-    from pipeline.cli import make_parser  # argparse only: no numerics are loaded
+    from pipeline.cli import NO_COMMAND, make_parser  # argparse only: no numerics are loaded
     try:
         args = make_parser().parse_args(argv[1:])
     except SystemExit as exc:  # the parser wrote its one line (or the help, status 0)
         return int(exc.code or 0), ""
     if args.command is None:
-        return 2, "error: command: choose run, converge or sweep (see python -m pipeline --help)"
+        return 2, NO_COMMAND
     return None
 
 
