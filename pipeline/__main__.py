@@ -2,7 +2,15 @@
 import signal
 import sys
 
-from pipeline.cli import main
+from pipeline.interrupts import stop_before_start
+
+if __name__ == "__main__":
+    # Until the run's own stop is set up (pipeline.cli.main), Ctrl-C or SIGTERM ends the
+    # loading program with its one line: nothing has been written yet.
+    for s in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(s, stop_before_start)
+
+from pipeline.cli import main  # noqa: E402
 
 if __name__ == "__main__":
     code = main(handle_signals=True)

@@ -29,7 +29,8 @@ configure()  # before numpy, PETSc or DOLFINx load (pipeline/environment.py)
 from geometry.table import is_scaled_row  # noqa: E402
 from pipeline.choices import MODELS, SOLVERS, SUPPORTS, WANTS  # noqa: E402
 from pipeline.errors import OneLineParser, given_twice  # noqa: E402
-from pipeline.interrupts import install as install_interrupts, new_command, stop_line, yield_to_stop  # noqa: E402
+from pipeline.interrupts import (  # noqa: E402
+    first_rank_by_environment, install as install_interrupts, new_command, stop_line, yield_to_stop)
 
 DESCRIPTION = """\
 Finite-element stress analysis of a DIN 15412 crane hook-block crosshead.
@@ -224,7 +225,7 @@ def main(argv: list[str] | None = None, handle_signals: bool = False) -> int:
         sys.stderr.write(NO_COMMAND + "\n")
         return 2
     if handle_signals:
-        install_interrupts(speak=os.environ.get("OMPI_COMM_WORLD_RANK", os.environ.get("PMI_RANK", "0")) == "0")
+        install_interrupts(speak=first_rank_by_environment())
     try:
         code = _dispatch(args)
     except KeyboardInterrupt:  # without handle_signals: a test calling in

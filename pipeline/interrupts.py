@@ -23,6 +23,10 @@ would end first and rank 0 could be killed before its clean-up and its line. So 
 silent ranks wait (at most QUIET_RANK_WAIT_S) after their clean-ups: rank 0 ends first,
 and mpirun then ends them.
 
+While the program is still loading, before the watcher is set up, the entry points
+(``python -m pipeline``, ``pipeline.launch``) let :func:`stop_before_start` end the process
+with the same line: nothing has been written yet.
+
 gmsh's Python module resets SIGINT to the default action when imported, and PETSc
 installs handlers that abort the MPI job on SIGTERM and on a closed pipe (SIGPIPE, exit
 59). So PETSc is started without its handlers (pipeline/environment.py), and gmsh is
@@ -169,6 +173,22 @@ def _watch(read_fd: int) -> None:
 
 def _noop(signum: int, frame) -> None:
     """The Python-level handler: the watcher thread does the work (see module doc)."""
+
+
+def first_rank_by_environment() -> bool:
+    """Is this process MPI rank 0 (or not under MPI at all), as its launcher's environment
+    says? Readable before MPI starts, so a line can be written once under mpirun or srun."""
+    return os.environ.get("OMPI_COMM_WORLD_RANK", os.environ.get("PMI_RANK", "0")) == "0"
+
+
+def stop_before_start(signum: int, frame: object = None) -> None:
+    """The handler of SIGINT and SIGTERM until :func:`install` sets the watcher's: the
+    program is still loading and has written nothing, so it ends here with its line and
+    status (without it, Ctrl-C printed Python's traceback)."""
+    if first_rank_by_environment():
+        sys.stderr.write(stop_line(signum) + "\n")
+        sys.stderr.flush()
+    os._exit(EXIT_FOR[signal.Signals(signum)])
 
 
 def install(speak: bool = True) -> None:

@@ -15,7 +15,7 @@ import subprocess
 import sys
 from pathlib import Path
 
-from pipeline.interrupts import EXIT_FOR
+from pipeline.interrupts import EXIT_FOR, stop_before_start
 
 
 def mpirun_command(ranks: int, args: list[str]) -> list[str]:
@@ -77,16 +77,13 @@ def main(argv: list[str] | None = None) -> int:
         return code
     ranks = int(argv[0])
     received: list[int] = []
-    try:
-        proc = subprocess.Popen(mpirun_command(ranks, argv[1:]), start_new_session=True)
-    except FileNotFoundError:
-        sys.stderr.write("error: mpirun: not found on PATH (make setup installs Open MPI)\n")
-        return 2
+    handed: list[int] = []
+    proc: subprocess.Popen | None = None
 
-    def forward(signum: int, frame) -> None:
-        if received:
+    def hand_over(signum: int) -> None:
+        if handed:
             return
-        received.append(signum)
+        handed.append(signum)
         local = children(proc.pid)
         for pid in local:
             try:
@@ -96,8 +93,24 @@ def main(argv: list[str] | None = None) -> int:
         if len(local) < ranks:  # ranks elsewhere (or not started yet): mpirun stops them
             proc.send_signal(signal.SIGTERM)
 
+    def forward(signum: int, frame) -> None:
+        if received:
+            return
+        received.append(signum)
+        if proc is not None:
+            hand_over(signum)
+
+    # Set before mpirun starts, so that no signal finds the loading program's handler
+    # (pipeline.interrupts.stop_before_start) once there are ranks to stop.
     signal.signal(signal.SIGINT, forward)
     signal.signal(signal.SIGTERM, forward)
+    try:
+        proc = subprocess.Popen(mpirun_command(ranks, argv[1:]), start_new_session=True)
+    except FileNotFoundError:
+        sys.stderr.write("error: mpirun: not found on PATH (make setup installs Open MPI)\n")
+        return 2
+    if received:  # a signal came while mpirun was starting
+        hand_over(received[0])
     status = proc.wait()
     if not received or status == 0:  # a run that finished before the signal stopped it
         return status
@@ -105,4 +118,7 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
+    # Until mpirun starts, Ctrl-C or SIGTERM ends the launcher with its one line.
+    for s in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(s, stop_before_start)
     sys.exit(main())

@@ -168,6 +168,22 @@ def test_signal_mid_run_cleans_up_and_keeps_the_earlier_result(tmp_path, earlier
     assert debris(tmp_path, "res") == []
 
 
+@pytest.mark.parametrize("sig,code,word", [("SIGINT", 130, "interrupted"), ("SIGTERM", 143, "terminated")])
+@pytest.mark.parametrize("module,args", [("pipeline", []), ("pipeline.launch", ["2"])])
+def test_a_stop_while_the_program_loads_says_so_in_one_line(tmp_path, sig, code, word, module, args):
+    """Ctrl-C before the run's own stop was set up printed Python's traceback (SIGTERM
+    ended the process without a line); now either ends it with its status and one line."""
+    out = tmp_path / "res"
+    p = subprocess.run([PY, str(ROOT / "tests" / "stop_while_loading.py"), sig, module, *args,
+                        *map(str, FAST), "--out", str(out)],
+                       cwd=ROOT, env=ENV, capture_output=True, text=True, timeout=120)
+    assert p.returncode == code, p.stderr
+    lines = [ln for ln in p.stderr.strip().splitlines() if ln]
+    assert len(lines) == 1 and word in lines[0] and "nothing written" in lines[0], p.stderr
+    assert "Traceback" not in p.stderr
+    assert sorted(os.listdir(tmp_path)) == []
+
+
 def test_staging_left_by_sigkill_is_removed_by_the_next_run(tmp_path, earlier):
     out = fresh_copy(earlier, tmp_path / "res")
     proc = start(SLOW + ["--out", out])
