@@ -81,8 +81,11 @@ def work(tasks: list[Task], out: Path, levels: int, ratio: float, say: Progress,
 def execute_sweep(size: str | None, case_file: Path | None, base: dict, axes: dict[str, list[float]],
                   loads: list[float], out: Path, levels: int, ratio: float, say: Progress,
                   comm: MPI.Comm = MPI.COMM_WORLD, sizes: list[str] | None = None) -> dict | None:
-    """Plan, check the output folder, work on every rank, summarise on rank 0."""
+    """Plan, check the output folder, work on every rank, summarise on rank 0. Only rank 0
+    calls ``say``."""
     from .outdir import MARKER, acquire_lock, check_out
+    if comm.rank != 0:
+        say = lambda s: None  # noqa: E731
     tasks = plan(size, case_file, base, axes, loads, levels, ratio, sizes)
     lock = None
     error = None
@@ -112,7 +115,7 @@ def execute_sweep(size: str | None, case_file: Path | None, base: dict, axes: di
         if lock is not None:  # a stop ends the process with os._exit: the finally below never runs
             stack.enter_context(on_stop(lock.release))
         try:
-            work(tasks, out, levels, ratio, say if comm.rank == 0 else (lambda s: None), comm)
+            work(tasks, out, levels, ratio, say, comm)
             request = comm.Ibarrier()
             while not request.Test():
                 time.sleep(0.05)

@@ -93,9 +93,13 @@ def test_small_sweep_contract_invalid_variant_and_resume(tmp_path):
 
 def test_one_and_two_ranks_give_the_same_rows(tmp_path):
     one = json.loads(sweep(tmp_path / "one", *GRID, "--quiet") and (tmp_path / "one" / "sweep.json").read_text())
-    two = json.loads(sweep(tmp_path / "two", *GRID, "--quiet", ranks=2) and (tmp_path / "two" / "sweep.json").read_text())
+    p2 = sweep(tmp_path / "two", *GRID, ranks=2)
+    two = json.loads((tmp_path / "two" / "sweep.json").read_text())
     strip = lambda rows: [{k: v for k, v in r.items() if k != "time_s"} for r in rows]  # noqa: E731
     assert strip(one["rows"]) == strip(two["rows"])
+    # The ranks speak through rank 0: each line once (the plan's line came from every rank).
+    assert p2.stdout.count("3 variants (2 valid, 1 invalid)") == 1, p2.stdout
+    assert p2.stdout.count("written to") == 1, p2.stdout
 
 
 def test_a_sweep_never_writes_into_a_user_folder(tmp_path):
