@@ -133,6 +133,56 @@ def _plots(rows: list[dict], axis: str, allowable: float, out: Path) -> list[str
     return names
 
 
+def sides(rows: list[dict], allowable: float) -> list[dict]:
+    """For each peak: how many finished rows lie above the allowable (MPa), how many below,
+    how many within their error bar of it, and the rows with the lowest and highest value.
+    None for a peak no finished row has."""
+    out = []
+    for key, band_key, label in PEAKS:
+        have = [r for r in rows if r["status"] == "done" and r.get(key) is not None]
+        if not have:
+            continue
+        near = [r for r in have if abs(r[key] - allowable) <= (r.get(band_key) or 0.0)]
+        out.append({"peak": label, "rows": len(have),
+                    "above": sum(r[key] > allowable for r in have), "within_band": len(near),
+                    "lowest": min(have, key=lambda r: r[key]), "highest": max(have, key=lambda r: r[key])})
+    return out
+
+
+def parameters_text(row: dict) -> str:
+    """A row's swept inputs for a person: 'dj = 16 mm, rf = 0.5 mm' (a size by its number)."""
+    parts = []
+    for k, v in sorted(json.loads(row["parameters"]).items()):
+        if k == "size":
+            parts.append(f"No. {v}")
+        elif k == "load_N":
+            parts.append(f"load = {v:g} N")
+        else:
+            parts.append(f"{k.replace('dims.', '')} = {v:g} mm")
+    return ", ".join(parts) or "the base case"
+
+
+def _side_lines(summary: dict) -> list[str]:
+    """One line per peak: above or below the allowable in every variant, or how many on
+    each side, with its lowest and highest value and where."""
+    a = summary["allowable_MPa"]
+    lines = []
+    for sd in sides(summary["rows"], a):
+        key = "peak_MPa" if sd["peak"] == "global peak" else "critical_peak_MPa"
+        lo, hi = sd["lowest"], sd["highest"]
+        span = (f"{lo[key]:.2f} MPa ({parameters_text(lo)}) to {hi[key]:.2f} MPa ({parameters_text(hi)})"
+                if lo is not hi else f"{lo[key]:.2f} MPa")
+        if sd["above"] == sd["rows"]:
+            where = f"above {a:g} MPa in every analysed variant"
+        elif sd["above"] == 0:
+            where = f"below {a:g} MPa in every analysed variant"
+        else:
+            where = f"above {a:g} MPa in {sd['above']} of {sd['rows']} analysed variants"
+        near = (f"; {sd['within_band']} within their error bar of it" if sd["within_band"] else "")
+        lines.append(f"- The {sd['peak']} is {where}: {span}{near}.")
+    return lines
+
+
 def _report(summary: dict, swept: list[str], plots: list[str]) -> str:
     c = summary["counts"]
     L = ["# Design study\n", "Units: mm, N, MPa.\n",
@@ -143,9 +193,11 @@ def _report(summary: dict, swept: list[str], plots: list[str]) -> str:
         L.append(f"Every variant at mesh factor {mf:g}"
                  + (": coarser than 1.3, so the global (fillet) peak is not resolved (README, Known limits); "
                     "its values, crossings and verdicts are rough.\n" if mf > 1.3 else ".\n"))
-    L.append("## Crossing the allowable\n")
+    L.append(f"## Against the allowable ({summary['allowable_MPa']:g} MPa)\n")
+    L += _side_lines(summary)
+    L.append("")
     if not summary["crossings"]:
-        L.append("No peak crosses the allowable inside the swept ranges.\n")
+        L.append("No peak crosses the allowable between neighbouring variants of a swept parameter.\n")
     for x in summary["crossings"]:
         fixed = ", ".join(f"{k.replace('dims.', '')} = {v:g}" for k, v in x["fixed"].items() if v is not None)
         rng = f" (between {x['range'][0]:.4g} and {x['range'][1]:.4g} within the error bars)" if x["range"] else ""
@@ -159,10 +211,15 @@ def _report(summary: dict, swept: list[str], plots: list[str]) -> str:
     for r in summary["rows"]:
         def f(v, band=None):
             return "" if v is None else f"{v:.2f}" + (f" ± {band:.2f}" if band else "")
-        L.append(f"| {r['variant']} | {r['status']} | {r['parameters']} | {r.get('load_N') or ''} | "
+        L.append(f"| {r['variant']} | {r['status']} | {parameters_text(r)} | {_n0(r.get('load_N'))} | "
                  f"{f(r.get('peak_MPa'), r.get('peak_band_MPa'))} | {f(r.get('critical_peak_MPa'), r.get('critical_band_MPa'))} | "
                  f"{r.get('note') or ''} |")
     L.append("")
     for p in plots:
         L.append(f"![{p}]({p})\n")
     return "\n".join(L) + "\n"
+
+
+def _n0(v: float | None) -> str:
+    """A load (N) for the table: whole newtons, empty when there is none."""
+    return "" if v is None else f"{v:.0f}"

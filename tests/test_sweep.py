@@ -13,7 +13,7 @@ import pytest
 
 from pipeline.errors import InputError
 from pipeline.study import parse_values, read_study
-from pipeline.sweepresults import COLUMNS, crossings
+from pipeline.sweepresults import COLUMNS, crossings, parameters_text, sides
 
 ROOT = Path(__file__).resolve().parents[1]
 GRID = ["--size", "05", "--dim", "rf=1.0,1.5,2.5", "--mesh-factor", "3", "--levels", "1"]
@@ -69,6 +69,23 @@ def test_crossing_is_interpolated_with_its_band():
     assert found[0]["at"] == pytest.approx(1.5) and found[0]["range"] == pytest.approx([1.25, 1.75])
 
 
+def test_each_peak_is_placed_against_the_allowable_by_hand_counted_rows():
+    """Global peaks 120, 90 and 85 ± 6 MPa, critical 50, 60 and 81 MPa, against 80 MPa:
+    the global peak above in all three, one of them (85 ± 6) within its band of 80; the
+    critical above in one of three; an invalid row counts for neither."""
+    def row(rf, g, gb, c):
+        return {"status": "done", "parameters": json.dumps({"dims.rf": rf}), "peak_MPa": g, "peak_band_MPa": gb,
+                "critical_peak_MPa": c, "critical_band_MPa": None}
+    rows = [row(1.0, 120.0, 1.0, 50.0), row(1.5, 90.0, None, 60.0), row(2.0, 85.0, 6.0, 81.0),
+            {"status": "invalid", "parameters": json.dumps({"dims.rf": 9.0})}]
+    g, c = sides(rows, 80.0)
+    assert (g["peak"], g["rows"], g["above"], g["within_band"]) == ("global peak", 3, 3, 1)
+    assert (c["peak"], c["rows"], c["above"], c["within_band"]) == ("critical peak", 3, 1, 0)
+    assert g["lowest"]["peak_MPa"] == 85.0 and c["highest"]["critical_peak_MPa"] == 81.0
+    assert parameters_text(rows[0]) == "rf = 1 mm"
+    assert parameters_text({"parameters": json.dumps({"size": "2.5", "dims.dj": 16.0})}) == "dj = 16 mm, No. 2.5"
+
+
 def test_small_sweep_contract_invalid_variant_and_resume(tmp_path):
     out = tmp_path / "study"
     first = sweep(out, *GRID)
@@ -84,6 +101,9 @@ def test_small_sweep_contract_invalid_variant_and_resume(tmp_path):
     assert data["units"]["stress"] == "MPa" and data["counts"]["done"] == 2
     assert all(r["peak_MPa"] > r["critical_peak_MPa"] > 0 for r in data["rows"] if r["status"] == "done")
     assert (out / "report.md").is_file() and (out / "peak_vs_rf.png").is_file()
+    report = (out / "report.md").read_text(encoding="utf-8")
+    assert "## Against the allowable (80 MPa)" in report and report.count("analysed variant") == 2
+    assert "| rf = 1 mm |" in report and "| rf = 2.5 mm |" in report
     again = sweep(out, *GRID)
     assert "2 already done" in again.stdout
     assert json.loads((out / "sweep.json").read_text())["rows"] == data["rows"]
