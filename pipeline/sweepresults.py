@@ -53,18 +53,24 @@ def rows_of(tasks: list[Task], out: Path) -> list[dict]:
     return rows
 
 
+def series(rows: list[dict], axis: str) -> dict[tuple, list[dict]]:
+    """The finished rows as lines along ``axis``: one list per combination of the other
+    swept parameters and the load, keyed by those (name, value) pairs, sorted by ``axis``."""
+    others = [k for k in rows[0] if k not in COLUMNS and k != axis] if rows else []
+    fixed_keys = others + (["load_N"] if axis != "load_N" else [])
+    groups: dict[tuple, list[dict]] = {}
+    for r in rows:
+        if r["status"] == "done":
+            groups.setdefault(tuple((k, r.get(k)) for k in fixed_keys), []).append(r)
+    return {fixed: sorted(g, key=lambda r: r[axis]) for fixed, g in groups.items()}
+
+
 def crossings(rows: list[dict], axis: str, allowable: float) -> list[dict]:
     """Where each peak crosses the allowable along ``axis`` (the other parameters fixed):
     linear interpolation between neighbouring variants; the range from the peaks' bands
     (value ± band crossing the allowable) when both neighbours have one."""
     found = []
-    others = [k for k in rows[0] if k not in COLUMNS and k != axis] if rows else []
-    done = [r for r in rows if r["status"] == "done"]
-    groups: dict = {}
-    for r in done:
-        groups.setdefault(tuple((k, r.get(k)) for k in others + (["load_N"] if axis != "load_N" else [])), []).append(r)
-    for fixed, group in groups.items():
-        group = sorted(group, key=lambda r: r[axis])
+    for fixed, group in series(rows, axis).items():
         for key, band_key, label in PEAKS:
             for a, b in zip(group, group[1:]):
                 ya, yb = a[key] - allowable, b[key] - allowable
@@ -114,13 +120,11 @@ def _plots(rows: list[dict], axis: str, allowable: float, out: Path) -> list[str
     names = []
     for key, band_key, label in PEAKS:
         fig, ax = plt.subplots(figsize=(6.5, 4))
-        groups: dict = {}
-        for r in done:
-            groups.setdefault(r["parameters"] if axis == "load_N" else (r["parameters"], r["load_N"]), []).append(r)
-        for g in groups.values():
-            g = sorted(g, key=lambda r: r[axis])
+        lines = series(done, axis)
+        for fixed, g in lines.items():
+            # One line per combination of the other parameters; named when there are several.
             ax.errorbar([r[axis] for r in g], [r[key] for r in g], yerr=[r.get(band_key) or 0 for r in g],
-                        marker="o", capsize=3, lw=1)
+                        marker="o", capsize=3, lw=1, label=_fixed_text(fixed, lines) or None)
         ax.axhline(allowable, color="red", ls="--", label=f"allowable {allowable:g} MPa")
         ax.set_xlabel(axis.replace("dims.", "") + (" (N)" if axis == "load_N" else " (mm)"))
         ax.set_ylabel(f"{label} von Mises (MPa)")
@@ -223,3 +227,20 @@ def _report(summary: dict, swept: list[str], plots: list[str]) -> str:
 def _n0(v: float | None) -> str:
     """A load (N) for the table: whole newtons, empty when there is none."""
     return "" if v is None else f"{v:.0f}"
+
+
+def _fixed_text(fixed: tuple, lines: dict[tuple, list[dict]]) -> str:
+    """A line's legend: the fixed values that differ between the plot's lines
+    ('dj = 16 mm, load = 10000 N'); empty for a plot of one line."""
+    varying = {k for k, _ in fixed if len({dict(f)[k] for f in lines}) > 1}
+    parts = []
+    for k, v in fixed:
+        if k not in varying:
+            continue
+        if k == "load_N":
+            parts.append(f"load = {v:g} N")
+        elif k == "size":
+            parts.append(f"No. {v}")
+        else:
+            parts.append(f"{k.replace('dims.', '')} = {v:g} mm")
+    return ", ".join(parts)

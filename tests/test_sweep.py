@@ -13,7 +13,7 @@ import pytest
 
 from pipeline.errors import InputError
 from pipeline.study import parse_values, read_study
-from pipeline.sweepresults import COLUMNS, crossings, parameters_text, sides
+from pipeline.sweepresults import COLUMNS, crossings, parameters_text, series, sides
 
 ROOT = Path(__file__).resolve().parents[1]
 GRID = ["--size", "05", "--dim", "rf=1.0,1.5,2.5", "--mesh-factor", "3", "--levels", "1"]
@@ -84,6 +84,23 @@ def test_each_peak_is_placed_against_the_allowable_by_hand_counted_rows():
     assert g["lowest"]["peak_MPa"] == 85.0 and c["highest"]["critical_peak_MPa"] == 81.0
     assert parameters_text(rows[0]) == "rf = 1 mm"
     assert parameters_text({"parameters": json.dumps({"size": "2.5", "dims.dj": 16.0})}) == "dj = 16 mm, No. 2.5"
+
+
+def test_a_plot_draws_one_line_per_value_of_the_other_parameters():
+    """rf x dj = 3 x 2 finished rows (one failed) at one load: along rf, two lines (dj 16 and
+    18), each ordered by rf; along dj, three. A sweep of rf alone is one line. (The plots
+    grouped rows by all their parameters, the plotted one included: every point was a line
+    of its own.)"""
+    def row(rf, dj, status="done"):
+        return {"status": status, "dims.rf": rf, "dims.dj": dj, "load_N": 1e4,
+                "parameters": json.dumps({"dims.dj": dj, "dims.rf": rf})}
+    rows = [row(rf, dj) for dj in (18.0, 16.0) for rf in (2.0, 1.0, 1.5)] + [row(3.0, 16.0, "failed")]
+    along_rf = series(rows, "dims.rf")
+    assert sorted(dict(k)["dims.dj"] for k in along_rf) == [16.0, 18.0]
+    assert all([r["dims.rf"] for r in g] == [1.0, 1.5, 2.0] for g in along_rf.values())
+    assert len(series(rows, "dims.dj")) == 3
+    single = [{k: v for k, v in r.items() if k != "dims.dj"} for r in rows if r["dims.dj"] == 16.0]
+    assert [len(g) for g in series(single, "dims.rf").values()] == [3]
 
 
 def test_small_sweep_contract_invalid_variant_and_resume(tmp_path):
