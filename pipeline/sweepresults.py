@@ -153,16 +153,21 @@ def sides(rows: list[dict], allowable: float) -> list[dict]:
     return out
 
 
-def parameters_text(row: dict) -> str:
-    """A row's swept inputs for a person: 'dj = 16 mm, rf = 0.5 mm' (a size by its number)."""
-    parts = []
-    for k, v in sorted(json.loads(row["parameters"]).items()):
-        if k == "size":
-            parts.append(f"No. {v}")
-        elif k == "load_N":
-            parts.append(f"load = {v:g} N")
-        else:
-            parts.append(f"{k.replace('dims.', '')} = {v:g} mm")
+def value_text(name: str, value) -> str:
+    """One input for a person, with its unit: 'rf = 0.5 mm', 'load = 12000 N', 'No. 2.5'."""
+    if name == "size":
+        return f"No. {value}"
+    if name == "load_N":
+        return f"load = {value:g} N"
+    return f"{name.replace('dims.', '')} = {value:g} mm"
+
+
+def parameters_text(row: dict, with_load: bool = False) -> str:
+    """A row's swept inputs for a person: 'dj = 16 mm, rf = 0.5 mm' (a size by its number),
+    and its load when ``with_load`` (a study over loads)."""
+    parts = [value_text(k, v) for k, v in sorted(json.loads(row["parameters"]).items())]
+    if with_load and row.get("load_N") is not None:
+        parts.append(value_text("load_N", row["load_N"]))
     return ", ".join(parts) or "the base case"
 
 
@@ -174,14 +179,15 @@ def _side_lines(summary: dict) -> list[str]:
     for sd in sides(summary["rows"], a):
         key = "peak_MPa" if sd["peak"] == "global peak" else "critical_peak_MPa"
         lo, hi = sd["lowest"], sd["highest"]
-        span = (f"{lo[key]:.2f} MPa ({parameters_text(lo)}) to {hi[key]:.2f} MPa ({parameters_text(hi)})"
+        loads = len({r.get("load_N") for r in summary["rows"]}) > 1
+        span = (f"{lo[key]:.2f} MPa ({parameters_text(lo, loads)}) to {hi[key]:.2f} MPa ({parameters_text(hi, loads)})"
                 if lo is not hi else f"{lo[key]:.2f} MPa")
         if sd["above"] == sd["rows"]:
-            where = f"above {a:g} MPa in every analysed variant"
+            where = f"above {a:g} MPa in every analysed case"
         elif sd["above"] == 0:
-            where = f"below {a:g} MPa in every analysed variant"
+            where = f"below {a:g} MPa in every analysed case"
         else:
-            where = f"above {a:g} MPa in {sd['above']} of {sd['rows']} analysed variants"
+            where = f"above {a:g} MPa in {sd['above']} of {sd['rows']} analysed cases"
         near = (f"; {sd['within_band']} within their error bar of it" if sd["within_band"] else "")
         lines.append(f"- The {sd['peak']} is {where}: {span}{near}.")
     return lines
@@ -190,8 +196,9 @@ def _side_lines(summary: dict) -> list[str]:
 def _report(summary: dict, swept: list[str], plots: list[str]) -> str:
     c = summary["counts"]
     L = ["# Design study\n", "Units: mm, N, MPa.\n",
-         f"{c['done']} variants analysed, {c['invalid']} invalid (skipped), {c['failed']} failed, "
-         f"{c['not run']} not run. Allowable {summary['allowable_MPa']:g} MPa.\n"]
+         f"{c['done']} cases analysed, {c['invalid']} invalid (skipped), {c['failed']} failed, "
+         f"{c['not run']} not run (a case is a variant at one load). "
+         f"Allowable {summary['allowable_MPa']:g} MPa.\n"]
     mf = summary.get("mesh_factor")
     if mf is not None:
         L.append(f"Every variant at mesh factor {mf:g}"
@@ -202,12 +209,20 @@ def _report(summary: dict, swept: list[str], plots: list[str]) -> str:
     L.append("")
     if not summary["crossings"]:
         L.append("No peak crosses the allowable between neighbouring variants of a swept parameter.\n")
+    else:
+        L.append("Where a peak crosses the allowable between neighbouring variants (linear "
+                 "interpolation; the range from their error bars):\n")
     for x in summary["crossings"]:
-        fixed = ", ".join(f"{k.replace('dims.', '')} = {v:g}" for k, v in x["fixed"].items() if v is not None)
-        rng = f" (between {x['range'][0]:.4g} and {x['range'][1]:.4g} within the error bars)" if x["range"] else ""
+        axis = x["axis"]
+        unit = "N" if axis == "load_N" else "mm"
+        name = "load" if axis == "load_N" else axis.replace("dims.", "")
+        num = (lambda v: f"{v:.0f}") if axis == "load_N" else (lambda v: f"{v:.4g}")
+        fixed = ", ".join(value_text(k, v) for k, v in x["fixed"].items() if v is not None)
+        rng = (f" (between {num(x['range'][0])} and {num(x['range'][1])} {unit} within the error bars)"
+               if x["range"] else "")
         word = "falls below" if x["falls_below"] else "rises above"
-        L.append(f"- The {x['peak']} {word} {summary['allowable_MPa']:g} MPa at {x['axis'].replace('dims.', '')} "
-                 f"≈ {x['at']:.4g}{rng}" + (f" ({fixed})" if fixed else "") + ".")
+        L.append(f"- The {x['peak']} {word} {summary['allowable_MPa']:g} MPa at {name} ≈ {num(x['at'])} {unit}{rng}"
+                 + (f", with {fixed}" if fixed else "") + ".")
     L.append("")
     L.append("## Variants\n")
     L.append("| variant | status | parameters | load (N) | global peak (MPa) | critical peak (MPa) | note |")
@@ -233,14 +248,4 @@ def _fixed_text(fixed: tuple, lines: dict[tuple, list[dict]]) -> str:
     """A line's legend: the fixed values that differ between the plot's lines
     ('dj = 16 mm, load = 10000 N'); empty for a plot of one line."""
     varying = {k for k, _ in fixed if len({dict(f)[k] for f in lines}) > 1}
-    parts = []
-    for k, v in fixed:
-        if k not in varying:
-            continue
-        if k == "load_N":
-            parts.append(f"load = {v:g} N")
-        elif k == "size":
-            parts.append(f"No. {v}")
-        else:
-            parts.append(f"{k.replace('dims.', '')} = {v:g} mm")
-    return ", ".join(parts)
+    return ", ".join(value_text(k, v) for k, v in fixed if k in varying)

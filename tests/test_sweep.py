@@ -119,7 +119,7 @@ def test_small_sweep_contract_invalid_variant_and_resume(tmp_path):
     assert all(r["peak_MPa"] > r["critical_peak_MPa"] > 0 for r in data["rows"] if r["status"] == "done")
     assert (out / "report.md").is_file() and (out / "peak_vs_rf.png").is_file()
     report = (out / "report.md").read_text(encoding="utf-8")
-    assert "## Against the allowable (80 MPa)" in report and report.count("analysed variant") == 2
+    assert "## Against the allowable (80 MPa)" in report and report.count("analysed case") == 2
     assert "| rf = 1 mm |" in report and "| rf = 2.5 mm |" in report
     again = sweep(out, *GRID)
     assert "2 already done" in again.stdout
