@@ -126,7 +126,7 @@ def _plots(rows: list[dict], axis: str, allowable: float, out: Path) -> list[str
             ax.errorbar([r[axis] for r in g], [r[key] for r in g], yerr=[r.get(band_key) or 0 for r in g],
                         marker="o", capsize=3, lw=1, label=_fixed_text(fixed, lines) or None)
         ax.axhline(allowable, color="red", ls="--", label=f"allowable {allowable:g} MPa")
-        ax.set_xlabel(axis.replace("dims.", "") + (" (N)" if axis == "load_N" else " (mm)"))
+        ax.set_xlabel("load (N)" if axis == "load_N" else f"{axis.replace('dims.', '')} (mm)")
         ax.set_ylabel(f"{label} von Mises (MPa)")
         ax.legend(fontsize=8)
         fig.tight_layout()
