@@ -13,34 +13,52 @@ from pathlib import Path
 
 
 def convergence_plot(path: Path, conv: dict, case) -> bool:
-    """Peak against representative mesh size N^(-1/3), with extrapolated value and GCI band."""
+    """Each peak (MPa) against the representative mesh size N^(-1/3) of the study's meshes:
+    both nodal readings, the value reported, the finest mesh's error bar and, where the
+    estimator extrapolated, the limit at h = 0."""
     try:
         import matplotlib
         matplotlib.use("Agg")
         import matplotlib.pyplot as plt
     except ImportError:
         return False
+    fig = convergence_figure(conv, case.size)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return True
+
+
+def convergence_figure(conv: dict, size: str):
+    """The figure of :func:`convergence_plot` (matplotlib must be importable)."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    levels = conv["levels"]  # finest first, as est["h"] and est["values"]
     fig, axes = plt.subplots(1, 2, figsize=(11, 4.2))
     for ax, key, label in ((axes[0], "peak", "global peak"), (axes[1], "critical", "critical-region peak")):
         est = conv[key]
         h = est["h"]
-        ax.plot(h, est["values"], "o-", label=f"FE {label}")
-        if est.get("extrapolated") is not None and est["status"] == "converged":
-            ext, band = est["extrapolated"], est["band"]
-            ax.axhline(ext, color="k", ls="--", label=f"Richardson {ext:.2f} MPa")
-            ax.axhspan(est["values"][0] - band, est["values"][0] + band, color="C1", alpha=0.2,
-                       label=f"GCI band finest ±{band:.2f} MPa")
-            ax.plot([0], [ext], "k*", ms=10)
-        ax.set_xlim(left=0)
+        ax.plot(h, [lv[f"{key}_unaveraged_MPa"] for lv in levels], "v:", color="C3",
+                label="unaveraged (largest element-node value)")
+        ax.plot(h, [lv[f"{key}_averaged_MPa"] for lv in levels], "^:", color="C0",
+                label="averaged (nodal-averaged stress)")
+        ax.plot(h, est["values"], "o-", color="k", label="reported value")
+        if est.get("band") is not None:
+            ax.errorbar([h[0]], [est["values"][0]], yerr=[est["band"]], fmt="none", ecolor="C1",
+                        elinewidth=3, capsize=6, label=f"error bar ±{est['band']:.3g} MPa")
+        # A settled peak is not extrapolated: its "limit" is the finest value itself.
+        if est.get("extrapolated") is not None and est["status"] != "settled":
+            name = "Richardson limit" if est["status"] == "converged" else "fitted limit"
+            ax.plot([0], [est["extrapolated"]], "*", color="C2", ms=12,
+                    label=f"{name} {est['extrapolated']:.2f} MPa")
+        ax.set_xlim(left=-0.03 * max(h))  # h = 0 (the limit) just inside the frame
         ax.set_xlabel("representative mesh size h = DOFs^(-1/3)")
         ax.set_ylabel("von Mises (MPa)")
-        ax.set_title(f"No. {case.size}: {label} [{est['status']}]")
+        ax.set_title(f"No. {size}: {label} [{est['status']}]")
         ax.grid(alpha=0.3)
         ax.legend(fontsize=8)
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return True
+    return fig
 
 
 def sections_plot(path: Path, sections: dict, analytic: dict, h_mm: float) -> bool:

@@ -155,3 +155,34 @@ def test_report_flags_scaled_rows_and_singular_peaks(run_folder):
     assert "not DIN 15412 values" in md.split("## Summary")[0]
     assert "(singular: edge of the rigid support patch)" in md
     assert "none: the peak is singular" in md
+
+
+def _study(status: str, values: list[float], extrapolated: float | None, band: float) -> dict:
+    """A convergence block as execute_converge writes it: three meshes, finest first."""
+    h = [0.01, 0.013, 0.017]
+    levels = [{"peak_unaveraged_MPa": v + 1, "peak_averaged_MPa": v - 1, "critical_unaveraged_MPa": v,
+               "critical_averaged_MPa": v - 0.1} for v in values]
+    est = {"h": h, "values": values, "status": status, "extrapolated": extrapolated, "band": band}
+    return {"levels": levels, "peak": est, "critical": dict(est, status="settled", extrapolated=values[0])}
+
+
+@pytest.mark.parametrize("status,limit_label", [("converged", "Richardson limit 99.00 MPa"),
+                                                ("scattered", "fitted limit 99.00 MPa"),
+                                                ("unsettled", None)])
+def test_convergence_plot_shows_both_readings_the_error_bar_and_only_a_real_limit(status, limit_label):
+    """The plot drew an extrapolated limit and band only for 'converged': a study whose
+    fillet peak was 'scattered' (a fitted limit, a band) showed a bare line. Now every
+    status has both readings and the error bar; a limit only where one was extrapolated,
+    and none for a settled peak (its 'limit' is the finest value itself)."""
+    import matplotlib.pyplot as plt
+
+    from pipeline.plots import convergence_figure
+    fig = convergence_figure(_study(status, [100.0, 101.0, 102.0], None if status == "unsettled" else 99.0, 0.5),
+                             "05")
+    glob, crit = ([t.get_text() for t in ax.get_legend().get_texts()] for ax in fig.axes)
+    plt.close(fig)
+    for labels in (glob, crit):
+        assert {"unaveraged (largest element-node value)", "averaged (nodal-averaged stress)",
+                "reported value", "error bar ±0.5 MPa"} <= set(labels)
+    assert (limit_label in glob) if limit_label else not any("limit" in t for t in glob)
+    assert not any("limit" in t for t in crit)
