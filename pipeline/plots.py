@@ -48,7 +48,7 @@ def convergence_figure(conv: dict, size: str):
                         elinewidth=3, capsize=6, label=f"error bar ±{est['band']:.3g} MPa")
         # A settled peak is not extrapolated: its "limit" is the finest value itself.
         if est.get("extrapolated") is not None and est["status"] != "settled":
-            name = "Richardson limit" if est["status"] == "converged" else "fitted limit"
+            name = "Richardson limit" if est["status"] == "converged" else "least-squares limit"
             ax.plot([0], [est["extrapolated"]], "*", color="C2", ms=12,
                     label=f"{name} {est['extrapolated']:.2f} MPa")
         ax.set_xlim(left=-0.03 * max(h))  # h = 0 (the limit) just inside the frame
