@@ -46,8 +46,9 @@ def convergence_figure(conv: dict, size: str):
         if est.get("band") is not None:
             ax.errorbar([h[0]], [est["values"][0]], yerr=[est["band"]], fmt="none", ecolor="C1",
                         elinewidth=3, capsize=6, label=f"error bar ±{est['band']:.3g} MPa")
-        # A settled peak is not extrapolated: its "limit" is the finest value itself.
-        if est.get("extrapolated") is not None and est["status"] != "settled":
+        # Only these two statuses extrapolate (pipeline/report.py words them alike); the
+        # others' "extrapolated" is the finest value itself or absent.
+        if est.get("extrapolated") is not None and est["status"] in ("converged", "scattered"):
             name = "Richardson limit" if est["status"] == "converged" else "least-squares limit"
             ax.plot([0], [est["extrapolated"]], "*", color="C2", ms=12,
                     label=f"{name} {est['extrapolated']:.2f} MPa")

@@ -168,7 +168,7 @@ def _study(status: str, values: list[float], extrapolated: float | None, band: f
 
 @pytest.mark.parametrize("status,limit_label", [("converged", "Richardson limit 99.00 MPa"),
                                                 ("scattered", "least-squares limit 99.00 MPa"),
-                                                ("unsettled", None)])
+                                                ("unsettled", None), ("exact", None), ("oscillatory", None)])
 def test_convergence_plot_shows_both_readings_the_error_bar_and_only_a_real_limit(status, limit_label):
     """The plot drew an extrapolated limit and band only for 'converged': a study whose
     fillet peak was 'scattered' (a fitted limit, a band) showed a bare line. Now every
