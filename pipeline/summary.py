@@ -333,6 +333,11 @@ def plot(rows: list[dict], path: Path) -> bool:
     glob = sorted(r["fe_peak_MPa"] for r in rows)
     cap = max(2.5 * glob[len(glob) // 2], *(1.3 * (r["allowable_MPa"] or 0) for r in rows),
               *(1.2 * r["fe_critical_MPa"] for r in rows))
+    # The axis ends just above what is drawn; at the cap only when something is clipped.
+    tops = [r[k] + (r[b] or 0.0) for r in rows for k, b in (("fe_peak_MPa", "fe_peak_band_MPa"),
+                                                             ("fe_critical_MPa", "fe_critical_band_MPa"))]
+    tops += [r["exact_MPa"] for r in rows] + [r["allowable_MPa"] or 0.0 for r in rows]
+    top = cap if max(tops) > cap else 1.08 * max(tops)
     fig, ax = plt.subplots(figsize=(min(16.0, max(7.0, 0.42 * len(rows) + 3) + 3.0), 6.0))
 
     def series(key: str, band_key: str, status_key: str, fmt: str, color: str, label: str):
@@ -350,21 +355,22 @@ def plot(rows: list[dict], path: Path) -> bool:
                     label=f"{label.split(' (')[0].split(' ±')[0]}: no error bar (not converged)")
 
     series("fe_critical_MPa", "fe_critical_band_MPa", "fe_critical_status", "o-", "C3",
-           "FE critical peak (bore ligament) ± GCI")
+           "FE critical peak (bore ligament) ± error bar")
     series("fe_peak_MPa", "fe_peak_band_MPa", "fe_peak_status", "s--", "C0",
-           "FE global peak ± GCI")
+           "FE global peak ± error bar")
     ax.plot(x, [r["exact_MPa"] for r in rows], "^-", color="C2", label="exact formula (curved bar)")
     ax.plot(x, [r["approximate_MPa"] for r in rows], "v-", color="C1", label="approximate formula")
     allow = {r["allowable_MPa"] for r in rows}
     if len(allow) == 1 and rows:
-        ax.axhline(allow.pop(), color="0.4", ls=":", label="allowable")
+        a = allow.pop()
+        ax.axhline(a, color="0.4", ls=":", label=f"allowable {a:g} MPa")
     ax.set_xticks(x)
     ax.set_xticklabels([("! " if r.get("warnings") else "") + f"{r['size']}\n{r['load_N'] / 1000:.3g}"
                         + ("" if r["dimensions"].startswith("table row") else "*") for r in rows], fontsize=8)
     ax.set_xlabel("hook No. (categorical axis) and load in kN; * = dimensions scaled from No. 05, not DIN; "
                   "! = see the warnings in summary.md")
     ax.set_ylabel("von Mises / nominal stress (MPa)")
-    ax.set_ylim(0, 1.05 * cap)
+    ax.set_ylim(0, 1.05 * cap if top >= cap else top)
     ax.set_title("DIN 15412 crosshead: stress against hook number")
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0)

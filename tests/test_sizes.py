@@ -391,3 +391,26 @@ def test_rounded_row_matches_no05_within_its_rounding(size):
                              f"formulas say {100 * deltas[0]:.2f} / {100 * deltas[1]:.2f} % "
                              f"from rounding, mesh allowance ±{100 * mesh:.2f} %; peak at "
                              f"{b.critical.location_mm}, worst det J ratio {b.jacobian_ratio:.3f}")
+
+
+def _plot_row(size: str, peak: float) -> dict:
+    return {"size": size, "load_N": 10_000.0, "dimensions": "table row", "warnings": "",
+            "fe_peak_MPa": peak, "fe_peak_band_MPa": 1.0, "fe_peak_status": "converged",
+            "fe_critical_MPa": 66.0, "fe_critical_band_MPa": 0.1, "fe_critical_status": "settled",
+            "exact_MPa": 44.0, "approximate_MPa": 38.0, "allowable_MPa": 80.0}
+
+
+@pytest.mark.parametrize("peaks,ylim_top", [((120.0, 118.0, 119.0), 1.08 * 121.0),
+                                            ((120.0, 118.0, 3000.0), 1.05 * 2.5 * 120.0)])
+def test_summary_plot_ends_above_what_it_draws_and_clips_only_an_outlier(tmp_path, monkeypatch, peaks, ylim_top):
+    """The axis ran to 2.5× the median global peak (294 MPa for peaks of ~112) whether or
+    not a value needed clipping. Now it ends 8 % above the highest value drawn (with its
+    bar), and only an outlier (a mesh artefact, 3000 MPa here) sets the clipped axis at
+    2.5× the median."""
+    import matplotlib.figure
+
+    from pipeline import summary
+    seen = []
+    monkeypatch.setattr(matplotlib.figure.Figure, "savefig", lambda fig, *a, **k: seen.append(fig.axes[0].get_ylim()))
+    assert summary.plot([_plot_row(s, p) for s, p in zip(("05", "1", "2"), peaks)], tmp_path / "s.png")
+    assert seen[0] == pytest.approx((0.0, ylim_top))
