@@ -74,7 +74,7 @@ def work(tasks: list[Task], out: Path, levels: int, ratio: float, say: Progress,
         mine += 1
         finished = sum(_done(out, t.key) for t in todo)
         rate = (time.perf_counter() - t0) / mine / comm.size
-        say(f"sweep: {finished}/{len(todo)} variants done (rank {comm.rank}); "
+        say(f"sweep: {finished}/{len(todo)} variants done; "
             f"about {rate * (len(todo) - finished):.0f} s left")
 
 
