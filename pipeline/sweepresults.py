@@ -140,7 +140,7 @@ def _plots(rows: list[dict], axis: str, allowable: float, out: Path) -> list[str
 def sides(rows: list[dict], allowable: float) -> list[dict]:
     """For each peak: how many finished rows lie above the allowable (MPa), how many below,
     how many within their error bar of it, and the rows with the lowest and highest value.
-    None for a peak no finished row has."""
+    A peak that no finished row has is left out."""
     out = []
     for key, band_key, label in PEAKS:
         have = [r for r in rows if r["status"] == "done" and r.get(key) is not None]
@@ -153,7 +153,7 @@ def sides(rows: list[dict], allowable: float) -> list[dict]:
     return out
 
 
-def value_text(name: str, value) -> str:
+def value_text(name: str, value: float | str) -> str:
     """One input for a person, with its unit: 'rf = 0.5 mm', 'load = 12000 N', 'No. 2.5'."""
     if name == "size":
         return f"No. {value}"
@@ -175,11 +175,11 @@ def _side_lines(summary: dict) -> list[str]:
     """One line per peak: above or below the allowable in every variant, or how many on
     each side, with its lowest and highest value and where."""
     a = summary["allowable_MPa"]
+    loads = len({r.get("load_N") for r in summary["rows"]}) > 1  # then a row is named with its load
     lines = []
     for sd in sides(summary["rows"], a):
         key = "peak_MPa" if sd["peak"] == "global peak" else "critical_peak_MPa"
         lo, hi = sd["lowest"], sd["highest"]
-        loads = len({r.get("load_N") for r in summary["rows"]}) > 1
         span = (f"{lo[key]:.2f} MPa ({parameters_text(lo, loads)}) to {hi[key]:.2f} MPa ({parameters_text(hi, loads)})"
                 if lo is not hi else f"{lo[key]:.2f} MPa")
         if sd["above"] == sd["rows"]:
@@ -191,6 +191,19 @@ def _side_lines(summary: dict) -> list[str]:
         near = (f"; {sd['within_band']} within their error bar of it" if sd["within_band"] else "")
         lines.append(f"- The {sd['peak']} is {where}: {span}{near}.")
     return lines
+
+
+def crossing_text(x: dict, allowable: float) -> str:
+    """A crossing of :func:`crossings` as a line of the report: where (mm or N), its range
+    from the error bars, and the other parameters' values."""
+    axis = x["axis"]
+    unit, name = ("N", "load") if axis == "load_N" else ("mm", axis.replace("dims.", ""))
+    num = (lambda v: f"{v:.0f}") if axis == "load_N" else (lambda v: f"{v:.4g}")
+    fixed = ", ".join(value_text(k, v) for k, v in x["fixed"].items() if v is not None)
+    rng = f" (between {num(x['range'][0])} and {num(x['range'][1])} {unit} within the error bars)" if x["range"] else ""
+    word = "falls below" if x["falls_below"] else "rises above"
+    return (f"- The {x['peak']} {word} {allowable:g} MPa at {name} ≈ {num(x['at'])} {unit}{rng}"
+            + (f", with {fixed}" if fixed else "") + ".")
 
 
 def _report(summary: dict, swept: list[str], plots: list[str]) -> str:
@@ -212,17 +225,7 @@ def _report(summary: dict, swept: list[str], plots: list[str]) -> str:
     else:
         L.append("Where a peak crosses the allowable between neighbouring variants (linear "
                  "interpolation; the range from their error bars):\n")
-    for x in summary["crossings"]:
-        axis = x["axis"]
-        unit = "N" if axis == "load_N" else "mm"
-        name = "load" if axis == "load_N" else axis.replace("dims.", "")
-        num = (lambda v: f"{v:.0f}") if axis == "load_N" else (lambda v: f"{v:.4g}")
-        fixed = ", ".join(value_text(k, v) for k, v in x["fixed"].items() if v is not None)
-        rng = (f" (between {num(x['range'][0])} and {num(x['range'][1])} {unit} within the error bars)"
-               if x["range"] else "")
-        word = "falls below" if x["falls_below"] else "rises above"
-        L.append(f"- The {x['peak']} {word} {summary['allowable_MPa']:g} MPa at {name} ≈ {num(x['at'])} {unit}{rng}"
-                 + (f", with {fixed}" if fixed else "") + ".")
+    L += [crossing_text(x, summary["allowable_MPa"]) for x in summary["crossings"]]
     L.append("")
     L.append("## Variants\n")
     L.append("| variant | status | parameters | load (N) | global peak (MPa) | critical peak (MPa) | note |")

@@ -13,7 +13,7 @@ import pytest
 
 from pipeline.errors import InputError
 from pipeline.study import parse_values, read_study
-from pipeline.sweepresults import COLUMNS, crossings, parameters_text, series, sides
+from pipeline.sweepresults import COLUMNS, crossing_text, crossings, parameters_text, series, sides
 
 ROOT = Path(__file__).resolve().parents[1]
 GRID = ["--size", "05", "--dim", "rf=1.0,1.5,2.5", "--mesh-factor", "3", "--levels", "1"]
@@ -67,6 +67,8 @@ def test_crossing_is_interpolated_with_its_band():
     found = crossings(rows, "dims.rf", 100.0)
     assert len(found) == 1 and found[0]["peak"] == "global peak" and found[0]["falls_below"]
     assert found[0]["at"] == pytest.approx(1.5) and found[0]["range"] == pytest.approx([1.25, 1.75])
+    assert crossing_text(found[0], 100.0) == ("- The global peak falls below 100 MPa at rf ≈ 1.5 mm (between 1.25 "
+                                              "and 1.75 mm within the error bars), with load = 1 N.")
 
 
 def test_each_peak_is_placed_against_the_allowable_by_hand_counted_rows():
