@@ -68,11 +68,13 @@ def series(rows: list[dict], axis: str) -> dict[tuple, list[dict]]:
 def crossings(rows: list[dict], axis: str, allowable: float) -> list[dict]:
     """Where each peak crosses the allowable along ``axis`` (the other parameters fixed):
     linear interpolation between neighbouring variants; the range from the peaks' bands
-    (value ± band crossing the allowable) when both neighbours have one."""
+    (value ± band crossing the allowable) when both neighbours have one. ``only_crossing``:
+    every variant of the line before it lies on one side and every one after it on the
+    other, so the peak stays on its new side up to ``last``, the line's last value."""
     found = []
     for fixed, group in series(rows, axis).items():
         for key, band_key, label in PEAKS:
-            for a, b in zip(group, group[1:]):
+            for i, (a, b) in enumerate(zip(group, group[1:])):
                 ya, yb = a[key] - allowable, b[key] - allowable
                 if ya == 0 or ya * yb < 0:
                     def at(da: float, db: float) -> float | None:
@@ -83,8 +85,13 @@ def crossings(rows: list[dict], axis: str, allowable: float) -> list[dict]:
                     if a.get(band_key) is not None and b.get(band_key) is not None:
                         ends = [v for v in (at(a[band_key], b[band_key]), at(-a[band_key], -b[band_key])) if v is not None]
                         lo_hi = [min(ends), max(ends)] if len(ends) == 2 else None
+                    falls = yb < ya
+                    before, after = group[:i + 1], group[i + 1:]
+                    only = (all((r[key] >= allowable) == falls for r in before)
+                            and all((r[key] < allowable) == falls for r in after))
                     found.append({"peak": label, "axis": axis, "at": x, "range": lo_hi,
-                                  "falls_below": yb < ya, "fixed": dict(fixed)})
+                                  "falls_below": falls, "fixed": dict(fixed),
+                                  "only_crossing": only, "last": group[-1][axis]})
     return found
 
 
@@ -202,7 +209,9 @@ def crossing_text(x: dict, allowable: float) -> str:
     fixed = ", ".join(value_text(k, v) for k, v in x["fixed"].items() if v is not None)
     rng = f" (between {num(x['range'][0])} and {num(x['range'][1])} {unit} within the error bars)" if x["range"] else ""
     word = "falls below" if x["falls_below"] else "rises above"
-    return (f"- The {x['peak']} {word} {allowable:g} MPa at {name} ≈ {num(x['at'])} {unit}{rng}"
+    stays = (f" and stays {'below' if x['falls_below'] else 'above'} it in every variant up to "
+             f"{name} = {num(x['last'])} {unit}" if x.get("only_crossing") else "")
+    return (f"- The {x['peak']} {word} {allowable:g} MPa at {name} ≈ {num(x['at'])} {unit}{rng}{stays}"
             + (f", with {fixed}" if fixed else "") + ".")
 
 
