@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import contextlib
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 
 from mpi4py import MPI
@@ -28,8 +28,11 @@ from .pilot import Pilot, refinement_places
 
 def execute_run(case: Case, out_dir: Path, levels: int = 3, ratio: float = 1.3,
                 progress: Progress | None = None, write_fields: bool = True,
-                loads: list[float] | None = None, comm: MPI.Comm = MPI.COMM_WORLD, quarter_fields: bool = False) -> dict:
-    """Analyse ``case`` and write results.json, report.md, mesh.msh, VTK fields and a PNG.
+                loads: list[float] | None = None, comm: MPI.Comm = MPI.COMM_WORLD, quarter_fields: bool = False,
+                write_mesh: bool = True) -> dict:
+    """Analyse ``case`` and write results.json, report.md, mesh.msh, VTK fields and a PNG
+    (without ``write_fields`` only results.json and mesh.msh; without ``write_mesh`` no
+    mesh.msh: a design study's variant, whose question is its peaks).
 
     ``loads`` (N): a load sweep. The case is solved once at case.load_N; since the model is
     linear elastic with traction loads only, every stress scales with Q/case.load_N.
@@ -42,9 +45,10 @@ def execute_run(case: Case, out_dir: Path, levels: int = 3, ratio: float = 1.3,
             contextlib.ExitStack() as stack:
         pl = refinement_places(case, comm=comm, progress=say, mesher=mesher)
         requested = _RequestedOutput(case=case, stage=stage, comm=comm, write_fields=write_fields,
-                                     quarter_fields=quarter_fields, stack=stack)
+                                     quarter_fields=quarter_fields, stack=stack,
+                                     files={"results": "results.json", **({"mesh": "mesh.msh"} if write_mesh else {})})
         try:
-            lv, pl = analyse(case, levels=levels, ratio=ratio, msh_path=stage / "mesh.msh",
+            lv, pl = analyse(case, levels=levels, ratio=ratio, msh_path=stage / "mesh.msh" if write_mesh else None,
                              progress=say, comm=comm, pl=pl, on_requested=requested.write,
                              mesher=mesher)
         except BaseException:
@@ -74,7 +78,7 @@ class _RequestedOutput:
     write_fields: bool
     quarter_fields: bool
     stack: contextlib.ExitStack  # the run's: a stop signal kills the drawing while it is open
-    files: dict[str, str] = field(default_factory=lambda: {"results": "results.json", "mesh": "mesh.msh"})
+    files: dict[str, str]  # results.json's file keys → names, the field files and plots added as written
     picture: Picture | None = None
     t_output: float = 0.0
 

@@ -56,7 +56,7 @@ def run_task(task: Task, out: Path, levels: int, ratio: float) -> None:
     case = replace(task.case, load_N=task.loads[0])
     try:
         execute_run(case, variant_folder(out, task.key), levels=levels, ratio=ratio, write_fields=False,
-                    loads=list(task.loads) if len(task.loads) > 1 else None, comm=MPI.COMM_SELF)
+                    write_mesh=False, loads=list(task.loads) if len(task.loads) > 1 else None, comm=MPI.COMM_SELF)
     except (NumericalError, GeometryError, InputError) as exc:
         write_text(failure_file(out, task.key),
                    json.dumps({"error": " ".join(str(exc).split())}) + "\n")

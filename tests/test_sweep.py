@@ -126,6 +126,10 @@ def test_small_sweep_contract_invalid_variant_and_resume(tmp_path):
     assert data["units"]["stress"] == "MPa" and data["counts"]["done"] == 2
     assert all(r["peak_MPa"] > r["critical_peak_MPa"] > 0 for r in data["rows"] if r["status"] == "done")
     assert (out / "report.md").is_file() and (out / "peak_vs_rf.png").is_file()
+    # A variant keeps its results, not its 7 MB mesh (at the default mesh): the study asks for peaks.
+    for folder in (out / "variants").iterdir():
+        assert sorted(p.name for p in folder.iterdir()) == [".crosshead-results", "results.json"]
+        assert "mesh" not in json.loads((folder / "results.json").read_text())["files"]
     report = (out / "report.md").read_text(encoding="utf-8")
     assert "## Against the allowable (80 MPa)" in report and report.count("analysed case") == 2
     assert "| rf = 1 mm |" in report and "| rf = 2.5 mm |" in report
