@@ -478,9 +478,11 @@ def _summary(out: Path) -> None:
     _print(f"formulas: approximate {an['approximate_MPa']:.2f} MPa, exact {an['exact_MPa']:.2f} MPa; "
            f"safety factor {sf('safety_factor')} (global), {sf('critical_safety_factor')} (critical)")
     if res.get("load_sweep"):
+        def pm(v: float, band: float | None) -> str:
+            return f"{v:.2f}" + ("" if band is None else f" ± {band:.2f}")
         _print(f"the lines above are at Q = {res['case']['load_N']:g} N; every load (global / critical peak, MPa): "
-               + "; ".join(f"{r['load_N']:g} N {r['peak_MPa']:.2f} / {r['critical_peak_MPa']:.2f}"
-                           for r in res["load_sweep"]))
+               + "; ".join(f"{r['load_N']:g} N {pm(r['peak_MPa'], r.get('peak_band_MPa'))} / "
+                           f"{pm(r['critical_peak_MPa'], r.get('critical_band_MPa'))}" for r in res["load_sweep"]))
     named = res.get("files") or {"results": "results.json"}
     files = [named[k] for k in ("report", "results") if k in named] + \
         [f for k, f in named.items() if k not in ("report", "results")]

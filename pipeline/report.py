@@ -23,6 +23,11 @@ def _f(x, nd=2) -> str:
     return "—" if x is None else f"{x:,.{nd}f}".replace(",", " ")
 
 
+def _pm(value: float | None, band: float | None) -> str:
+    """A peak (MPa) with its error bar when it has one: '114.28 ± 2.37'."""
+    return _f(value) + ("" if band is None or value is None else f" ± {_f(band)}")
+
+
 def error_bar_text(block: dict) -> str:
     """One line saying how sure we are of a peak, from its error_estimate."""
     if block.get("not_wanted"):
@@ -387,9 +392,11 @@ def _load_sweep_lines(res: dict) -> list[str]:
             "load's), and scaled to the others: linear elasticity with traction loads only, so every "
             "stress scales with the load.\n")
         add("| load (N) | global peak (MPa) | critical peak (MPa) | approximate (MPa) | exact (MPa) | safety factor (global / critical) |")
+        # The bands scale with the load too (the relative error is the first load's).
         add("|---|---|---|---|---|---|")
         for r in sweep:
-            add(f"| {_f(r['load_N'], 0)} | {_f(r['peak_MPa'])} | {_f(r['critical_peak_MPa'])} | "
+            add(f"| {_f(r['load_N'], 0)} | {_pm(r['peak_MPa'], r.get('peak_band_MPa'))} | "
+                f"{_pm(r['critical_peak_MPa'], r.get('critical_band_MPa'))} | "
                 f"{_f(r['approximate_MPa'])} | {_f(r['exact_MPa'])} | {_sf(r['safety_factor'], fe, 'safety_factor')} / "
                 f"{_sf(r['critical_safety_factor'], fe, 'critical_safety_factor')} |")
         add("")

@@ -193,3 +193,30 @@ def test_picture_shows_the_field(coarse_run):
     assert cols.min() > 10 and cols.max() < 230                 # none of it cut off at the sides
     colours = np.unique((img.reshape(-1, 3) * 255).round().astype(np.int64) @ [65536, 256, 1])
     assert len(colours) > 300
+
+
+def test_a_load_sweep_matches_a_direct_solve_and_scales_its_error_bars(tmp_path):
+    """`run --load 5000,10000` solves at 5 kN and scales (linear elasticity, traction loads
+    only). Independent check: a run of its own at 10 kN (run cache off, so nothing is
+    scaled there) gives the same peaks and bands; the report and the terminal show each
+    load's peaks with its ± (they showed the values alone)."""
+    import os
+    env = dict(os.environ, CROSSHEAD_NO_CACHE="1")
+    coarse = ["--size", "05", "--mesh-factor", "3"]
+    swept = subprocess.run([sys.executable, "-m", "pipeline", "run", *coarse, "--load", "5000,10000",
+                            "--out", str(tmp_path / "swept")], cwd=ROOT, capture_output=True, text=True,
+                           timeout=600, env=env)
+    direct = subprocess.run([sys.executable, "-m", "pipeline", "run", *coarse, "--load", "10000", "--no-fields",
+                             "--out", str(tmp_path / "direct")], cwd=ROOT, capture_output=True, text=True,
+                            timeout=600, env=env)
+    assert swept.returncode == 0 and direct.returncode == 0, swept.stderr + direct.stderr
+    at10 = json.loads((tmp_path / "swept" / "results.json").read_text())["load_sweep"][1]
+    fe = json.loads((tmp_path / "direct" / "results.json").read_text())["fe"]
+    assert at10["load_N"] == 10_000
+    for key, block in (("peak", "peak"), ("critical_peak", "critical")):
+        assert at10[f"{key}_MPa"] == pytest.approx(fe[f"{key}_MPa"], rel=1e-6)
+        band = fe[block]["error_estimate"]["band"]
+        assert at10[f"{'peak' if key == 'peak' else 'critical'}_band_MPa"] == pytest.approx(band, rel=1e-6)
+    row = next(ln for ln in (tmp_path / "swept" / "report.md").read_text().splitlines() if ln.startswith("| 10 000 |"))
+    assert f"{at10['peak_MPa']:.2f} ± {at10['peak_band_MPa']:.2f}" in row
+    assert f"10000 N {at10['peak_MPa']:.2f} ± {at10['peak_band_MPa']:.2f}" in swept.stdout
