@@ -54,10 +54,11 @@ def rows_of(tasks: list[Task], out: Path) -> list[dict]:
 
 
 def series(rows: list[dict], axis: str) -> dict[tuple, list[dict]]:
-    """The finished rows as lines along ``axis``: one list per combination of the other
-    swept parameters and the load, keyed by those (name, value) pairs, sorted by ``axis``."""
+    """The finished rows as lines along ``axis``: one list per combination of the size, the
+    other swept parameters and the load, keyed by those (name, value) pairs, sorted by
+    ``axis``."""
     others = [k for k in rows[0] if k not in COLUMNS and k != axis] if rows else []
-    fixed_keys = others + (["load_N"] if axis != "load_N" else [])
+    fixed_keys = ["size"] + others + (["load_N"] if axis != "load_N" else [])
     groups: dict[tuple, list[dict]] = {}
     for r in rows:
         if r["status"] == "done":
@@ -172,7 +173,8 @@ def value_text(name: str, value: float | str) -> str:
 def parameters_text(row: dict, with_load: bool = False) -> str:
     """A row's swept inputs for a person: 'dj = 16 mm, rf = 0.5 mm' (a size by its number),
     and its load when ``with_load`` (a study over loads)."""
-    parts = [value_text(k, v) for k, v in sorted(json.loads(row["parameters"]).items())]
+    params = json.loads(row["parameters"])
+    parts = [value_text(k, v) for k, v in sorted(params.items(), key=lambda kv: (kv[0] != "size", kv[0]))]
     if with_load and row.get("load_N") is not None:
         parts.append(value_text("load_N", row["load_N"]))
     return ", ".join(parts) or "the base case"

@@ -91,7 +91,7 @@ def test_each_peak_is_placed_against_the_allowable_by_hand_counted_rows():
     assert (c["peak"], c["rows"], c["above"], c["within_band"]) == ("critical peak", 3, 1, 0)
     assert g["lowest"]["peak_MPa"] == 85.0 and c["highest"]["critical_peak_MPa"] == 81.0
     assert parameters_text(rows[0]) == "rf = 1 mm"
-    assert parameters_text({"parameters": json.dumps({"size": "2.5", "dims.dj": 16.0})}) == "dj = 16 mm, No. 2.5"
+    assert parameters_text({"parameters": json.dumps({"size": "2.5", "dims.dj": 16.0})}) == "No. 2.5, dj = 16 mm"
 
 
 def test_a_plot_draws_one_line_per_value_of_the_other_parameters():
@@ -109,6 +109,9 @@ def test_a_plot_draws_one_line_per_value_of_the_other_parameters():
     assert len(series(rows, "dims.dj")) == 3
     single = [{k: v for k, v in r.items() if k != "dims.dj"} for r in rows if r["dims.dj"] == 16.0]
     assert [len(g) for g in series(single, "dims.rf").values()] == [3]
+    # Two sizes at the same load (--sizes with --load) are two lines, not one zigzag.
+    sized = [dict(r, size=s) for s in ("05", "1") for r in single]
+    assert sorted(dict(k)["size"] for k in series(sized, "dims.rf")) == ["05", "1"]
 
 
 def test_small_sweep_contract_invalid_variant_and_resume(tmp_path):
