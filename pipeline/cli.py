@@ -174,7 +174,7 @@ def make_parser() -> argparse.ArgumentParser:
                          formatter_class=argparse.RawDescriptionHelpFormatter)
     add_case_options(run)
     run.add_argument("--levels", type=int, default=3,
-                     help="meshes solved for the error bar: the requested one and coarser ones (default 3; 1 = no error bar)")
+                     help="meshes solved for the error bar: the requested one and coarser ones (default 3, up to 8; 1 = no error bar; 2 is refused)")
     run.add_argument("--ratio", type=_positive_float, default=1.3, help="mesh-size ratio between those meshes (default 1.3)")
     run.add_argument("--no-fields", action="store_true", help="skip ParaView files, picture and report (benchmarks)")
     run.add_argument("--quarter-fields", action="store_true",
@@ -193,7 +193,7 @@ def make_parser() -> argparse.ArgumentParser:
     sweep.add_argument("--sizes", metavar="LIST", help="hook numbers to sweep over, e.g. 05,1,2.5, or 'all' rows of "
                        "geometry/sizes.csv (each at its own rated load unless --load is given)")
     sweep.add_argument("--study", type=Path, help="a study file (TOML with a [sweep] table), e.g. cases/sweep-rf.toml")
-    sweep.add_argument("--levels", type=int, help="meshes per variant for its error bar (default 3)")
+    sweep.add_argument("--levels", type=int, help="meshes per variant for its error bar (default 3; 1 = none; 2 is refused)")
     sweep.add_argument("--ratio", type=_positive_float, help="mesh-size ratio between them (default 1.3)")
     return parser
 
@@ -214,6 +214,8 @@ CASE_KEYS = ("want", "support", "model", "E_MPa", "nu", "allowable_MPa", "approx
 
 
 NO_COMMAND = "error: command: choose run, converge or sweep (see python -m pipeline --help)"
+TWO_LEVELS = ("levels: 2 meshes give no error bar (the estimate needs 3) and cost a solve; give 1 for no "
+              "error bar, or 3 to 8")
 
 
 def main(argv: list[str] | None = None, handle_signals: bool = False) -> int:
@@ -328,6 +330,8 @@ def _check_levels(args: argparse.Namespace, case: Case) -> None:
     from pipeline.errors import InputError
     if args.levels < 1 or args.levels > 8:
         raise InputError(f"levels: must lie in 1..8, got {args.levels}")
+    if args.levels == 2:
+        raise InputError(TWO_LEVELS)
     if args.command == "converge" and (args.levels < 4 or args.ratio < 1.3):
         raise InputError("levels/ratio: a convergence study needs at least 4 meshes and ratio >= 1.3")
     if args.command == "converge" and len(args.loads or []) > 1:
@@ -431,6 +435,8 @@ def _sweep(args, rank0: bool) -> int:
     ratio = args.ratio if args.ratio is not None else float(study.get("ratio", 1.3))
     if not 1 <= levels <= 8 or not 1.1 <= ratio <= 3:
         raise InputError("levels/ratio: levels must lie in 1..8 and ratio in [1.1, 3]")
+    if levels == 2:
+        raise InputError(TWO_LEVELS)
     if not axes and len(loads) < 2 and not sizes:
         raise InputError("dim: a sweep needs at least one --dim NAME=VALUES, several loads or --sizes")
     out = args.out or (Path(study["out"]) if "out" in study else default_out(f"sweep-{size or Path(case_file).stem}"))
