@@ -81,6 +81,7 @@ def main(argv: list[str] | None = None) -> int:
     proc: subprocess.Popen | None = None
 
     def hand_over(signum: int) -> None:
+        """Send ``signum`` to the ranks on this machine (once); mpirun stops the others."""
         if handed:
             return
         handed.append(signum)
