@@ -184,7 +184,8 @@ def _side_lines(summary: dict) -> list[str]:
     """One line per peak: above or below the allowable in every variant, or how many on
     each side, with its lowest and highest value and where."""
     a = summary["allowable_MPa"]
-    loads = len({r.get("load_N") for r in summary["rows"]}) > 1  # then a row is named with its load
+    # A row is named with its load when the study has several (an invalid row has none).
+    loads = len({r["load_N"] for r in summary["rows"] if r.get("load_N") is not None}) > 1
     lines = []
     for sd in sides(summary["rows"], a):
         key = "peak_MPa" if sd["peak"] == "global peak" else "critical_peak_MPa"

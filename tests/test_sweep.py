@@ -135,6 +135,7 @@ def test_small_sweep_contract_invalid_variant_and_resume(tmp_path):
         assert "mesh" not in json.loads((folder / "results.json").read_text())["files"]
     report = (out / "report.md").read_text(encoding="utf-8")
     assert "## Against the allowable (80 MPa)" in report and report.count("analysed case") == 2
+    assert "load =" not in report  # one load (the invalid variant's missing one is not a second)
     assert "| rf = 1 mm |" in report and "| rf = 2.5 mm |" in report
     again = sweep(out, *GRID)
     assert "2 already done" in again.stdout
