@@ -26,8 +26,14 @@ converge: $(SETUP)
 # About an hour on 2 cores; figures and how to read them: docs/performance.md.
 BENCH_ARGS ?= --pilot on --factors 4.0,2.5,2.0,1.3,1.0 --p3-factors 3.0,2.5,2.0 --repeats 3 \
 	--ccx-solvers iterative,spooles --ranks-at targets --reference-values 113.82,66.27
+# Then the critical peak alone on the meshes `run --want critical` uses (the bore edges
+# refined where the dimensions put them, no pilot), CalculiX on the same meshes: the
+# critical-peak target's own comparison (about a minute).
+BENCH_CRITICAL_ARGS ?= --orders 2 --solvers pmg --factors 10,8,6,5,4 --pilot on --want critical \
+	--repeats 3 --reference-values 113.82,66.27
 bench: $(SETUP)
 	$(PY) -m bench --out results/bench --ranks 1,2 $(BENCH_ARGS)
+	$(PY) -m bench --out results/bench-critical $(BENCH_CRITICAL_ARGS)
 
 # Design-study throughput: every size on 2 ranks and on 1, and a 24-variant rf x dj grid of
 # No. 05 (targets 60 s, 90 s, 2 ranks >= 1.8x): about 10 minutes per repeat on 2 cores.
