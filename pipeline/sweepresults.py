@@ -203,19 +203,21 @@ def _side_lines(summary: dict) -> list[str]:
     return lines
 
 
-def crossing_text(x: dict, allowable: float) -> str:
+def crossing_text(x: dict, allowable: float, varying: set[str] | None = None) -> str:
     """A crossing of :func:`crossings` as a line of the report: where (mm or N), its range
-    from the error bars, and the other parameters' values."""
+    from the error bars, and the values of the other parameters, of those in ``varying``
+    (the ones that differ across the study; all when None)."""
     axis = x["axis"]
     unit, name = ("N", "load") if axis == "load_N" else ("mm", axis.replace("dims.", ""))
     num = (lambda v: f"{v:.0f}") if axis == "load_N" else (lambda v: f"{v:.4g}")
-    fixed = ", ".join(value_text(k, v) for k, v in x["fixed"].items() if v is not None)
+    fixed = ", ".join(value_text(k, v) for k, v in x["fixed"].items()
+                      if v is not None and (varying is None or k in varying))
     rng = f" (between {num(x['range'][0])} and {num(x['range'][1])} {unit} within the error bars)" if x["range"] else ""
     word = "falls below" if x["falls_below"] else "rises above"
     stays = (f" and stays {'below' if x['falls_below'] else 'above'} it in every variant up to "
              f"{name} = {num(x['last'])} {unit}" if x.get("only_crossing") else "")
     return (f"- The {x['peak']} {word} {allowable:g} MPa at {name} ≈ {num(x['at'])} {unit}{rng}{stays}"
-            + (f", with {fixed}" if fixed else "") + ".")
+            + (f", for {fixed}" if fixed else "") + ".")
 
 
 def _report(summary: dict, swept: list[str], plots: list[str]) -> str:
@@ -237,7 +239,9 @@ def _report(summary: dict, swept: list[str], plots: list[str]) -> str:
     else:
         L.append("Where a peak crosses the allowable between neighbouring variants (linear "
                  "interpolation; the range from their error bars):\n")
-    L += [crossing_text(x, summary["allowable_MPa"]) for x in summary["crossings"]]
+    done = [r for r in summary["rows"] if r["status"] == "done"]
+    varying = {k for x in summary["crossings"] for k in x["fixed"] if len({r.get(k) for r in done}) > 1}
+    L += [crossing_text(x, summary["allowable_MPa"], varying) for x in summary["crossings"]]
     L.append("")
     L.append("## Variants\n")
     L.append("| variant | status | parameters | load (N) | global peak (MPa) | critical peak (MPa) | note |")

@@ -69,12 +69,14 @@ def test_crossing_is_interpolated_with_its_band():
     assert found[0]["at"] == pytest.approx(1.5) and found[0]["range"] == pytest.approx([1.25, 1.75])
     assert crossing_text(found[0], 100.0) == ("- The global peak falls below 100 MPa at rf ≈ 1.5 mm (between 1.25 "
                                               "and 1.75 mm within the error bars) and stays below it in every "
-                                              "variant up to rf = 2 mm, with load = 1 N.")
+                                              "variant up to rf = 2 mm, for load = 1 N.")
     # A third variant back above 100 MPa: two crossings, neither the only one of its line.
     back = dict(rows[1], variant="c", **{"dims.rf": 3.0, "peak_MPa": 110.0})
     again = crossings(rows + [back], "dims.rf", 100.0)
     assert [x["at"] for x in again] == pytest.approx([1.5, 2 + 20 / 30])  # 80 -> 110 MPa over rf 2 -> 3 and not any(x["only_crossing"] for x in again)
     assert "stays" not in crossing_text(again[0], 100.0)
+    # In a study where the load is the same everywhere, the line does not name it.
+    assert crossing_text(found[0], 100.0, varying=set()).endswith("up to rf = 2 mm.")
 
 
 def test_each_peak_is_placed_against_the_allowable_by_hand_counted_rows():
