@@ -11,7 +11,7 @@ variant with its error bar (three meshes):
 
 The configurations take turns (sizes-2, sizes-1, grid-2, sizes-2, ...) so that a drift of
 the machine's speed touches all alike; the figures are medians over ``--repeats``. The
-targets are those of the design-studies issue: 19 sizes ≤ 60 s, 24 variants ≤ 90 s,
+targets (docs/performance.md, *Where things stand*): 19 sizes ≤ 60 s, 24 variants ≤ 90 s,
 2 ranks ≥ 1.8× the throughput of 1. Writes sweeps.json and prints a table.
 """
 from __future__ import annotations

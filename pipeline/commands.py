@@ -44,11 +44,11 @@ def execute_run(case: Case, out_dir: Path, levels: int = 3, ratio: float = 1.3,
     with staged_dir(out_dir, comm, say) as stage, Mesher(case.dims, case.model, say) as mesher, \
             contextlib.ExitStack() as stack:
         pl = refinement_places(case, comm=comm, progress=say, mesher=mesher)
+        files = {"results": "results.json", **({"mesh": "mesh.msh"} if write_mesh else {})}
         requested = _RequestedOutput(case=case, stage=stage, comm=comm, write_fields=write_fields,
-                                     quarter_fields=quarter_fields, stack=stack,
-                                     files={"results": "results.json", **({"mesh": "mesh.msh"} if write_mesh else {})})
+                                     quarter_fields=quarter_fields, stack=stack, files=files)
         try:
-            lv, pl = analyse(case, levels=levels, ratio=ratio, msh_path=stage / "mesh.msh" if write_mesh else None,
+            lv, pl = analyse(case, levels=levels, ratio=ratio, msh_path=stage / files["mesh"] if write_mesh else None,
                              progress=say, comm=comm, pl=pl, on_requested=requested.write,
                              mesher=mesher)
         except BaseException:

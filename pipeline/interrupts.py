@@ -185,10 +185,8 @@ def stop_before_start(signum: int, frame: object = None) -> None:
     """The handler of SIGINT and SIGTERM until :func:`install` sets the watcher's: the
     program is still loading and has written nothing, so it ends here with its line and
     status (without it, Ctrl-C printed Python's traceback)."""
-    if first_rank_by_environment():
-        sys.stderr.write(stop_line(signum) + "\n")
-        sys.stderr.flush()
-    os._exit(EXIT_FOR[signal.Signals(signum)])
+    end_process(EXIT_FOR[signal.Signals(signum)], stop_line(signum) if first_rank_by_environment() else None,
+                run_cleanups=False)
 
 
 def install(speak: bool = True) -> None:

@@ -391,8 +391,8 @@ def _load_sweep_lines(res: dict) -> list[str]:
         add(f"Analysed at the first load, Q = {_f(c['load_N'], 0)} N (the rest of this report is that "
             "load's), and scaled to the others: linear elasticity with traction loads only, so every "
             "stress scales with the load.\n")
-        add("| load (N) | global peak (MPa) | critical peak (MPa) | approximate (MPa) | exact (MPa) | safety factor (global / critical) |")
         # The bands scale with the load too (the relative error is the first load's).
+        add("| load (N) | global peak (MPa) | critical peak (MPa) | approximate (MPa) | exact (MPa) | safety factor (global / critical) |")
         add("|---|---|---|---|---|---|")
         for r in sweep:
             add(f"| {_f(r['load_N'], 0)} | {_pm(r['peak_MPa'], r.get('peak_band_MPa'))} | "

@@ -337,7 +337,7 @@ def plot(rows: list[dict], path: Path) -> bool:
     tops = [r[k] + (r[b] or 0.0) for r in rows for k, b in (("fe_peak_MPa", "fe_peak_band_MPa"),
                                                              ("fe_critical_MPa", "fe_critical_band_MPa"))]
     tops += [r["exact_MPa"] for r in rows] + [r["allowable_MPa"] or 0.0 for r in rows]
-    top = cap if max(tops) > cap else 1.08 * max(tops)
+    ylim_top = 1.05 * cap if max(tops) > cap else 1.08 * max(tops)
     fig, ax = plt.subplots(figsize=(min(16.0, max(7.0, 0.42 * len(rows) + 3) + 3.0), 6.0))
 
     def series(key: str, band_key: str, status_key: str, fmt: str, color: str, label: str):
@@ -370,7 +370,7 @@ def plot(rows: list[dict], path: Path) -> bool:
     ax.set_xlabel("hook No. (categorical axis) and load in kN; * = dimensions scaled from No. 05, not DIN; "
                   "! = see the warnings in summary.md")
     ax.set_ylabel("von Mises / nominal stress (MPa)")
-    ax.set_ylim(0, 1.05 * cap if top >= cap else top)
+    ax.set_ylim(0, ylim_top)
     ax.set_title("DIN 15412 crosshead: stress against hook number")
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0)

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import csv
 import json
+from collections.abc import Iterable
 from pathlib import Path
 
 from .atomicfile import replacing, write_text
@@ -122,17 +123,17 @@ def _plots(rows: list[dict], axis: str, allowable: float, out: Path) -> list[str
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    done = [r for r in rows if r["status"] == "done"]
-    if not done:
+    lines = series(rows, axis)
+    if not lines:
         return []
+    # One line per combination of the other parameters, named by those that differ.
+    varying = varying_names(rows, {k for fixed in lines for k, _ in fixed})
     names = []
     for key, band_key, label in PEAKS:
         fig, ax = plt.subplots(figsize=(6.5, 4))
-        lines = series(done, axis)
         for fixed, g in lines.items():
-            # One line per combination of the other parameters; named when there are several.
             ax.errorbar([r[axis] for r in g], [r[key] for r in g], yerr=[r.get(band_key) or 0 for r in g],
-                        marker="o", capsize=3, lw=1, label=_fixed_text(fixed, lines) or None)
+                        marker="o", capsize=3, lw=1, label=_fixed_text(fixed, varying) or None)
         ax.axhline(allowable, color="red", ls="--", label=f"allowable {allowable:g} MPa")
         ax.set_xlabel("load (N)" if axis == "load_N" else f"{axis.replace('dims.', '')} (mm)")
         ax.set_ylabel(f"{label} von Mises (MPa)")
@@ -155,7 +156,7 @@ def sides(rows: list[dict], allowable: float) -> list[dict]:
         if not have:
             continue
         near = [r for r in have if abs(r[key] - allowable) <= (r.get(band_key) or 0.0)]
-        out.append({"peak": label, "rows": len(have),
+        out.append({"peak": label, "key": key, "rows": len(have),
                     "above": sum(r[key] > allowable for r in have), "within_band": len(near),
                     "lowest": min(have, key=lambda r: r[key]), "highest": max(have, key=lambda r: r[key])})
     return out
@@ -184,12 +185,10 @@ def _side_lines(summary: dict) -> list[str]:
     """One line per peak: above or below the allowable in every variant, or how many on
     each side, with its lowest and highest value and where."""
     a = summary["allowable_MPa"]
-    # A row is named with its load when the study has several (an invalid row has none).
-    loads = len({r["load_N"] for r in summary["rows"] if r.get("load_N") is not None}) > 1
+    loads = "load_N" in varying_names(summary["rows"], {"load_N"})  # then a row is named with its load
     lines = []
     for sd in sides(summary["rows"], a):
-        key = "peak_MPa" if sd["peak"] == "global peak" else "critical_peak_MPa"
-        lo, hi = sd["lowest"], sd["highest"]
+        key, lo, hi = sd["key"], sd["lowest"], sd["highest"]
         span = (f"{lo[key]:.2f} MPa ({parameters_text(lo, loads)}) to {hi[key]:.2f} MPa ({parameters_text(hi, loads)})"
                 if lo is not hi else f"{lo[key]:.2f} MPa")
         if sd["above"] == sd["rows"]:
@@ -210,8 +209,7 @@ def crossing_text(x: dict, allowable: float, varying: set[str] | None = None) ->
     axis = x["axis"]
     unit, name = ("N", "load") if axis == "load_N" else ("mm", axis.replace("dims.", ""))
     num = (lambda v: f"{v:.0f}") if axis == "load_N" else (lambda v: f"{v:.4g}")
-    fixed = ", ".join(value_text(k, v) for k, v in x["fixed"].items()
-                      if v is not None and (varying is None or k in varying))
+    fixed = _fixed_text(x["fixed"].items(), varying)
     rng = f" (between {num(x['range'][0])} and {num(x['range'][1])} {unit} within the error bars)" if x["range"] else ""
     word = "falls below" if x["falls_below"] else "rises above"
     stays = (f" and stays {'below' if x['falls_below'] else 'above'} it in every variant up to "
@@ -239,8 +237,7 @@ def _report(summary: dict, swept: list[str], plots: list[str]) -> str:
     else:
         L.append("Where a peak crosses the allowable between neighbouring variants (linear "
                  "interpolation; the range from their error bars):\n")
-    done = [r for r in summary["rows"] if r["status"] == "done"]
-    varying = {k for x in summary["crossings"] for k in x["fixed"] if len({r.get(k) for r in done}) > 1}
+    varying = varying_names(summary["rows"], {k for x in summary["crossings"] for k in x["fixed"]})
     L += [crossing_text(x, summary["allowable_MPa"], varying) for x in summary["crossings"]]
     L.append("")
     L.append("## Variants\n")
@@ -263,8 +260,13 @@ def _n0(v: float | None) -> str:
     return "" if v is None else f"{v:.0f}"
 
 
-def _fixed_text(fixed: tuple, lines: dict[tuple, list[dict]]) -> str:
-    """A line's legend: the fixed values that differ between the plot's lines
-    ('dj = 16 mm, load = 10000 N'); empty for a plot of one line."""
-    varying = {k for k, _ in fixed if len({dict(f)[k] for f in lines}) > 1}
-    return ", ".join(value_text(k, v) for k, v in fixed if k in varying)
+def varying_names(rows: list[dict], names: set[str]) -> set[str]:
+    """Of ``names``, those whose value differs between the study's finished rows."""
+    done = [r for r in rows if r["status"] == "done"]
+    return {k for k in names if len({r.get(k) for r in done}) > 1}
+
+
+def _fixed_text(fixed: Iterable[tuple[str, float | str | None]], varying: set[str] | None) -> str:
+    """The values of a line's other parameters for a person ('dj = 16 mm, load = 10000 N'),
+    of those in ``varying`` (all when None); empty when none is left."""
+    return ", ".join(value_text(k, v) for k, v in fixed if v is not None and (varying is None or k in varying))
