@@ -72,31 +72,14 @@ def _gib(text: str) -> float:
 
 
 def _loads(text: str) -> list[float]:
-    """--load: one value, a comma list (5000,10000) or a range START:STOP:COUNT, in N."""
-    parts = text.split(":")
-    if len(parts) == 3:
-        a, b = _positive_float(parts[0]), _positive_float(parts[1])
-        for end in (a, b):
-            if not math.isfinite(end):
-                raise argparse.ArgumentTypeError(f"load_N: range ends must be finite, got {end!r}")
-        try:
-            n = int(parts[2])
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"load_N: range count {parts[2]!r} is not an integer") from None
-        if not 2 <= n <= 1000:
-            raise argparse.ArgumentTypeError(f"load_N: range count must lie in 2..1000, got {n}")
-        return [a + (b - a) * k / (n - 1) for k in range(n)]
-    if len(parts) != 1:
-        raise argparse.ArgumentTypeError(f"load_N: {text!r}: give N, N1,N2,... or START:STOP:COUNT")
-    if any(not v.strip() for v in text.split(",")):
-        raise argparse.ArgumentTypeError(f"load_N: {text!r} has an empty item")
-    values = [_positive_float(v) for v in text.split(",")]
-    if not values or len(values) > 1000:
-        raise argparse.ArgumentTypeError("load_N: give between 1 and 1000 loads")
-    twice = given_twice(values)
-    if twice:
-        raise argparse.ArgumentTypeError(f"load_N: {', '.join(f'{v:g}' for v in twice)} given twice")
-    return values
+    """--load: one value, a comma list (5000,10000) or a range START:STOP:COUNT, in N
+    (pipeline.valuelist, the grammar study files use too)."""
+    from pipeline.errors import InputError
+    from pipeline.valuelist import parse_loads
+    try:
+        return parse_loads(text)
+    except InputError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
 
 
 def _dim(text: str) -> tuple[str, float]:
@@ -395,7 +378,8 @@ def _sweep(args, rank0: bool) -> int:
     """The sweep command: a grid from --dim/--load (or a study file), then pipeline.sweep."""
     from pipeline.errors import InputError
     from pipeline.outdir import default_out
-    from pipeline.study import parse_values, read_study
+    from pipeline.study import read_study
+    from pipeline.valuelist import MOST_DIM_VALUES, parse_loads, parse_values
     from pipeline.sweep import execute_sweep
     study = read_study(args.study) if args.study else {}
     size = args.size or study.get("size")
@@ -425,8 +409,8 @@ def _sweep(args, rank0: bool) -> int:
         raise InputError(f"dim: {', '.join(twice)} given twice; give each dimension's values in one --dim")
     dims = dict(study.get("dims", {}))
     dims.update(dict(args.dim))  # the command line overrides the study file
-    axes = {f"dims.{k}": parse_values(str(v), f"dims.{k}") for k, v in dims.items()}
-    loads = args.loads or (parse_values(str(study["load"]), "load_N") if "load" in study else [])
+    axes = {f"dims.{k}": parse_values(str(v), f"dims.{k}", MOST_DIM_VALUES) for k, v in dims.items()}
+    loads = args.loads or (parse_loads(str(study["load"])) if "load" in study else [])
     base = {k: getattr(args, k) for k in CASE_KEYS if getattr(args, k) is not None}
     if "mesh_factor" in study and "mesh_factor" not in base:
         base["mesh_factor"] = float(study["mesh_factor"])

@@ -9,42 +9,16 @@ from __future__ import annotations
 import hashlib
 import itertools
 import json
-import math
 from dataclasses import dataclass
 from pathlib import Path
 
 from .case import Case, check_error_bar_meshes, resolve
-from .errors import InputError, given_twice
+from .errors import InputError
 
 # A study file's [sweep] keys and their TOML types.
 TOML_NAMES = {str: "a string", int: "an integer", float: "a number", dict: "a table"}
 STUDY_KEYS = {"size": (str,), "case": (str,), "dims": (dict,), "load": (str, int, float), "levels": (int,),
               "ratio": (int, float), "mesh_factor": (int, float), "out": (str,)}
-
-
-def parse_values(text: str, name: str) -> list[float]:
-    """A sweep axis: ``START:STOP:COUNT`` (COUNT values, both ends included) or ``a,b,c``."""
-    parts = text.split(":")
-    if len(parts) == 1 and any(not v.strip() for v in text.split(",")):
-        raise InputError(f"{name}: {text!r} has an empty item")
-    try:
-        if len(parts) == 3:
-            a, b, n = float(parts[0]), float(parts[1]), int(parts[2])
-            if not 2 <= n <= 200:
-                raise InputError(f"{name}: a range needs 2..200 values, got {n}")
-            values = [a + (b - a) * k / (n - 1) for k in range(n)]
-        elif len(parts) == 1:
-            values = [float(v) for v in text.split(",")]
-        else:
-            raise ValueError
-    except ValueError:
-        raise InputError(f"{name}: {text!r}: give START:STOP:COUNT or a list v1,v2,...") from None
-    if not values or not all(math.isfinite(v) for v in values):
-        raise InputError(f"{name}: {text!r}: every value must be a finite number")
-    twice = given_twice(values)
-    if twice:
-        raise InputError(f"{name}: {text!r}: {', '.join(f'{v:g}' for v in twice)} given twice")
-    return values
 
 
 @dataclass(frozen=True)

@@ -246,6 +246,13 @@ CORPUS = [
     ("converge-two-loads", ["converge", "--size", "05", "--load", "1000,2000"], None, ("load_N", "one load")),
     ("load-twice", RUN + ["--load", "5000,5000"], None, ("load_N", "5000 given twice")),
     ("load-empty-item", RUN + ["--load", "5000,,6000"], None, ("load_N", "empty item")),
+    # found 2026-11-25: a range with equal ends ran the same load three times, and a
+    # range's count was refused with the generic line instead of what is wrong with it
+    ("load-range-of-one-value", RUN + ["--load", "5000:5000:3"], None, ("load_N", "5000 given twice")),
+    ("sweep-range-of-one-count", ["sweep", "--size", "05", "--dim", "rf=0.5:3:1"], None,
+     ("dims.rf", "2..200 values, got 1")),
+    ("study-negative-load", ["sweep", "--study", "{case}"], '[sweep]\nsize = "05"\nload = "-5,10000"\n',
+     ("load_N", "must be > 0, got -5")),
     ("name-blank", ["run", "--case", "{case}"], 'name = " "\nsize = "05"\n', ("name", "folder name")),
     ("sweep-value-twice", ["sweep", "--size", "05", "--dim", "rf=1,1"], None, ("dims.rf", "given twice")),
     ("sweep-range-of-one-value", ["sweep", "--size", "05", "--dim", "rf=1:1:3"], None, ("dims.rf", "given twice")),

@@ -5,6 +5,7 @@ from __future__ import annotations
 import csv
 import json
 import os
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -12,7 +13,8 @@ from pathlib import Path
 import pytest
 
 from pipeline.errors import InputError
-from pipeline.study import parse_values, read_study
+from pipeline.study import read_study
+from pipeline.valuelist import parse_loads, parse_values
 from pipeline.sweepresults import COLUMNS, crossing_text, crossings, parameters_text, series, sides
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -30,11 +32,35 @@ def sweep(out: Path, *args: str, ranks: int = 1) -> subprocess.CompletedProcess:
 
 
 def test_parse_values():
-    assert parse_values("0.5:2.5:5", "rf") == pytest.approx([0.5, 1.0, 1.5, 2.0, 2.5])
-    assert parse_values("16,18,20", "dj") == [16.0, 18.0, 20.0]
-    for bad in ("1:2", "a,b", "1:2:1", "1:inf:3", "nan,1", "1,-inf", "", "1,,2", "1,1", "2:2:3"):
+    assert parse_values("0.5:2.5:5", "rf", 200) == pytest.approx([0.5, 1.0, 1.5, 2.0, 2.5])
+    assert parse_values("16,18,20", "dj", 200) == [16.0, 18.0, 20.0]
+    assert parse_values("3:1:3", "rf", 200) == [3.0, 2.0, 1.0]
+    for bad in ("1:2", "a,b", "1:2:1", "1:inf:3", "nan,1", "1,-inf", "", "1,,2", "1,1", "2:2:3", "1:2:x",
+                "1:2:2.5", "1,2,3,4"):
         with pytest.raises(InputError):
-            parse_values(bad, "rf")
+            parse_values(bad, "rf", 3)
+
+
+@pytest.mark.parametrize("text, says", [
+    ("1:2:1", "a range needs 2..3 values, got 1"),  # was swallowed by the generic line
+    ("1:2:x", "range count 'x' is not an integer"),
+    ("1:y:3", "'y' is not a number"),
+    ("1,2,3,4", "at most 3 values, got 4"),
+    ("1:2", "give one value, a list"),
+])
+def test_a_bad_list_is_named_for_what_is_wrong(text, says):
+    with pytest.raises(InputError, match=f"^rf: .*{re.escape(says)}"):
+        parse_values(text, "rf", 3)
+
+
+def test_loads_are_read_alike_everywhere():
+    """The command line's --load and a study file's load take one grammar: a range with
+    equal ends repeats a load (refused like 5000,5000), and every load is > 0."""
+    assert parse_loads("5000:20000:4") == pytest.approx([5000, 10000, 15000, 20000])
+    for bad, says in (("5000:5000:3", "5000 given twice"), ("-5,10000", "must be > 0, got -5"),
+                      ("0", "must be > 0")):
+        with pytest.raises(InputError, match=f"^load_N: .*{re.escape(says)}"):
+            parse_loads(bad)
 
 
 def test_the_command_line_overrides_the_study_file(tmp_path):
@@ -53,7 +79,7 @@ def test_a_study_file_takes_an_array_of_values_like_a_list(tmp_path):
     a, b = tmp_path / "a.toml", tmp_path / "b.toml"
     a.write_text('[sweep]\nsize = "05"\ndims = { rf = [1.0, 1.5] }\n')
     b.write_text('[sweep]\nsize = "05"\ndims = { rf = "1.0,1.5" }\n')
-    va, vb = (parse_values(str(read_study(p)["dims"]["rf"]), "rf") for p in (a, b))
+    va, vb = (parse_values(str(read_study(p)["dims"]["rf"]), "rf", 200) for p in (a, b))
     assert va == vb == [1.0, 1.5]
 
 
