@@ -62,20 +62,26 @@ def run_task(task: Task, out: Path, levels: int, ratio: float) -> None:
                    json.dumps({"error": " ".join(str(exc).split())}) + "\n")
 
 
-def work(tasks: list[Task], out: Path, levels: int, ratio: float, say: Progress, comm: MPI.Comm = MPI.COMM_WORLD) -> None:
+def work(tasks: list[Task], out: Path, levels: int, ratio: float, say: Progress) -> None:
     """Every rank takes the next unclaimed, unfinished task until none is left."""
     todo = [t for t in tasks if t.case is not None]
     t0 = time.perf_counter()
-    mine = 0
+    before = sum(_done(out, t.key) for t in todo)
     for task in todo:
         if _done(out, task.key) or not _claim(out, task.key):
             continue
         run_task(task, out, levels, ratio)
-        mine += 1
         finished = sum(_done(out, t.key) for t in todo)
-        rate = (time.perf_counter() - t0) / mine / comm.size
         say(f"sweep: {finished}/{len(todo)} variants done; "
-            f"about {rate * (len(todo) - finished):.0f} s left")
+            f"about {time_left_s(time.perf_counter() - t0, finished - before, len(todo) - finished):.0f} s left")
+
+
+def time_left_s(elapsed_s: float, finished_here: int, left: int) -> float:
+    """The study's remaining wall time (s): the tasks left at the pace of this run so far,
+    ``finished_here`` tasks (by every rank, read from the output folder) in ``elapsed_s``.
+    Counting every rank's finished tasks, not one rank's, keeps the estimate right when the
+    ranks move at different paces (a slow variant, a busier node)."""
+    return elapsed_s / max(finished_here, 1) * left
 
 
 def execute_sweep(size: str | None, case_file: Path | None, base: dict, axes: dict[str, list[float]],
@@ -115,7 +121,7 @@ def execute_sweep(size: str | None, case_file: Path | None, base: dict, axes: di
         if lock is not None:  # a stop ends the process with os._exit: the finally below never runs
             stack.enter_context(on_stop(lock.release))
         try:
-            work(tasks, out, levels, ratio, say, comm)
+            work(tasks, out, levels, ratio, say)
             request = comm.Ibarrier()
             while not request.Test():
                 time.sleep(0.05)

@@ -14,6 +14,7 @@ import pytest
 
 from pipeline.errors import InputError
 from pipeline.study import read_study
+from pipeline.sweep import time_left_s
 from pipeline.valuelist import parse_loads, parse_values
 from pipeline.sweepresults import COLUMNS, crossing_text, crossings, parameters_text, series, sides
 
@@ -51,6 +52,14 @@ def test_parse_values():
 def test_a_bad_list_is_named_for_what_is_wrong(text, says):
     with pytest.raises(InputError, match=f"^rf: .*{re.escape(says)}"):
         parse_values(text, "rf", 3)
+
+
+def test_the_time_left_follows_every_rank():
+    """Two ranks at different paces: one finished 1 variant, the other 3, in 30 s; 4 are
+    left. At the pace of both (4 in 30 s) that is 30 s; rank 0's own pace times the ranks
+    (1 in 30 s, 2 ranks) said 60 s."""
+    assert time_left_s(30.0, 4, 4) == pytest.approx(30.0)
+    assert time_left_s(0.0, 0, 4) == 0.0  # nothing finished yet: no pace, no estimate
 
 
 def test_loads_are_read_alike_everywhere():
