@@ -417,6 +417,11 @@ def _study_timings_files_lines(res: dict) -> list[str]:
     for k, v in res["timings_s"].items():
         add(f"| {k} | {v:.2f} |")
     add("")
+    add("The stages above the pilot are the requested mesh's. The error-bar meshes' row adds up "
+        "their own stages (with several MPI ranks, run on other ranks beside the requested mesh's), "
+        "and the picture is drawn in a process of its own beside the solves, so the rows can add up "
+        "to more than the total (the run's wall time).")
+    add("")
     add("## Files\n")
     for k, v in res.get("files", {}).items():
         add(f"- {k}: `{v}`")
