@@ -456,7 +456,7 @@ def _summary(out: Path) -> None:
     memory: the lines say what the file says)."""
     import json
 
-    from pipeline.report import error_bar_text, feature_text, no_safety_factor_reason
+    from pipeline.report import error_bar_text, feature_text, no_safety_factor_reason, pm
     res = json.loads((out / "results.json").read_text(encoding="utf-8"))
     fe = res["fe"]
     _print(f"global peak   {fe['peak']['value_MPa']:8.2f} MPa  {error_bar_text(fe['peak'])}  [{feature_text(fe['peak'])}]")
@@ -468,8 +468,6 @@ def _summary(out: Path) -> None:
     _print(f"formulas: approximate {an['approximate_MPa']:.2f} MPa, exact {an['exact_MPa']:.2f} MPa; "
            f"safety factor {sf('safety_factor')} (global), {sf('critical_safety_factor')} (critical)")
     if res.get("load_sweep"):
-        def pm(v: float, band: float | None) -> str:
-            return f"{v:.2f}" + ("" if band is None else f" ± {band:.2f}")
         _print(f"the lines above are at Q = {res['case']['load_N']:g} N; every load (global / critical peak, MPa): "
                + "; ".join(f"{r['load_N']:g} N {pm(r['peak_MPa'], r.get('peak_band_MPa'))} / "
                            f"{pm(r['critical_peak_MPa'], r.get('critical_band_MPa'))}" for r in res["load_sweep"]))

@@ -23,8 +23,9 @@ def _f(x, nd=2) -> str:
     return "—" if x is None else f"{x:,.{nd}f}".replace(",", " ")
 
 
-def _pm(value: float | None, band: float | None) -> str:
-    """A peak (MPa) with its error bar when it has one: '114.28 ± 2.37'."""
+def pm(value: float | None, band: float | None) -> str:
+    """A peak (MPa) with its error bar when it has one: '114.28 ± 2.37' (the report's, the
+    terminal's and a study's tables write it alike)."""
     return _f(value) + ("" if band is None or value is None else f" ± {_f(band)}")
 
 
@@ -395,8 +396,8 @@ def _load_sweep_lines(res: dict) -> list[str]:
         add("| load (N) | global peak (MPa) | critical peak (MPa) | approximate (MPa) | exact (MPa) | safety factor (global / critical) |")
         add("|---|---|---|---|---|---|")
         for r in sweep:
-            add(f"| {_f(r['load_N'], 0)} | {_pm(r['peak_MPa'], r.get('peak_band_MPa'))} | "
-                f"{_pm(r['critical_peak_MPa'], r.get('critical_band_MPa'))} | "
+            add(f"| {_f(r['load_N'], 0)} | {pm(r['peak_MPa'], r.get('peak_band_MPa'))} | "
+                f"{pm(r['critical_peak_MPa'], r.get('critical_band_MPa'))} | "
                 f"{_f(r['approximate_MPa'])} | {_f(r['exact_MPa'])} | {_sf(r['safety_factor'], fe, 'safety_factor')} / "
                 f"{_sf(r['critical_safety_factor'], fe, 'critical_safety_factor')} |")
         add("")

@@ -10,6 +10,7 @@ from collections.abc import Iterable
 from pathlib import Path
 
 from .atomicfile import replacing, write_text
+from .report import pm
 from .study import Task, failure_file, variant_folder
 
 PEAKS = (("peak_MPa", "peak_band_MPa", "global peak"), ("critical_peak_MPa", "critical_band_MPa", "critical peak"))
@@ -245,7 +246,7 @@ def _report(summary: dict, swept: list[str], plots: list[str]) -> str:
     L.append("|---|---|---|---|---|---|---|")
     for r in summary["rows"]:
         def f(v, band=None):
-            return "" if v is None else f"{v:.2f}" + (f" ± {band:.2f}" if band else "")
+            return "" if v is None else pm(v, band)
         L.append(f"| {r['variant']} | {r['status']} | {parameters_text(r)} | {_n0(r.get('load_N'))} | "
                  f"{f(r.get('peak_MPa'), r.get('peak_band_MPa'))} | {f(r.get('critical_peak_MPa'), r.get('critical_band_MPa'))} | "
                  f"{r.get('note') or ''} |")
