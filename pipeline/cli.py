@@ -55,7 +55,9 @@ the earlier result in the output folder is left as it was
 """
 
 
-def _positive_float(text: str) -> float:
+def _number(text: str) -> float:
+    """An option's number; its range is checked with the case (pipeline/case.py), so that a
+    case file's value and the option's are refused alike."""
     try:
         v = float(text)
     except ValueError:
@@ -65,7 +67,7 @@ def _positive_float(text: str) -> float:
 
 def _gib(text: str) -> float:
     """--memory-limit: a finite amount of memory > 0, GiB."""
-    v = _positive_float(text)
+    v = _number(text)
     if not (math.isfinite(v) and v > 0):
         raise argparse.ArgumentTypeError(f"memory_limit: must be a finite number of GiB > 0, got {text!r}")
     return v
@@ -91,7 +93,7 @@ def _dim(text: str) -> tuple[str, float]:
     if k not in names:
         raise argparse.ArgumentTypeError(f"unknown dimension {k!r}; known: {', '.join(names)}")
     try:
-        return k, _positive_float(v)
+        return k, _number(v)
     except argparse.ArgumentTypeError as exc:
         raise argparse.ArgumentTypeError(f"{k}: {exc}") from None
 
@@ -123,25 +125,25 @@ def add_case_options(p: argparse.ArgumentParser, dim_type=None) -> None:
                    help="the peaks wanted: both (default), critical (bore ligaments; the fillet is not refined) "
                         "or global (fillet); a run skips the refinement the other needs")
     g.add_argument("--model", choices=MODELS, help="quarter with symmetry planes (default) or full part")
-    g.add_argument("--E", type=_positive_float, dest="E_MPa", metavar="MPA", help="Young's modulus, MPa (default 210000)")
-    g.add_argument("--nu", type=_positive_float, metavar="NU", help="Poisson's ratio (default 0.3)")
-    g.add_argument("--allowable", type=_positive_float, dest="allowable_MPa", metavar="MPA",
+    g.add_argument("--E", type=_number, dest="E_MPa", metavar="MPA", help="Young's modulus, MPa (default 210000)")
+    g.add_argument("--nu", type=_number, metavar="NU", help="Poisson's ratio (default 0.3)")
+    g.add_argument("--allowable", type=_number, dest="allowable_MPa", metavar="MPA",
                    help="allowable stress for the safety factor, MPa (default 80)")
-    g.add_argument("--span-approximate", type=_positive_float, dest="approximate_span_mm", metavar="MM",
+    g.add_argument("--span-approximate", type=_number, dest="approximate_span_mm", metavar="MM",
                    help="span l of the approximate formula, mm (default b1 + b2, as the paper)")
-    g.add_argument("--span-exact", type=_positive_float, dest="exact_span_mm", metavar="MM",
+    g.add_argument("--span-exact", type=_number, dest="exact_span_mm", metavar="MM",
                    help="span l of the exact formula, mm (default b6, as the paper)")
     m = p.add_argument_group("mesh and solver")
     m.add_argument("--order", type=int, help="element order of the displacement: 1, 2 (default) or 3")
-    m.add_argument("--mesh-factor", type=_positive_float, dest="mesh_factor", metavar="F",
+    m.add_argument("--mesh-factor", type=_number, dest="mesh_factor", metavar="F",
                    help="multiply every mesh size by F (<1 finer, >1 coarser; default 1)")
-    m.add_argument("--size-body", type=_positive_float, dest="size_body_mm", metavar="MM", help="element size away from features, mm")
-    m.add_argument("--size-feature", type=_positive_float, dest="size_feature_mm", metavar="MM", help="element size at bore and seat edges, mm")
-    m.add_argument("--size-fillet", type=_positive_float, dest="size_fillet_mm", metavar="MM", help="element size on the shoulder fillets, mm")
-    m.add_argument("--grading", type=_positive_float, dest="grading_mm", metavar="MM", help="distance over which sizes grow, mm")
+    m.add_argument("--size-body", type=_number, dest="size_body_mm", metavar="MM", help="element size away from features, mm")
+    m.add_argument("--size-feature", type=_number, dest="size_feature_mm", metavar="MM", help="element size at bore and seat edges, mm")
+    m.add_argument("--size-fillet", type=_number, dest="size_fillet_mm", metavar="MM", help="element size on the shoulder fillets, mm")
+    m.add_argument("--grading", type=_number, dest="grading_mm", metavar="MM", help="distance over which sizes grow, mm")
     m.add_argument("--solver", choices=SOLVERS,
                    help="CG + p-multigrid over P1 with GAMG (default), CG + GAMG, CG + BoomerAMG, or direct MUMPS")
-    m.add_argument("--rtol", type=_positive_float, help="relative tolerance of the iterative solver on the true residual (default 1e-8)")
+    m.add_argument("--rtol", type=_number, help="relative tolerance of the iterative solver on the true residual (default 1e-8)")
     m.add_argument("--memory-limit", type=_gib, dest="memory_limit", metavar="GB",
                    help="refuse a run estimated to need more memory than this, GiB (default: what the machine has free)")
     p.add_argument("--out", type=Path, help="output folder (default results/<case name>)")
@@ -158,7 +160,7 @@ def make_parser() -> argparse.ArgumentParser:
     add_case_options(run)
     run.add_argument("--levels", type=int, default=3,
                      help="meshes solved for the error bar: the requested one and coarser ones (default 3, up to 8; 1 = no error bar; 2 is refused)")
-    run.add_argument("--ratio", type=_positive_float, default=1.3, help="mesh-size ratio between those meshes (default 1.3)")
+    run.add_argument("--ratio", type=_number, default=1.3, help="mesh-size ratio between those meshes (default 1.3)")
     run.add_argument("--no-fields", action="store_true", help="skip ParaView files, picture and report (benchmarks)")
     run.add_argument("--quarter-fields", action="store_true",
                      help="picture and both .vtu files of the quarter model only (default: mirrored to the whole part)")
@@ -168,7 +170,7 @@ def make_parser() -> argparse.ArgumentParser:
     add_case_options(conv)
     conv.add_argument("--levels", type=int, default=5,
                       help="number of meshes (default 5, at least 4); the finest is the case's mesh / ratio^(levels-3)")
-    conv.add_argument("--ratio", type=_positive_float, default=1.3, help="mesh-size ratio between meshes, >= 1.3 (default 1.3)")
+    conv.add_argument("--ratio", type=_number, default=1.3, help="mesh-size ratio between meshes, >= 1.3 (default 1.3)")
     sweep = sub.add_parser("sweep", help="design study: a grid of dimensions and loads, each variant with its error bar",
                            description=DESCRIPTION, epilog=SWEEP_EPILOG,
                            formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -177,7 +179,7 @@ def make_parser() -> argparse.ArgumentParser:
                        "geometry/sizes.csv (each at its own rated load unless --load is given)")
     sweep.add_argument("--study", type=Path, help="a study file (TOML with a [sweep] table), e.g. cases/sweep-rf.toml")
     sweep.add_argument("--levels", type=int, help="meshes per variant for its error bar (default 3; 1 = none; 2 is refused)")
-    sweep.add_argument("--ratio", type=_positive_float, help="mesh-size ratio between them (default 1.3)")
+    sweep.add_argument("--ratio", type=_number, help="mesh-size ratio between them (default 1.3)")
     return parser
 
 
