@@ -17,6 +17,8 @@ PEAKS = (("peak_MPa", "peak_band_MPa", "global peak"), ("critical_peak_MPa", "cr
 COLUMNS = ("variant", "status", "size", "load_N", "parameters", "peak_MPa", "peak_band_MPa", "critical_peak_MPa",
            "critical_band_MPa", "critical_section_nominal_MPa", "safety_factor", "critical_safety_factor",
            "time_s", "note")
+# The statuses of variants with no peak, as a study's plots name them.
+UNANALYSED = {"invalid": "invalid geometry, not analysed", "failed": "analysis failed"}
 
 
 def rows_of(tasks: list[Task], out: Path) -> list[dict]:
@@ -55,15 +57,15 @@ def rows_of(tasks: list[Task], out: Path) -> list[dict]:
     return rows
 
 
-def series(rows: list[dict], axis: str) -> dict[tuple, list[dict]]:
-    """The finished rows as lines along ``axis``: one list per combination of the size, the
-    other swept parameters and the load, keyed by those (name, value) pairs, sorted by
-    ``axis``."""
+def series(rows: list[dict], axis: str, status: str = "done") -> dict[tuple, list[dict]]:
+    """The rows of ``status`` (the finished ones by default) as lines along ``axis``: one
+    list per combination of the size, the other swept parameters and the load, keyed by
+    those (name, value) pairs, sorted by ``axis``."""
     others = [k for k in rows[0] if k not in COLUMNS and k != axis] if rows else []
     fixed_keys = ["size"] + others + (["load_N"] if axis != "load_N" else [])
     groups: dict[tuple, list[dict]] = {}
     for r in rows:
-        if r["status"] == "done":
+        if r["status"] == status and r.get(axis) is not None:
             groups.setdefault(tuple((k, r.get(k)) for k in fixed_keys), []).append(r)
     return {fixed: sorted(g, key=lambda r: r[axis]) for fixed, g in groups.items()}
 
@@ -127,15 +129,29 @@ def _plots(rows: list[dict], axis: str, allowable: float, out: Path) -> list[str
     lines = series(rows, axis)
     if not lines:
         return []
-    # One line per combination of the other parameters, named by those that differ.
+    # One line per combination of the other parameters, named by those that differ; the
+    # values every line shares go into the title.
     varying = varying_names(rows, {k for fixed in lines for k, _ in fixed})
+    common = _fixed_text([(k, v) for k, v in next(iter(lines)) if k not in varying], None)
     names = []
     for key, band_key, label in PEAKS:
         fig, ax = plt.subplots(figsize=(6.5, 4))
+        colors = {}
         for fixed, g in lines.items():
-            ax.errorbar([r[axis] for r in g], [r[key] for r in g], yerr=[r.get(band_key) or 0 for r in g],
-                        marker="o", capsize=3, lw=1, label=_fixed_text(fixed, varying) or None)
+            text = _fixed_text(fixed, varying)
+            drawn = ax.errorbar([r[axis] for r in g], [r[key] for r in g], yerr=[r.get(band_key) or 0 for r in g],
+                                marker="o", capsize=3, lw=1, label=text or None)
+            colors[text] = drawn[0].get_color()
         ax.axhline(allowable, color="red", ls="--", label=f"allowable {allowable:g} MPa")
+        # Variants with no peak still belong on the axis, on its line: where the geometry
+        # rules end the design space, or where an analysis failed.
+        for (status, text), xs in unanalysed(rows, axis, varying).items():
+            what = UNANALYSED[status]
+            ax.plot(xs, [0.0] * len(xs), ls="none", marker="x" if status == "invalid" else "X",
+                    color=colors.get(text, "0.45"), ms=9, mew=2, transform=ax.get_xaxis_transform(),
+                    clip_on=False, zorder=5, label=f"{text}: {what}" if text else what)
+        if common:
+            ax.set_title(common, fontsize=10)
         ax.set_xlabel("load (N)" if axis == "load_N" else f"{axis.replace('dims.', '')} (mm)")
         ax.set_ylabel(f"{label} von Mises (MPa)")
         ax.legend(fontsize=8)
@@ -145,6 +161,17 @@ def _plots(rows: list[dict], axis: str, allowable: float, out: Path) -> list[str
         plt.close(fig)
         names.append(name)
     return names
+
+
+def unanalysed(rows: list[dict], axis: str, varying: set[str]) -> dict[tuple[str, str], list[float]]:
+    """The values along ``axis`` of the variants that have no peak, each once, sorted, keyed
+    by (status, their line's ``varying`` values as text: '' for a study of one line).
+    Statuses: those of UNANALYSED."""
+    out: dict[tuple[str, str], set[float]] = {}
+    for status in UNANALYSED:
+        for fixed, g in series(rows, axis, status).items():
+            out.setdefault((status, _fixed_text(fixed, varying)), set()).update(r[axis] for r in g)
+    return {k: sorted(v) for k, v in out.items()}
 
 
 def sides(rows: list[dict], allowable: float) -> list[dict]:

@@ -16,7 +16,7 @@ from pipeline.errors import InputError
 from pipeline.study import read_study
 from pipeline.sweep import time_left_s
 from pipeline.valuelist import parse_loads, parse_values
-from pipeline.sweepresults import COLUMNS, crossing_text, crossings, parameters_text, series, sides
+from pipeline.sweepresults import COLUMNS, crossing_text, crossings, parameters_text, series, sides, unanalysed, varying_names
 
 ROOT = Path(__file__).resolve().parents[1]
 GRID = ["--size", "05", "--dim", "rf=1.0,1.5,2.5", "--mesh-factor", "3", "--levels", "1"]
@@ -149,6 +149,23 @@ def test_a_plot_draws_one_line_per_value_of_the_other_parameters():
     # Two sizes at the same load (--sizes with --load) are two lines, not one zigzag.
     sized = [dict(r, size=s) for s in ("05", "1") for r in single]
     assert sorted(dict(k)["size"] for k in series(sized, "dims.rf")) == ["05", "1"]
+
+
+def test_a_plot_marks_the_variants_without_a_peak():
+    """A study's plot shows where the geometry rules end the swept range, and where an
+    analysis failed: those variants' values along the axis, once each (rows at two loads),
+    on the line of the other values that vary (dj here), not as if every line ended there."""
+    rows = [{"status": s, "size": "05", "dims.dj": dj, "dims.rf": rf, "load_N": q} for s, dj, rf in
+            (("done", 16.0, 1.0), ("done", 18.0, 1.0), ("done", 16.0, 3.0), ("invalid", 18.0, 3.0),
+             ("failed", 16.0, 2.0)) for q in (5000.0, 10000.0)]
+    varying = varying_names(rows, {"size", "dims.dj", "load_N"})
+    assert varying == {"dims.dj", "load_N"}
+    assert unanalysed(rows, "dims.rf", varying) == {
+        ("invalid", "dj = 18 mm, load = 5000 N"): [3.0], ("invalid", "dj = 18 mm, load = 10000 N"): [3.0],
+        ("failed", "dj = 16 mm, load = 5000 N"): [2.0], ("failed", "dj = 16 mm, load = 10000 N"): [2.0]}
+    one_line = [dict(r, **{"dims.dj": 16.0, "load_N": 5000.0}) for r in rows]
+    assert unanalysed(one_line, "dims.rf", set()) == {("invalid", ""): [3.0], ("failed", ""): [2.0]}
+    assert unanalysed(rows[:2], "dims.rf", varying) == {}
 
 
 def test_small_sweep_contract_invalid_variant_and_resume(tmp_path):
