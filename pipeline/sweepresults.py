@@ -72,8 +72,10 @@ def series(rows: list[dict], axis: str, status: str = "done") -> dict[tuple, lis
 
 def crossings(rows: list[dict], axis: str, allowable: float) -> list[dict]:
     """Where each peak crosses the allowable along ``axis`` (the other parameters fixed):
-    linear interpolation between neighbouring variants; the range from the peaks' bands
-    (value ± band crossing the allowable) when both neighbours have one. ``only_crossing``:
+    linear interpolation between neighbouring variants; the range, when both neighbours
+    have a band, is where the allowable lies within value ± band between them
+    (:func:`band_reach`), and ``range_reaches`` names the neighbours it reaches (their own
+    bands hold the allowable: the crossing may lie beyond them). ``only_crossing``:
     every variant of the line before it lies on one side and every one after it on the
     other, so the peak stays on its new side up to ``last``, the line's last value."""
     found = []
@@ -82,22 +84,39 @@ def crossings(rows: list[dict], axis: str, allowable: float) -> list[dict]:
             for i, (a, b) in enumerate(zip(group, group[1:])):
                 ya, yb = a[key] - allowable, b[key] - allowable
                 if ya == 0 or ya * yb < 0:
-                    def at(da: float, db: float) -> float | None:
-                        y1, y2 = a[key] + da - allowable, b[key] + db - allowable
-                        return None if y1 == y2 else a[axis] + (0 - y1) * (b[axis] - a[axis]) / (y2 - y1)
-                    x = at(0, 0)
-                    lo_hi = None
+                    x = a[axis] + ya / (ya - yb) * (b[axis] - a[axis])
+                    lo_hi, reaches = None, []
                     if a.get(band_key) is not None and b.get(band_key) is not None:
-                        ends = [v for v in (at(a[band_key], b[band_key]), at(-a[band_key], -b[band_key])) if v is not None]
-                        lo_hi = [min(ends), max(ends)] if len(ends) == 2 else None
+                        t0, t1 = band_reach(ya, yb, a[band_key], b[band_key])
+                        lo_hi = [a[axis] + t * (b[axis] - a[axis]) for t in (t0, t1)]
+                        reaches = [r[axis] for r, t in ((a, t0), (b, t1)) if t in (0.0, 1.0)]
                     falls = yb < ya
                     before, after = group[:i + 1], group[i + 1:]
                     only = (all((r[key] >= allowable) == falls for r in before)
                             and all((r[key] < allowable) == falls for r in after))
-                    found.append({"peak": label, "axis": axis, "at": x, "range": lo_hi,
+                    found.append({"peak": label, "axis": axis, "at": x, "range": lo_hi, "range_reaches": reaches,
                                   "falls_below": falls, "fixed": dict(fixed),
                                   "only_crossing": only, "last": group[-1][axis]})
     return found
+
+
+def band_reach(ya: float, yb: float, wa: float, wb: float) -> tuple[float, float]:
+    """Where between two neighbouring variants (t = 0 at the first, 1 at the second) the
+    allowable lies within the error bar: |y(t)| <= w(t), with y = peak − allowable (MPa)
+    going from ya to yb across zero and the band w from wa to wb, both linear in t. Two
+    linear conditions, y − w <= 0 and −y − w <= 0, each hold on a part of [0, 1] that ends
+    where it changes sign; the crossing y = 0 satisfies both, so the interval holds it.
+    (Crossing the band's edges with the allowable instead can put both ends on one side of
+    the crossing, or outside the step, when the bands differ much.)"""
+    lo, hi = 0.0, 1.0
+    for f0, f1 in ((ya - wa, yb - wb), (-ya - wa, -yb - wb)):
+        if f0 > 0 and f1 > 0:  # cannot happen while y crosses zero and w >= 0; guard anyway
+            continue
+        if f0 > 0:
+            lo = max(lo, f0 / (f0 - f1))
+        elif f1 > 0:
+            hi = min(hi, f0 / (f0 - f1))
+    return lo, hi
 
 
 def write_outputs(tasks: list[Task], out: Path, axes: dict[str, list[float]], allowable: float) -> dict:
@@ -238,7 +257,12 @@ def crossing_text(x: dict, allowable: float, varying: set[str] | None = None) ->
     unit, name = ("N", "load") if axis == "load_N" else ("mm", axis.replace("dims.", ""))
     num = (lambda v: f"{v:.0f}") if axis == "load_N" else (lambda v: f"{v:.4g}")
     fixed = _fixed_text(x["fixed"].items(), varying)
-    rng = f" (between {num(x['range'][0])} and {num(x['range'][1])} {unit} within the error bars)" if x["range"] else ""
+    rng = ""
+    if x["range"]:
+        reach = x.get("range_reaches") or []
+        beyond = ("" if not reach else f", which reach the variant{'s' if len(reach) > 1 else ''} at "
+                  + " and ".join(f"{num(v)} {unit}" for v in reach) + ": it may lie beyond")
+        rng = f" (between {num(x['range'][0])} and {num(x['range'][1])} {unit} within the error bars{beyond})"
     word = "falls below" if x["falls_below"] else "rises above"
     stays = (f" and stays {'below' if x['falls_below'] else 'above'} it in every variant up to "
              f"{name} = {num(x['last'])} {unit}" if x.get("only_crossing") else "")

@@ -16,7 +16,7 @@ from pipeline.errors import InputError
 from pipeline.study import read_study
 from pipeline.sweep import time_left_s
 from pipeline.valuelist import parse_loads, parse_values
-from pipeline.sweepresults import COLUMNS, crossing_text, crossings, parameters_text, series, sides, unanalysed, varying_names
+from pipeline.sweepresults import COLUMNS, band_reach, crossing_text, crossings, parameters_text, series, sides, unanalysed, varying_names
 
 ROOT = Path(__file__).resolve().parents[1]
 GRID = ["--size", "05", "--dim", "rf=1.0,1.5,2.5", "--mesh-factor", "3", "--levels", "1"]
@@ -112,6 +112,28 @@ def test_crossing_is_interpolated_with_its_band():
     assert "stays" not in crossing_text(again[0], 100.0)
     # In a study where the load is the same everywhere, the line does not name it.
     assert crossing_text(found[0], 100.0, varying=set()).endswith("up to rf = 2 mm.")
+
+
+def test_a_crossing_s_range_holds_the_crossing_when_the_bands_differ():
+    """114.90 ± 96.18 and 75.37 ± 9.18 MPa at rf = 1 and 2 mm against 80 MPa (a sweep at
+    mesh factor 3 gave these): the peak crosses at rf = 1 + 34.90/39.53 = 1.883 mm. Crossing
+    the bands' edges with 80 MPa put the range at 2.036..2.291 mm, beyond the crossing and
+    the step; the allowable lies within both variants' own bands, so the range is the whole
+    step and reaches both neighbours. With bands of 2 MPa on both it is hand computed:
+    |34.90 − 39.53 t| <= 2, t in [32.90, 36.90] / 39.53."""
+    def rows(wa, wb):
+        return [{"status": "done", "variant": v, "dims.rf": rf, "load_N": 1.0, "peak_MPa": p, "peak_band_MPa": w,
+                 "critical_peak_MPa": 50.0, "critical_band_MPa": None}
+                for v, rf, p, w in (("a", 1.0, 114.90, wa), ("b", 2.0, 75.37, wb))]
+    wide, = crossings(rows(96.18, 9.18), "dims.rf", 80.0)
+    assert wide["at"] == pytest.approx(1 + 34.90 / 39.53)
+    assert wide["range"] == pytest.approx([1.0, 2.0]) and wide["range_reaches"] == [1.0, 2.0]
+    assert "within the error bars, which reach the variants at 1 mm and 2 mm: it may lie beyond)" in \
+        crossing_text(wide, 80.0)
+    narrow, = crossings(rows(2.0, 2.0), "dims.rf", 80.0)
+    assert narrow["range"] == pytest.approx([1 + 32.90 / 39.53, 1 + 36.90 / 39.53])
+    assert narrow["range_reaches"] == [] and "beyond" not in crossing_text(narrow, 80.0)
+    assert band_reach(20.0, -20.0, 0.0, 0.0) == (0.5, 0.5)  # no band: the crossing itself
 
 
 def test_each_peak_is_placed_against_the_allowable_by_hand_counted_rows():
