@@ -17,6 +17,9 @@ PEAKS = (("peak_MPa", "peak_band_MPa", "global peak"), ("critical_peak_MPa", "cr
 COLUMNS = ("variant", "status", "size", "load_N", "parameters", "peak_MPa", "peak_band_MPa", "critical_peak_MPa",
            "critical_band_MPa", "critical_section_nominal_MPa", "safety_factor", "critical_safety_factor",
            "time_s", "note")
+# The row fields of each peak of results.json's fe block.
+UNWANTED_KEYS = {"peak": ("peak_MPa", "peak_band_MPa", "safety_factor"),
+                 "critical": ("critical_peak_MPa", "critical_band_MPa", "critical_safety_factor")}
 # The statuses of variants with no peak, as a study's plots name them.
 UNANALYSED = {"invalid": "invalid geometry, not analysed", "failed": "analysis failed"}
 
@@ -49,11 +52,18 @@ def rows_of(tasks: list[Task], out: Path) -> list[dict]:
             "critical_band_MPa": (fe["critical"].get("error_estimate") or {}).get("band"),
             "safety_factor": fe["safety_factor"], "critical_safety_factor": fe["critical_safety_factor"]}]
         q0 = res["case"]["load_N"]
+        # A peak the run was not asked for (--want) is not resolved: the study leaves it out
+        # (no value, side, crossing or plot) and says why, rather than treat it as a result.
+        unwanted = [(keys, fe[block]["not_wanted"]) for block, keys in UNWANTED_KEYS.items()
+                    if fe[block].get("not_wanted")]
         for r in per_load:
-            rows.append(dict(base, status="done", time_s=res["timings_s"]["total"],
-                             critical_section_nominal_MPa=None if nominal is None else nominal * r["load_N"] / q0,
-                             **{k: r.get(k) for k in ("load_N", "peak_MPa", "peak_band_MPa", "critical_peak_MPa",
-                                                      "critical_band_MPa", "safety_factor", "critical_safety_factor")}))
+            row = dict(base, status="done", time_s=res["timings_s"]["total"],
+                       critical_section_nominal_MPa=None if nominal is None else nominal * r["load_N"] / q0,
+                       **{k: r.get(k) for k in ("load_N", "peak_MPa", "peak_band_MPa", "critical_peak_MPa",
+                                                "critical_band_MPa", "safety_factor", "critical_safety_factor")})
+            for keys, why in unwanted:
+                row.update(dict.fromkeys(keys), note=why.replace("; shown for orientation only", ""))
+            rows.append(row)
     return rows
 
 
@@ -79,8 +89,9 @@ def crossings(rows: list[dict], axis: str, allowable: float) -> list[dict]:
     every variant of the line before it lies on one side and every one after it on the
     other, so the peak stays on its new side up to ``last``, the line's last value."""
     found = []
-    for fixed, group in series(rows, axis).items():
+    for fixed, line in series(rows, axis).items():
         for key, band_key, label in PEAKS:
+            group = [r for r in line if r.get(key) is not None]  # a peak not asked for has none
             for i, (a, b) in enumerate(zip(group, group[1:])):
                 ya, yb = a[key] - allowable, b[key] - allowable
                 if ya == 0 or ya * yb < 0:
@@ -154,9 +165,12 @@ def _plots(rows: list[dict], axis: str, allowable: float, out: Path) -> list[str
     common = _fixed_text([(k, v) for k, v in next(iter(lines)) if k not in varying], None)
     names = []
     for key, band_key, label in PEAKS:
+        if not any(r.get(key) is not None for g in lines.values() for r in g):
+            continue  # a peak no variant was asked for (--want): no plot
         fig, ax = plt.subplots(figsize=(6.5, 4))
         colors = {}
         for fixed, g in lines.items():
+            g = [r for r in g if r.get(key) is not None]
             text = _fixed_text(fixed, varying)
             drawn = ax.errorbar([r[axis] for r in g], [r[key] for r in g], yerr=[r.get(band_key) or 0 for r in g],
                                 marker="o", capsize=3, lw=1, label=text or None)
@@ -278,9 +292,10 @@ def _report(summary: dict, swept: list[str], plots: list[str]) -> str:
          f"Allowable {summary['allowable_MPa']:g} MPa.\n"]
     mf = summary.get("mesh_factor")
     if mf is not None:
+        has_global = any(r.get("peak_MPa") is not None for r in summary["rows"])
         L.append(f"Every variant at mesh factor {mf:g}"
                  + (": coarser than 1.3, so the global (fillet) peak is not resolved (README, Known limits); "
-                    "its values, crossings and verdicts are rough.\n" if mf > 1.3 else ".\n"))
+                    "its values, crossings and verdicts are rough.\n" if mf > 1.3 and has_global else ".\n"))
     L.append(f"## Against the allowable ({summary['allowable_MPa']:g} MPa)\n")
     L += _side_lines(summary)
     L.append("")

@@ -220,6 +220,22 @@ def test_small_sweep_contract_invalid_variant_and_resume(tmp_path):
     assert "0 already done" in changed.stdout
 
 
+def test_a_study_leaves_out_the_peak_it_was_not_asked_for(tmp_path):
+    """--want critical: each run says its global peak is not resolved (shown for orientation
+    only), so the study gives it no value, side, crossing or plot, and says why per row.
+    At mesh factor 3 the unresolved fillet peaks of rf = 1 and 2 mm lie either side of
+    80 MPa (115 and 75 MPa): the study reported that crossing before."""
+    out = tmp_path / "critical"
+    sweep(out, "--size", "05", "--dim", "rf=1,2", "--want", "critical", "--mesh-factor", "3", "--levels", "1")
+    data = json.loads((out / "sweep.json").read_text())
+    done = [r for r in data["rows"] if r["status"] == "done"]
+    assert len(done) == 2 and all(r["peak_MPa"] is None and r["safety_factor"] is None for r in done)
+    assert all(r["critical_peak_MPa"] > 0 and "global peak" in r["note"] for r in done)
+    assert not any(x["peak"] == "global peak" for x in data["crossings"])
+    assert (out / "critical_peak_vs_rf.png").is_file() and not (out / "peak_vs_rf.png").exists()
+    assert "The global peak" not in (out / "report.md").read_text(encoding="utf-8")
+
+
 def test_one_and_two_ranks_give_the_same_rows(tmp_path):
     one = json.loads(sweep(tmp_path / "one", *GRID, "--quiet") and (tmp_path / "one" / "sweep.json").read_text())
     p2 = sweep(tmp_path / "two", *GRID, ranks=2)
