@@ -39,6 +39,7 @@ SUMMARY_FILES = frozenset({"summary.md", "summary.csv", "summary.png"})
 TITLE = "# Crosshead stresses across hook sizes"  # summary.md's first line
 JACOBIAN_SUSPECT = 0.01   # worst det J ratio of a curved tet below this: nearly inverted
 BAND_TOO_WIDE = 0.25      # error bar above this fraction of the value: not usable
+NOT_ASKED = "not asked"   # the status of a peak the run did not resolve (--want): no value
 
 
 def hook_value(size: str) -> float:
@@ -54,6 +55,8 @@ def hook_value(size: str) -> float:
 def _estimate(block: dict) -> tuple[float | None, str, float | None, float | None]:
     """(band MPa or None, status, extrapolated MPa or None, change finest − next mesh MPa
     or None) of one peak block."""
+    if block.get("not_wanted"):
+        return None, NOT_ASKED, None, None
     est = block.get("error_estimate")
     if est is None:
         return None, "single mesh", None, None
@@ -78,9 +81,9 @@ def row_of(folder: Path, res: dict) -> dict:
         "scale_s": float(m.group(1)) if (scaled and m) else (1.0 if case.get("size") == "05" else None),
         "load_N": case["load_N"],
         "approximate_MPa": an["approximate_MPa"], "exact_MPa": an["exact_MPa"],
-        "fe_peak_MPa": fe["peak_MPa"], "fe_peak_band_MPa": pb, "fe_peak_status": ps,
+        "fe_peak_MPa": None if ps == NOT_ASKED else fe["peak_MPa"], "fe_peak_band_MPa": pb, "fe_peak_status": ps,
         "fe_peak_extrapolated_MPa": pe, "fe_peak_last_change_MPa": pd, "fe_peak_feature": fe["peak"].get("feature", ""),
-        "fe_critical_MPa": fe["critical_peak_MPa"], "fe_critical_band_MPa": cb,
+        "fe_critical_MPa": None if cs == NOT_ASKED else fe["critical_peak_MPa"], "fe_critical_band_MPa": cb,
         "fe_critical_status": cs, "fe_critical_extrapolated_MPa": ce, "fe_critical_last_change_MPa": cd,
         "fe_critical_feature": fe["critical"].get("feature", ""),
         "allowable_MPa": case.get("allowable_MPa"),
@@ -105,7 +108,8 @@ def checked(row: dict) -> dict:
         if k in TEXT_COLUMNS:
             ok = isinstance(v, str)
         else:
-            ok = (v is None and k not in NEEDED_COLUMNS) or (
+            asked = not (k.startswith("fe_") and row.get(k.replace("_MPa", "_status")) == NOT_ASKED)
+            ok = (v is None and (k not in NEEDED_COLUMNS or not asked)) or (
                 isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v))
         if not ok:
             raise ValueError(f"{k} = {v!r}")
@@ -157,6 +161,8 @@ def _n(v: float | None, digits: int = 2) -> str:
 def _fe_cell(r: dict, key: str) -> str:
     """FE peak with its error bar, or why it has none (MPa)."""
     value, band, status = r[f"fe_{key}_MPa"], r[f"fe_{key}_band_MPa"], r[f"fe_{key}_status"]
+    if status == NOT_ASKED:
+        return "–"
     change = r[f"fe_{key}_last_change_MPa"]
     last = "" if change is None else f"; last refinement {change:+.2f}"
     if status == "singular":
@@ -185,9 +191,11 @@ def markdown(rows: list[dict], skipped: list[str], png_name: str | None) -> str:
     if not rows:
         lines.append("No results found.")
     notes = _source_notes(rows)
-    if rows:
-        notes.append(f"Global peak at: {_peak_places(rows, 'fe_peak_feature')}. Critical peak at: "
-                     f"{_peak_places(rows, 'fe_critical_feature')}.")
+    places = [f"{name} peak at: {_peak_places(asked, key)}." for name, key in
+              (("Global", "fe_peak"), ("Critical", "fe_critical"))
+              for asked in [[r for r in rows if r[f"{key}_status"] != NOT_ASKED]] if asked]
+    if places:
+        notes.append(" ".join(places))
     notes += _status_notes(rows)
     notes += _run_notes(rows, skipped)
     lines += [f"- {n}" for n in notes]
@@ -263,11 +271,12 @@ def _source_notes(rows: list[dict]) -> list[str]:
 
 
 def _peak_places(rows: list[dict], key: str) -> str:
-    """The features a peak sits at (``key``: a row's feature column) with the hook numbers
-    at each, the most common first; one feature is said once for every row."""
+    """The features a peak sits at (``key``: the peak's column prefix, fe_peak or
+    fe_critical) with the hook numbers at each, the most common first; one feature is said
+    once for every row."""
     by: dict[str, list[str]] = {}
     for r in rows:
-        by.setdefault(r[key] or "?", []).append(r["size"])
+        by.setdefault(r[f"{key}_feature"] or "?", []).append(r["size"])
     if len(by) == 1:
         return f"{next(iter(by))} (every row)"
     return "; ".join(f"{f} (No. {', '.join(s)})" for f, s in sorted(by.items(), key=lambda kv: -len(kv[1])))
@@ -291,6 +300,9 @@ def _status_notes(rows: list[dict]) -> list[str]:
     if "settled" in statuses:
         notes.append("*settled*: the peak is the same on every mesh to within 0.1 %, the noise of a "
                      "nodal peak; the bar is that 0.1 %, no order is fitted.")
+    if NOT_ASKED in statuses:
+        notes.append(f"*{NOT_ASKED}*: the run was asked for the other peak only (--want) and did not refine "
+                     "for this one; it has no value here.")
     if "unsettled" in statuses:
         notes.append("*unsettled*: the peak still falls between the meshes without a steady rate "
                      "(not in the asymptotic range); the bar is the largest change, no extrapolation.")
@@ -330,28 +342,33 @@ def plot(rows: list[dict], path: Path) -> bool:
         return False
     x = list(range(len(rows)))
     # A mesh artefact can be 20× the rest (see warnings_of): clip the axis and label it.
-    glob = sorted(r["fe_peak_MPa"] for r in rows)
+    glob = sorted(r["fe_peak_MPa"] for r in rows if r["fe_peak_MPa"] is not None) or [0.0]
     cap = max(2.5 * glob[len(glob) // 2], *(1.3 * (r["allowable_MPa"] or 0) for r in rows),
-              *(1.2 * r["fe_critical_MPa"] for r in rows))
+              *(1.2 * (r["fe_critical_MPa"] or 0.0) for r in rows))
     # The axis ends just above what is drawn; at the cap only when something is clipped.
     tops = [r[k] + (r[b] or 0.0) for r in rows for k, b in (("fe_peak_MPa", "fe_peak_band_MPa"),
-                                                             ("fe_critical_MPa", "fe_critical_band_MPa"))]
+                                                             ("fe_critical_MPa", "fe_critical_band_MPa"))
+            if r[k] is not None]
     tops += [r["exact_MPa"] for r in rows] + [r["allowable_MPa"] or 0.0 for r in rows]
     ylim_top = 1.05 * cap if max(tops) > cap else 1.08 * max(tops)
     fig, ax = plt.subplots(figsize=(min(16.0, max(7.0, 0.42 * len(rows) + 3) + 3.0), 6.0))
 
     def series(key: str, band_key: str, status_key: str, fmt: str, color: str, label: str):
-        vals = [min(r[key], cap) for r in rows]
-        for i, r in enumerate(rows):
+        have = [(xi, r) for xi, r in zip(x, rows) if r[key] is not None]  # not asked (--want): none
+        if not have:
+            return
+        xs = [xi for xi, _ in have]
+        vals = [min(r[key], cap) for _, r in have]
+        for xi, r in have:
             if r[key] > cap:
-                ax.plot([x[i]], [cap], "^", color=color, ms=10)
-                ax.annotate(f"{r[key]:.0f} MPa\n(off scale)", (x[i], cap), textcoords="offset points",
+                ax.plot([xi], [cap], "^", color=color, ms=10)
+                ax.annotate(f"{r[key]:.0f} MPa\n(off scale)", (xi, cap), textcoords="offset points",
                             xytext=(6, -22), fontsize=7, color=color)
-        bars = [r[band_key] if r[band_key] is not None else 0.0 for r in rows]
-        ax.errorbar(x, vals, yerr=bars, fmt=fmt, color=color, capsize=3, lw=1.2, ms=5, label=label)
-        bad = [i for i, r in enumerate(rows) if r[status_key] == "singular"]
+        bars = [r[band_key] if r[band_key] is not None else 0.0 for _, r in have]
+        ax.errorbar(xs, vals, yerr=bars, fmt=fmt, color=color, capsize=3, lw=1.2, ms=5, label=label)
+        bad = [i for i, (_, r) in enumerate(have) if r[status_key] == "singular"]
         if bad:
-            ax.plot([x[i] for i in bad], [vals[i] for i in bad], "x", color="k", ms=9,
+            ax.plot([xs[i] for i in bad], [vals[i] for i in bad], "x", color="k", ms=9,
                     label=f"{label.split(' (')[0].split(' ±')[0]}: no error bar (not converged)")
 
     series("fe_critical_MPa", "fe_critical_band_MPa", "fe_critical_status", "o-", "C3",
@@ -367,7 +384,7 @@ def plot(rows: list[dict], path: Path) -> bool:
     ax.set_xticks(x)
     ax.set_xticklabels([("! " if r.get("warnings") else "") + f"{r['size']}\n{r['load_N'] / 1000:.3g}"
                         + ("" if r["dimensions"].startswith("table row") else "*") for r in rows], fontsize=8)
-    ax.set_xlabel("hook No. (categorical axis) and load in kN; * = dimensions scaled from No. 05, not DIN; "
+    ax.set_xlabel("hook No. (categorical axis) and load in kN\n* = dimensions scaled from No. 05, not DIN; "
                   "! = see the warnings in summary.md")
     ax.set_ylabel("von Mises / nominal stress (MPa)")
     ax.set_ylim(0, ylim_top)

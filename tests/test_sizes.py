@@ -10,6 +10,8 @@ FE peak in the bore ligament must follow within that plus its mesh error.
 The FE checks use coarse meshes (mesh factor 2) and share solves through a module cache;
 the whole file takes about two minutes on two cores.
 """
+import csv
+import io
 import json
 import math
 import os
@@ -193,6 +195,30 @@ def test_summary_tables_and_plot(tmp_path):
     assert "65.00 ± 0.50" in md                                   # scattered keeps its band
     assert "| 05 ⚠ |" in md and "No. 05: nearly inverted" in md     # det J ratio 1e-5 flagged
     assert "| 1.6 |" in md                                          # clean row not flagged
+    assert (tmp_path / "sum" / "summary.png").stat().st_size > 10_000
+
+
+def test_summary_leaves_out_a_peak_the_runs_were_not_asked_for(tmp_path):
+    """Runs made with --want critical say their global peak is not resolved: the summary
+    shows no value, band or warning for it (a 99.61 ± 49.40 MPa fillet peak of a coarse
+    --want critical run was flagged and plotted before), and its status says why."""
+    from pipeline import summary
+    for size, crit in (("1.6", 66.0), ("1", 64.0)):  # (the fake No. 05 has a flagged mesh)
+        _fake_results(tmp_path / "res" / size, size, crit, "converged")
+        f = tmp_path / "res" / size / "results.json"
+        res = json.loads(f.read_text())
+        res["fe"]["peak"].update(not_wanted="want = critical: not refined", error_estimate={
+            "status": "converged", "band": 49.4, "extrapolated": 90.0, "gci_fine": 0.5, "values": [99.6, 60.0, 40.0]})
+        res["fe"]["safety_factor"] = None
+        f.write_text(json.dumps(res))
+    assert summary.main([str(tmp_path / "res"), "--out", str(tmp_path / "sum")]) == 0
+    md = (tmp_path / "sum" / "summary.md").read_text()
+    lines = [ln for ln in md.splitlines() if ln.startswith("| 1.6 ") or ln.startswith("| 1 ")]
+    assert len(lines) == 2 and all("| – | not asked |" in ln for ln in lines)
+    assert "120.00" not in md and "49.40" not in md and "⚠" not in md
+    assert "*not asked*" in md and "Global peak at" not in md and "Critical peak at" in md
+    rows = list(csv.DictReader(io.StringIO((tmp_path / "sum" / "summary.csv").read_text())))
+    assert all(r["fe_peak_MPa"] == "" and r["fe_peak_status"] == "not asked" for r in rows)
     assert (tmp_path / "sum" / "summary.png").stat().st_size > 10_000
 
 
