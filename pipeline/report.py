@@ -142,13 +142,16 @@ def comparison_section(res: dict) -> str:
                  f"approximate {_f(an['approximate_MPa'])} (span {_f(an['approximate_span_mm'], 1)} mm); "
                  f"exact {_f(an['exact_MPa'])} (span {_f(an['exact_span_mm'], 1)} mm) | "
                  f"**{_f(cs['nominal_MPa'])}** | mid-ligament {_f(lin)}; bore edge {_f(edge)} | "
-                 f"{_f(crit['value_MPa'])} {error_bar_text(crit)} | {crit['value_MPa'] / cs['nominal_MPa']:.2f} |")
+                 f"{_f(crit['value_MPa'])} {error_bar_text(crit)} | "
+                 + ("none: the peak is not resolved" if crit.get("not_wanted")
+                    else f"{crit['value_MPa'] / cs['nominal_MPa']:.2f}") + " |")
     pk = fe["peak"]
     kt_p = f"; Peterson's chart {root['Kt_peterson']:.2f}" if "Kt_peterson" in root else ""
     L.append(f"| journal root, x = b1/2 (M = {_f(root['M_Nmm'], 0)} N·mm) | none (the formulas do not check the "
              f"journal) | **{_f(root['nominal_MPa'])}** (32·M/(π·dj³)) | | {_f(pk['value_MPa'])} "
              f"{error_bar_text(pk)} | "
-             + (f"none: the peak is singular{kt_p}" if pk.get("singular_feature") else f"{root['Kt']:.2f}{kt_p}")
+             + (f"none: the peak is not resolved{kt_p}" if pk.get("not_wanted")
+                else f"none: the peak is singular{kt_p}" if pk.get("singular_feature") else f"{root['Kt']:.2f}{kt_p}")
              + " |")
     L.append("")
     if cs:

@@ -46,7 +46,8 @@ def build_results(case: Case, levels: list[Level], timings: dict[str, float],
                                  case.exact_span_mm)
     est_peak = estimate_levels(levels, case, "peak") if len(levels) >= 3 else None
     est_crit = estimate_levels(levels, case, "critical") if len(levels) >= 3 else None
-    peak_b, crit_b = peak_block(case, fine.peak, est_peak), peak_block(case, fine.critical, est_crit)
+    peak_b = peak_block(case, fine.peak, est_peak, refined=case.want != "critical")
+    crit_b = peak_block(case, fine.critical, est_crit, refined=case.want != "global")
     unwanted = {"critical": (peak_b, "global"), "global": (crit_b, "critical")}.get(case.want)
     if unwanted is not None:
         unwanted[0]["not_wanted"] = (f"want = {case.want}: the run did not refine for the {unwanted[1]} peak; "
@@ -66,9 +67,12 @@ def build_results(case: Case, levels: list[Level], timings: dict[str, float],
     }
 
 
-def peak_block(case: Case, p: NodalPeak, est: Estimate | None) -> dict:
+def peak_block(case: Case, p: NodalPeak, est: Estimate | None, refined: bool = True) -> dict:
     """One peak's results.json block (MPa, mm): value, place, how it is read, its error
-    estimate, and the singular feature it sits at, if any (then no converged value)."""
+    estimate, and the singular feature it sits at, if any (then no converged value).
+    ``refined``: the meshes were refined for this peak; if not (a peak the run was not asked
+    for), its growth over the meshes is that of unrefined meshes and does not make it
+    singular."""
     block = {"value_MPa": p.value_MPa, "location_mm": list(p.location_mm),
              "feature": describe_location(case, p.location_mm),
              "definition": DEFINITION[p.rule], "error_bar_method": ERROR_BAR_METHOD[p.rule],
@@ -77,7 +81,7 @@ def peak_block(case: Case, p: NodalPeak, est: Estimate | None) -> dict:
     singular = singular_feature(case, p.location_mm)
     if est is not None:
         block["error_estimate"] = est.as_dict()
-        if est.status == "singular" and singular is None:
+        if est.status == "singular" and singular is None and refined:
             singular = f"{block['feature']} (values do not converge under refinement)"
     if singular is not None:
         block["singular_feature"] = singular
@@ -171,10 +175,12 @@ def safety_factors(allowable_MPa: float, peaks: dict[str, tuple[float, dict]]) -
     for key, (value, block) in peaks.items():
         where = block.get("singular_feature")
         out[key] = None if where or block.get("not_wanted") else allowable_MPa / value
-        if where:
-            out[f"{key}_note"] = f"the peak sits at a singular feature ({where}) and has no finite value"
-        elif block.get("not_wanted"):
+        # A peak the run did not refine for says so first: its trend over the meshes, singular
+        # or not, is that of an unrefined mesh.
+        if block.get("not_wanted"):
             out[f"{key}_note"] = block["not_wanted"]
+        elif where:
+            out[f"{key}_note"] = f"the peak sits at a singular feature ({where}) and has no finite value"
     return out
 
 
@@ -187,8 +193,8 @@ def verdict(allowable_MPa: float, load_N: float, checks: dict[str, tuple[float, 
     out = {}
     for name, (value, block) in checks.items():
         if block is not None and (block.get("singular_feature") or block.get("not_wanted")):
-            why = (f"the peak sits at a singular feature ({block['singular_feature']}): no finite value"
-                   if block.get("singular_feature") else block["not_wanted"])
+            why = (block["not_wanted"] if block.get("not_wanted") else
+                   f"the peak sits at a singular feature ({block['singular_feature']}): no finite value")
             out[name] = {"value_MPa": value, "verdict": "none", "why": why}
             continue
         # No band (a nominal stress, or a peak read on one mesh): null, not a band of zero.
@@ -217,13 +223,16 @@ def load_sweep(res: dict, case: Case, loads: list[float]) -> list[dict]:
     """Peaks, formula stresses and safety factors (MPa) at each load (N), scaled linearly."""
     fe, an = res["fe"], res["analytic"]
     rows = []
+    # A peak the run was not asked for (want) has no value or band at any load.
+    asked = {key: not fe[key].get("not_wanted") for key in ("peak", "critical")}
     for q in loads:
         k = q / case.load_N
-        row = {"load_N": q, "peak_MPa": k * fe["peak_MPa"], "critical_peak_MPa": k * fe["critical_peak_MPa"],
+        row = {"load_N": q, "peak_MPa": k * fe["peak_MPa"] if asked["peak"] else None,
+               "critical_peak_MPa": k * fe["critical_peak_MPa"] if asked["critical"] else None,
                "approximate_MPa": k * an["approximate_MPa"], "exact_MPa": k * an["exact_MPa"]}
         for key, name in (("peak", "peak_band_MPa"), ("critical", "critical_band_MPa")):
             band = (fe[key].get("error_estimate") or {}).get("band")
-            row[name] = None if band is None else k * band
+            row[name] = None if band is None or not asked[key] else k * band
         for key, peak in (("safety_factor", "peak_MPa"), ("critical_safety_factor", "critical_peak_MPa")):
             row[key] = None if fe[key] is None else case.allowable_MPa / row[peak]
         rows.append(row)

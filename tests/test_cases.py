@@ -56,6 +56,24 @@ def test_rigid_case_names_its_singular_edge(tmp_path):
     assert "rigid" in fe["peak"]["singular_feature"] and fe["safety_factor"] is None
 
 
+def test_a_peak_not_asked_for_is_not_judged_at_any_load(tmp_path):
+    """--want critical at two loads on coarse meshes: the unrefined fillet peak grows over
+    the meshes, which made it 'singular' (safety factor 'none (singular peak)', Kt 'the
+    peak is singular') and its values were listed at every load. It is now not asked for:
+    no value or band at any load, no singular verdict, no Kt; the critical peak keeps all."""
+    from pipeline.report import render_markdown
+    res = run(ROOT / "cases" / "05.toml", tmp_path / "crit", "--mesh-factor", "3", "--want", "critical",
+              "--load", "5000,10000")
+    fe = res["fe"]
+    assert "singular_feature" not in fe["peak"] and fe["safety_factor_note"].startswith("want = critical")
+    assert all(r["peak_MPa"] is None and r["peak_band_MPa"] is None for r in res["load_sweep"])
+    assert [r["critical_peak_MPa"] for r in res["load_sweep"]] == pytest.approx(
+        [fe["critical_peak_MPa"] * q / 5000.0 for q in (5000.0, 10000.0)])
+    md = render_markdown(res)
+    assert "none: the peak is not resolved" in md and "singular" not in md
+    assert "| 10 000 | — | " in md
+
+
 def test_full_case_equals_the_quarter(tmp_path):
     """The whole part and the quarter with symmetry planes give the same critical peak on
     the same mesh sizes (the symmetry conditions are right), to 1 % on this coarse mesh."""
