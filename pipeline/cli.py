@@ -427,7 +427,8 @@ def _sweep(args, rank0: bool) -> int:
         raise InputError("dim: a sweep needs at least one --dim NAME=VALUES, several loads or --sizes")
     out = args.out or (Path(study["out"]) if "out" in study else default_out(f"sweep-{size or Path(case_file).stem}"))
     say = (lambda s: None) if args.quiet else _progress
-    res = execute_sweep(size, case_file, base, axes, loads, out, levels, ratio, say, sizes=sizes)
+    res = execute_sweep(size, case_file, base, axes, loads, out, levels, ratio, say, sizes=sizes,
+                        memory_limit_gb=args.memory_limit)
     if rank0 and res is not None and not args.quiet:
         c = res["counts"]
         _print(f"sweep: {c['done']} done, {c['invalid']} invalid, {c['failed']} failed; "

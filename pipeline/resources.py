@@ -81,18 +81,22 @@ def probe(case: Case) -> tuple[int, float]:
     return len(part.cells), f
 
 
-def check_fits(case: Case, factors: Sequence[float], limit_gb: float | None) -> Estimate | None:
+def check_fits(case: Case, factors: Sequence[float], limit_gb: float | None, copies: int = 1,
+               what: str = "") -> Estimate | None:
     """Refuse (InputError, exit 2) a run whose estimate exceeds ``limit_gb`` (default: the
-    memory available now); None when the run is plainly small (no probe needed)."""
+    memory available now); None when the run is plainly small (no probe needed).
+    ``copies``: how many such runs this machine holds at once (a study's variants on the
+    ranks that share its memory); ``what`` names the run in the line (a study's variant)."""
     if not needs_probe(case, factors):
         return None
     est = estimate(case, factors, *probe(case))
     limit = available_bytes() if limit_gb is None else limit_gb * 1024 ** 3
-    if est.bytes > limit:
+    if est.bytes * copies > limit:
         finest = min(factors)
+        at_once = f", {copies} at once {est.bytes * copies / 1024 ** 3:.1f} GiB" if copies > 1 else ""
         raise InputError(
-            f"mesh_factor: the finest mesh (factor {finest:g}) needs about {est.tets:.1e} tets, "
-            f"{est.dofs:.1e} DOFs and {est.bytes / 1024 ** 3:.1f} GiB in all; "
+            f"mesh_factor: {what}the finest mesh (factor {finest:g}) needs about {est.tets:.1e} tets, "
+            f"{est.dofs:.1e} DOFs and {est.bytes / 1024 ** 3:.1f} GiB in all{at_once}; "
             f"{limit / 1024 ** 3:.1f} GiB {'allowed' if limit_gb is not None else 'available'} "
             f"(use a coarser --mesh-factor, or --memory-limit GB to override)")
     return est

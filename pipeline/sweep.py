@@ -29,7 +29,7 @@ from .atomicfile import write_text
 from .errors import InputError, NumericalError
 from .interrupts import on_stop, stop_outcome
 from .study import Task, failure_file, plan, variant_folder
-from .sweepresults import write_outputs
+from .sweepresults import value_text, write_outputs
 
 Progress = Callable[[str], None]
 
@@ -84,19 +84,41 @@ def time_left_s(elapsed_s: float, finished_here: int, left: int) -> float:
     return elapsed_s / max(finished_here, 1) * left
 
 
+def check_variants_fit(tasks: list[Task], limit_gb: float | None, copies: int) -> None:
+    """Refuse (InputError, exit 2) a study a variant of which would not fit in memory
+    (pipeline.resources) when ``copies`` variants run at once on this machine (one per
+    rank that shares its memory). A variant's meshes are solved one after another on its
+    own rank, so its requested (finest) mesh sets what it needs. Only variants that could
+    be large are probed (a finer mesh factor, sizes by hand, a small fillet)."""
+    from .resources import check_fits
+    for t in tasks:
+        if t.case is not None:
+            what = ", ".join(value_text(k, v) for k, v in sorted(t.params.items()))
+            check_fits(t.case, [t.case.mesh_factor], limit_gb, copies, what=f"variant {what}: " if what else "")
+
+
 def execute_sweep(size: str | None, case_file: Path | None, base: dict, axes: dict[str, list[float]],
                   loads: list[float], out: Path, levels: int, ratio: float, say: Progress,
-                  comm: MPI.Comm = MPI.COMM_WORLD, sizes: list[str] | None = None) -> dict | None:
-    """Plan, check the output folder, work on every rank, summarise on rank 0. Only rank 0
-    calls ``say``."""
+                  comm: MPI.Comm = MPI.COMM_WORLD, sizes: list[str] | None = None,
+                  memory_limit_gb: float | None = None) -> dict | None:
+    """Plan, check memory and the output folder, work on every rank, summarise on rank 0.
+    Only rank 0 calls ``say``."""
     from .outdir import MARKER, acquire_lock, check_out
     if comm.rank != 0:
         say = lambda s: None  # noqa: E731
     tasks = plan(size, case_file, base, axes, loads, levels, ratio, sizes)
+    node = comm.Split_type(MPI.COMM_TYPE_SHARED)
+    copies = node.size  # the ranks that share this machine's memory, each with a variant
+    node.Free()
+    # Rank 0's memory probe meshes with gmsh through pipeline.meshing, whose import loads
+    # DOLFINx and so initialises PETSc: collective over COMM_WORLD. Alone on rank 0 it met
+    # the other ranks' broadcast below and aborted them ("stack smashing detected").
+    from . import meshing  # noqa: F401
     lock = None
     error = None
     if comm.rank == 0:
         try:
+            check_variants_fit(tasks, memory_limit_gb, copies)
             out = check_out(out)
             out.mkdir(parents=True, exist_ok=True)
             lock = acquire_lock(out)

@@ -251,6 +251,9 @@ CORPUS = [
     ("load-range-of-one-value", RUN + ["--load", "5000:5000:3"], None, ("load_N", "5000 given twice")),
     ("sweep-range-of-one-count", ["sweep", "--size", "05", "--dim", "rf=0.5:3:1"], None,
      ("dims.rf", "2..200 values, got 1")),
+    # found 2026-11-25: a study ignored --memory-limit and never estimated its variants
+    ("sweep-too-large", ["sweep", "--size", "05", "--dim", "rf=1,2", "--mesh-factor", "0.6", "--memory-limit", "0.5"],
+     None, ("mesh_factor", "variant rf = 1 mm", "0.5 GiB allowed")),
     ("study-negative-load", ["sweep", "--study", "{case}"], '[sweep]\nsize = "05"\nload = "-5,10000"\n',
      ("load_N", "must be > 0, got -5")),
     ("name-blank", ["run", "--case", "{case}"], 'name = " "\nsize = "05"\n', ("name", "folder name")),

@@ -236,6 +236,21 @@ def test_a_study_leaves_out_the_peak_it_was_not_asked_for(tmp_path):
     assert "The global peak" not in (out / "report.md").read_text(encoding="utf-8")
 
 
+def test_a_study_too_large_for_memory_is_refused_on_two_ranks(tmp_path):
+    """Two variants at once on this machine, each estimated at about 2.6 GiB (mesh factor
+    0.6, pipeline/resources.py), against --memory-limit 3: one fits, two at once do not.
+    Refused with one line and exit 2, nothing written. (Rank 0's probe loaded DOLFINx alone,
+    whose PETSc start-up is collective, and rank 1 aborted with 'stack smashing detected'.)"""
+    out = tmp_path / "big"
+    p = subprocess.run([sys.executable, "-m", "pipeline.launch", "2", "sweep", "--size", "05", "--dim", "rf=1,2",
+                        "--mesh-factor", "0.6", "--memory-limit", "3", "--out", str(out)], cwd=ROOT,
+                       capture_output=True, text=True, timeout=600, env=dict(os.environ))
+    assert p.returncode == 2, p.stderr
+    line = p.stderr.strip()
+    assert "\n" not in line and "2 at once" in line and "3.0 GiB allowed" in line, line
+    assert not out.exists()
+
+
 def test_one_and_two_ranks_give_the_same_rows(tmp_path):
     one = json.loads(sweep(tmp_path / "one", *GRID, "--quiet") and (tmp_path / "one" / "sweep.json").read_text())
     p2 = sweep(tmp_path / "two", *GRID, ranks=2)
