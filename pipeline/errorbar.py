@@ -274,3 +274,11 @@ def two_reading_estimate(upper: Sequence[float], lower: Sequence[float], h: Sequ
 def representative_size(dofs: int) -> float:
     """h = N^(-1/3) for N degrees of freedom of a 3-D mesh (dimensionless)."""
     return dofs ** (-1.0 / 3.0)
+
+
+def verdict_against(value_MPa: float, band_MPa: float | None, allowable_MPa: float) -> str:
+    """Where a stress with its error bar lies against an allowable (MPa): "pass" when all of
+    value ± band is at or below it, "fail" when all of it is above, else "undecided". No
+    band (a nominal stress, a single mesh): the value alone decides."""
+    lo, hi = value_MPa - (band_MPa or 0.0), value_MPa + (band_MPa or 0.0)
+    return "pass" if hi <= allowable_MPa else "fail" if lo > allowable_MPa else "undecided"

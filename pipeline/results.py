@@ -8,7 +8,7 @@ from geometry.table import published
 from . import formulas
 from .analysis import estimate_levels
 from .case import Case
-from .errorbar import Estimate
+from .errorbar import Estimate, verdict_against
 from .features import describe_location, singular_feature
 from .level import Level
 from .peaks import MIDPOINT, UNAVERAGED, NodalPeak
@@ -200,7 +200,7 @@ def verdict(allowable_MPa: float, load_N: float, checks: dict[str, tuple[float, 
         # No band (a nominal stress, or a peak read on one mesh): null, not a band of zero.
         band = ((block or {}).get("error_estimate") or {}).get("band")
         lo, hi = value - (band or 0.0), value + (band or 0.0)
-        status = "pass" if hi <= allowable_MPa else "fail" if lo > allowable_MPa else "undecided"
+        status = verdict_against(value, band, allowable_MPa)
         out[name] = {"value_MPa": value, "band_MPa": band, "verdict": status,
                      "margin_pct": 100 * (allowable_MPa / value - 1),
                      "capacity_N": load_N * allowable_MPa / value,
