@@ -10,13 +10,16 @@ from collections.abc import Iterable
 from pathlib import Path
 
 from .atomicfile import replacing, write_text
+from .errorbar import verdict_against
 from .report import pm
 from .study import Task, failure_file, variant_folder
 
 PEAKS = (("peak_MPa", "peak_band_MPa", "global peak"), ("critical_peak_MPa", "critical_band_MPa", "critical peak"))
 COLUMNS = ("variant", "status", "size", "load_N", "parameters", "peak_MPa", "peak_band_MPa", "critical_peak_MPa",
            "critical_band_MPa", "critical_section_nominal_MPa", "safety_factor", "critical_safety_factor",
-           "time_s", "note")
+           "verdict", "critical_verdict", "time_s", "note")
+# Each peak's row fields: value, band, verdict (pass, fail or undecided against the allowable).
+VERDICT_KEYS = (("peak_MPa", "peak_band_MPa", "verdict"), ("critical_peak_MPa", "critical_band_MPa", "critical_verdict"))
 # The row fields of each peak of results.json's fe block.
 UNWANTED_KEYS = {"peak": ("peak_MPa", "peak_band_MPa", "safety_factor"),
                  "critical": ("critical_peak_MPa", "critical_band_MPa", "critical_safety_factor")}
@@ -130,9 +133,20 @@ def band_reach(ya: float, yb: float, wa: float, wb: float) -> tuple[float, float
     return lo, hi
 
 
+def with_verdicts(rows: list[dict], allowable: float) -> list[dict]:
+    """``rows`` with each finished row's verdict per peak against the allowable (MPa), its
+    error bar included, as a run's verdict table says it (errorbar.verdict_against); none
+    for a peak the row has no value of."""
+    for r in rows:
+        if r["status"] == "done":
+            for key, band_key, name in VERDICT_KEYS:
+                r[name] = None if r.get(key) is None else verdict_against(r[key], r.get(band_key), allowable)
+    return rows
+
+
 def write_outputs(tasks: list[Task], out: Path, axes: dict[str, list[float]], allowable: float) -> dict:
     """sweep.csv, sweep.json, plots and report.md from the variants' results (rank 0)."""
-    rows = rows_of(tasks, out)
+    rows = with_verdicts(rows_of(tasks, out), allowable)
     names = [n for n in axes]
     cols = list(COLUMNS) + [n for n in names if n not in COLUMNS]
     with replacing(out / "sweep.csv", "w", newline="", encoding="utf-8") as f:
@@ -263,6 +277,38 @@ def _side_lines(summary: dict) -> list[str]:
     return lines
 
 
+MOST_NAMED = 12  # cases named in a line of the report; more are counted
+
+
+def _passing_lines(summary: dict) -> list[str]:
+    """Which analysed cases pass with every peak they have (value + error bar at or below
+    the allowable), named when some do and some do not, and which are undecided (an error
+    bar holds the allowable, no peak fails): the study's answer to 'which variants pass at
+    this allowable?'."""
+    done = [r for r in summary["rows"] if r["status"] == "done"]
+    if not done:
+        return []
+    loads = "load_N" in varying_names(summary["rows"], {"load_N"})
+    a = f"{summary['allowable_MPa']:g} MPa"
+
+    def named(rows: list[dict]) -> str:
+        return "; ".join(parameters_text(r, loads) for r in rows[:MOST_NAMED]) + ("; …" if len(rows) > MOST_NAMED else "")
+    verdicts = [[r[k] for _, _, k in VERDICT_KEYS if r.get(k) is not None] for r in done]
+    passing = [r for r, vs in zip(done, verdicts) if all(v == "pass" for v in vs)]
+    undecided = [r for r, vs in zip(done, verdicts) if "undecided" in vs and "fail" not in vs]
+    if len(passing) == len(done):
+        lines = [f"- Every analysed case passes {a} with every peak, error bars included."]
+    elif not passing:
+        lines = [f"- No analysed case passes {a} with every peak, error bars included."]
+    else:
+        lines = [f"- {len(passing)} of {len(done)} analysed cases pass {a} with every peak, error bars "
+                 f"included: {named(passing)}."]
+    if undecided:
+        lines.append(f"- Undecided in {len(undecided)} of {len(done)} (an error bar holds {a}, no peak fails): "
+                     f"{named(undecided)}.")
+    return lines
+
+
 def crossing_text(x: dict, allowable: float, varying: set[str] | None = None) -> str:
     """A crossing of :func:`crossings` as a line of the report: where (mm or N), its range
     from the error bars, and the values of the other parameters, of those in ``varying``
@@ -298,6 +344,7 @@ def _report(summary: dict, swept: list[str], plots: list[str]) -> str:
                     "its values, crossings and verdicts are rough.\n" if mf > 1.3 and has_global else ".\n"))
     L.append(f"## Against the allowable ({summary['allowable_MPa']:g} MPa)\n")
     L += _side_lines(summary)
+    L += _passing_lines(summary)
     L.append("")
     if not summary["crossings"]:
         L.append("No peak crosses the allowable between neighbouring variants of a swept parameter.\n")
@@ -308,14 +355,16 @@ def _report(summary: dict, swept: list[str], plots: list[str]) -> str:
     L += [crossing_text(x, summary["allowable_MPa"], varying) for x in summary["crossings"]]
     L.append("")
     L.append("## Variants\n")
-    L.append("| variant | status | parameters | load (N) | global peak (MPa) | critical peak (MPa) | note |")
-    L.append("|---|---|---|---|---|---|---|")
+    L.append("| variant | status | parameters | load (N) | global peak (MPa) | critical peak (MPa) "
+             "| verdict (global / critical) | note |")
+    L.append("|---|---|---|---|---|---|---|---|")
     for r in summary["rows"]:
         def f(v, band=None):
             return "" if v is None else pm(v, band)
+        verdicts = " / ".join(r.get(k) or "–" for k in ("verdict", "critical_verdict")) if r["status"] == "done" else ""
         L.append(f"| {r['variant']} | {r['status']} | {parameters_text(r)} | {_n0(r.get('load_N'))} | "
                  f"{f(r.get('peak_MPa'), r.get('peak_band_MPa'))} | {f(r.get('critical_peak_MPa'), r.get('critical_band_MPa'))} | "
-                 f"{r.get('note') or ''} |")
+                 f"{verdicts} | {r.get('note') or ''} |")
     L.append("")
     for p in plots:
         L.append(f"![{p}]({p})\n")

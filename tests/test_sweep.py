@@ -16,7 +16,7 @@ from pipeline.errors import InputError
 from pipeline.study import read_study
 from pipeline.sweep import time_left_s
 from pipeline.valuelist import parse_loads, parse_values
-from pipeline.sweepresults import COLUMNS, band_reach, crossing_text, crossings, parameters_text, series, sides, unanalysed, varying_names
+from pipeline.sweepresults import COLUMNS, _passing_lines, band_reach, with_verdicts, crossing_text, crossings, parameters_text, series, sides, unanalysed, varying_names
 
 ROOT = Path(__file__).resolve().parents[1]
 GRID = ["--size", "05", "--dim", "rf=1.0,1.5,2.5", "--mesh-factor", "3", "--levels", "1"]
@@ -153,6 +153,22 @@ def test_each_peak_is_placed_against_the_allowable_by_hand_counted_rows():
     assert parameters_text({"parameters": json.dumps({"size": "2.5", "dims.dj": 16.0})}) == "No. 2.5, dj = 16 mm"
 
 
+def test_the_report_names_the_cases_that_pass_with_their_error_bars():
+    """Against 80 MPa, by hand: 70 ± 1 / 60 ± 1 passes; 70 ± 1 / 79.5 ± 1 is undecided (the
+    critical bar holds 80); 90 ± 1 / 60 fails; 75 ± 1 with no critical peak (not asked for)
+    passes on the peak it has; an invalid variant is none of these."""
+    def row(rf, g, c, cb=1.0):
+        return {"status": "done", "parameters": json.dumps({"dims.rf": rf}), "dims.rf": rf, "load_N": 1.0,
+                "peak_MPa": g, "peak_band_MPa": 1.0, "critical_peak_MPa": c, "critical_band_MPa": None if c is None else cb}
+    rows = with_verdicts([row(1.0, 70.0, 60.0), row(2.0, 70.0, 79.5), row(3.0, 90.0, 60.0), row(4.0, 75.0, None),
+                          {"status": "invalid", "parameters": json.dumps({"dims.rf": 9.0}), "dims.rf": 9.0}], 80.0)
+    assert [(r.get("verdict"), r.get("critical_verdict")) for r in rows] == [
+        ("pass", "pass"), ("pass", "undecided"), ("fail", "pass"), ("pass", None), (None, None)]
+    lines = _passing_lines({"rows": rows, "allowable_MPa": 80.0})
+    assert lines == ["- 2 of 4 analysed cases pass 80 MPa with every peak, error bars included: rf = 1 mm; rf = 4 mm.",
+                     "- Undecided in 1 of 4 (an error bar holds 80 MPa, no peak fails): rf = 2 mm."]
+
+
 def test_a_plot_draws_one_line_per_value_of_the_other_parameters():
     """rf x dj = 3 x 2 finished rows (one failed) at one load: along rf, two lines (dj 16 and
     18), each ordered by rf; along dj, three. A sweep of rf alone is one line. (The plots
@@ -210,7 +226,9 @@ def test_small_sweep_contract_invalid_variant_and_resume(tmp_path):
         assert sorted(p.name for p in folder.iterdir()) == [".crosshead-results", "results.json"]
         assert "mesh" not in json.loads((folder / "results.json").read_text())["files"]
     report = (out / "report.md").read_text(encoding="utf-8")
-    assert "## Against the allowable (80 MPa)" in report and report.count("analysed case") == 2
+    assert "## Against the allowable (80 MPa)" in report and report.count("analysed case") == 3
+    assert "No analysed case passes 80 MPa with every peak" in report  # the global peaks are > 100 MPa
+    assert all(r["verdict"] == "fail" and r["critical_verdict"] == "pass" for r in data["rows"] if r["status"] == "done")
     assert "load =" not in report  # one load (the invalid variant's missing one is not a second)
     assert "| rf = 1 mm |" in report and "| rf = 2.5 mm |" in report
     again = sweep(out, *GRID)
