@@ -430,8 +430,10 @@ def _sweep(args, rank0: bool) -> int:
     res = execute_sweep(size, case_file, base, axes, loads, out, levels, ratio, say, sizes=sizes,
                         memory_limit_gb=args.memory_limit)
     if rank0 and res is not None and not args.quiet:
+        from pipeline.sweepresults import passing_count
         c = res["counts"]
         _print(f"sweep: {c['done']} done, {c['invalid']} invalid, {c['failed']} failed; "
+               f"{passing_count(res['rows'])} of {c['done']} pass {res['allowable_MPa']:g} MPa with every peak; "
                f"{len(res['crossings'])} crossing(s) of the allowable; written to {out}/ (sweep.csv, sweep.json, report.md)")
     return 0
 

@@ -280,6 +280,16 @@ def _side_lines(summary: dict) -> list[str]:
 MOST_NAMED = 12  # cases named in a line of the report; more are counted
 
 
+def _verdicts(row: dict) -> set[str]:
+    """The verdicts of the peaks a row has (with_verdicts)."""
+    return {row[k] for _, _, k in VERDICT_KEYS if row.get(k) is not None}
+
+
+def passing_count(rows: list[dict]) -> int:
+    """How many analysed cases pass with every peak they have, error bars included."""
+    return sum(r["status"] == "done" and _verdicts(r) <= {"pass"} for r in rows)
+
+
 def _passing_lines(summary: dict) -> list[str]:
     """Which analysed cases pass with every peak they have (value + error bar at or below
     the allowable), named when some do and some do not, and which are undecided (an error
@@ -293,9 +303,8 @@ def _passing_lines(summary: dict) -> list[str]:
 
     def named(rows: list[dict]) -> str:
         return "; ".join(parameters_text(r, loads) for r in rows[:MOST_NAMED]) + ("; …" if len(rows) > MOST_NAMED else "")
-    verdicts = [[r[k] for _, _, k in VERDICT_KEYS if r.get(k) is not None] for r in done]
-    passing = [r for r, vs in zip(done, verdicts) if all(v == "pass" for v in vs)]
-    undecided = [r for r, vs in zip(done, verdicts) if "undecided" in vs and "fail" not in vs]
+    passing = [r for r in done if _verdicts(r) <= {"pass"}]
+    undecided = [r for r in done if "undecided" in _verdicts(r) and "fail" not in _verdicts(r)]
     if len(passing) == len(done):
         lines = [f"- Every analysed case passes {a} with every peak, error bars included."]
     elif not passing:

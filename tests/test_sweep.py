@@ -16,7 +16,7 @@ from pipeline.errors import InputError
 from pipeline.study import read_study
 from pipeline.sweep import time_left_s
 from pipeline.valuelist import parse_loads, parse_values
-from pipeline.sweepresults import COLUMNS, _passing_lines, band_reach, with_verdicts, crossing_text, crossings, parameters_text, series, sides, unanalysed, varying_names
+from pipeline.sweepresults import COLUMNS, _passing_lines, band_reach, passing_count, with_verdicts, crossing_text, crossings, parameters_text, series, sides, unanalysed, varying_names
 
 ROOT = Path(__file__).resolve().parents[1]
 GRID = ["--size", "05", "--dim", "rf=1.0,1.5,2.5", "--mesh-factor", "3", "--levels", "1"]
@@ -164,6 +164,7 @@ def test_the_report_names_the_cases_that_pass_with_their_error_bars():
                           {"status": "invalid", "parameters": json.dumps({"dims.rf": 9.0}), "dims.rf": 9.0}], 80.0)
     assert [(r.get("verdict"), r.get("critical_verdict")) for r in rows] == [
         ("pass", "pass"), ("pass", "undecided"), ("fail", "pass"), ("pass", None), (None, None)]
+    assert passing_count(rows) == 2
     lines = _passing_lines({"rows": rows, "allowable_MPa": 80.0})
     assert lines == ["- 2 of 4 analysed cases pass 80 MPa with every peak, error bars included: rf = 1 mm; rf = 4 mm.",
                      "- Undecided in 1 of 4 (an error bar holds 80 MPa, no peak fails): rf = 2 mm."]
@@ -210,6 +211,7 @@ def test_small_sweep_contract_invalid_variant_and_resume(tmp_path):
     out = tmp_path / "study"
     first = sweep(out, *GRID)
     assert "3 variants (2 valid, 1 invalid)" in first.stdout
+    assert "2 done, 1 invalid, 0 failed; 0 of 2 pass 80 MPa with every peak" in first.stdout
     with open(out / "sweep.csv", newline="") as f:
         rows = list(csv.DictReader(f))
     assert list(rows[0])[:len(COLUMNS)] == list(COLUMNS) and "dims.rf" in rows[0]
