@@ -84,17 +84,19 @@ def time_left_s(elapsed_s: float, finished_here: int, left: int) -> float:
     return elapsed_s / max(finished_here, 1) * left
 
 
-def check_variants_fit(tasks: list[Task], limit_gb: float | None, copies: int) -> None:
+def check_variants_fit(tasks: list[Task], limit_gb: float | None, copies: int, say: Progress) -> None:
     """Refuse (InputError, exit 2) a study a variant of which would not fit in memory
     (pipeline.resources) when ``copies`` variants run at once on this machine (one per
     rank that shares its memory). A variant's meshes are solved one after another on its
     own rank, so its requested (finest) mesh sets what it needs. Only variants that could
     be large are probed (a finer mesh factor, sizes by hand, a small fillet)."""
-    from .resources import check_fits
-    for t in tasks:
-        if t.case is not None:
-            what = ", ".join(value_text(k, v) for k, v in sorted(t.params.items()))
-            check_fits(t.case, [t.case.mesh_factor], limit_gb, copies, what=f"variant {what}: " if what else "")
+    from .resources import check_fits, needs_probe
+    large = [t for t in tasks if t.case is not None and needs_probe(t.case, [t.case.mesh_factor])]
+    if large:
+        say(f"sweep: estimating the memory of {len(large)} variant(s) that could be large (a mesh each)")
+    for t in large:
+        what = ", ".join(value_text(k, v) for k, v in sorted(t.params.items()))
+        check_fits(t.case, [t.case.mesh_factor], limit_gb, copies, what=f"variant {what}: " if what else "")
 
 
 def execute_sweep(size: str | None, case_file: Path | None, base: dict, axes: dict[str, list[float]],
@@ -118,7 +120,7 @@ def execute_sweep(size: str | None, case_file: Path | None, base: dict, axes: di
     error = None
     if comm.rank == 0:
         try:
-            check_variants_fit(tasks, memory_limit_gb, copies)
+            check_variants_fit(tasks, memory_limit_gb, copies, say)
             out = check_out(out)
             out.mkdir(parents=True, exist_ok=True)
             lock = acquire_lock(out)
