@@ -45,8 +45,29 @@ def default_out(name: str) -> Path:
     return REPOSITORY / "results" / name
 
 
-def ownership_reason(out: Path) -> str | None:
-    """Why an existing ``out`` may not be replaced, or None when it is empty or ours."""
+# What the marker of each kind of results folder says it holds, for the refusal line.
+KINDS = {"run": "a run's results", "sweep": "a design study's results", "summary": "a size summary"}
+
+
+def marked_kind(out: Path) -> str:
+    """The kind of results folder ``out``'s marker names: "sweep" and "summary" say so in
+    it; any other marker (a run's, an earlier version's) is a run's."""
+    try:
+        data = json.loads((out / MARKER).read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return "run"
+    if isinstance(data, dict):
+        for kind in ("sweep", "summary"):
+            if data.get(kind) is True:
+                return kind
+    return "run"
+
+
+def ownership_reason(out: Path, kind: str = "run") -> str | None:
+    """Why an existing ``out`` may not be written by a command of ``kind`` ("run": run and
+    converge replace it; "sweep": a study resumes in it), or None when it is empty or holds
+    that kind's results. Another kind's results folder is refused too: a run would replace a
+    study's finished variants, and a study would write its report over a run's."""
     if not out.exists():
         return None
     if not out.is_dir():
@@ -55,23 +76,32 @@ def ownership_reason(out: Path) -> str | None:
         names = {p.name for p in out.iterdir()}
     except OSError as exc:
         return f"it cannot be read ({exc.strerror or exc})"
-    if not names or MARKER in names:
+    if not names:
         return None
-    field_parts = {n for n in names if n.startswith("displacement") and n.endswith((".vtu", ".pvtu"))}
-    if "results.json" in names and names - field_parts <= RUN_FILES:
-        return None  # written by an earlier version of the tool (no marker yet)
-    return (f"it holds files crosshead did not write (no {MARKER} marker); "
-            "choose a new or empty folder")
+    found = None
+    if MARKER in names:
+        found = marked_kind(out)
+    else:
+        field_parts = {n for n in names if n.startswith("displacement") and n.endswith((".vtu", ".pvtu"))}
+        if "results.json" in names and names - field_parts <= RUN_FILES:
+            found = "run"  # written by an earlier version of the tool (no marker yet)
+    if found is None:
+        return (f"it holds files crosshead did not write (no {MARKER} marker); "
+                "choose a new or empty folder")
+    if found != kind:
+        return f"it holds {KINDS[found]}, not {KINDS[kind]}; choose another folder"
+    return None
 
 
-def check_out(raw: str | os.PathLike) -> Path:
-    """The resolved output folder, or InputError naming it and why it is refused.
+def check_out(raw: str | os.PathLike, kind: str = "run") -> Path:
+    """The resolved output folder for a command of ``kind`` (see :func:`ownership_reason`),
+    or InputError naming it and why it is refused.
 
     Runs before any work: a folder that will be refused costs the user nothing.
     """
     text = os.fspath(raw)
     out = Path(text).expanduser().resolve()
-    reason = protected_reason(out, text) or ownership_reason(out)
+    reason = protected_reason(out, text) or ownership_reason(out, kind)
     if reason is not None:
         raise InputError(f"out: refusing {text or repr(text)} ({out}): {reason}")
     return out

@@ -121,6 +121,25 @@ def test_out_dot_in_a_scratch_copy_deletes_nothing(tmp_path):
         {k: v for k, v in before.items() if "__pycache__" not in k}
 
 
+def test_one_kind_of_results_is_never_written_over_another(tmp_path, earlier):
+    """A run (or converge) pointed at a design study's folder would have replaced it, its
+    finished variants with it; a study pointed at a run's folder wrote its report.md over
+    the run's. Both are refused before any work and leave every file as it was; each kind
+    still replaces or resumes its own (the other tests)."""
+    run_out = fresh_copy(earlier, tmp_path / "run")
+    study = tmp_path / "study"
+    assert cli(["sweep", "--size", "05", "--dim", "rf=1,2", "--mesh-factor", "3", "--levels", "1",
+                "--quiet", "--out", study]).returncode == 0
+    before = {p: snapshot(p) for p in (run_out, study)}
+    one_error_line(cli(FAST + ["--out", study]), 2, "out", "a design study's results, not a run's")
+    one_error_line(cli(["converge", "--size", "05", "--mesh-factor", "3", "--levels", "4", "--out", study]), 2,
+                   "out", "a design study's results")
+    one_error_line(cli(["sweep", "--size", "05", "--dim", "rf=1,2", "--mesh-factor", "3", "--levels", "1",
+                        "--out", run_out]), 2, "out", "a run's results, not a design study's")
+    assert {p: snapshot(p) for p in (run_out, study)} == before
+    assert debris(tmp_path, "run") == [] and debris(tmp_path, "study") == []
+
+
 def test_an_empty_folder_and_our_own_results_are_replaced(tmp_path, earlier):
     empty = tmp_path / "empty"
     empty.mkdir()
