@@ -136,13 +136,13 @@ def collect(results_dir: Path, take_all: bool = False) -> tuple[list[dict], list
     if not take_all:
         from geometry.table import load_table
         sizes = set(load_table())
-    rows, skipped = [], []
+    rows, skipped, unnamed = [], [], []
     for sub in sorted(p for p in results_dir.iterdir() if p.is_dir()):
         f = sub / "results.json"
         if not f.is_file():
             continue
         if sizes is not None and sub.name not in sizes:
-            skipped.append(f"{sub.name} (not a hook number of the size table; use --all)")
+            unnamed.append(sub.name)
             continue
         try:
             row = checked(row_of(sub, json.loads(f.read_text(encoding="utf-8"))))
@@ -150,6 +150,9 @@ def collect(results_dir: Path, take_all: bool = False) -> tuple[list[dict], list
             rows.append(row)
         except (OSError, KeyError, TypeError, ValueError, AttributeError) as exc:
             skipped.append(f"{sub.name} (unreadable results.json: {type(exc).__name__}: {exc})")
+    if unnamed:  # said once: a study's variants/ folder has one per variant
+        skipped.append(f"{', '.join(unnamed[:3])}{f' and {len(unnamed) - 3} more' if len(unnamed) > 3 else ''} "
+                       "(not named for a hook number of the size table; use --all, as for a study's variants/)")
     rows.sort(key=lambda r: (hook_value(r["size"]), r["folder"]))
     return rows, skipped
 

@@ -286,6 +286,20 @@ def test_a_stop_swallowed_while_the_summary_draws_still_writes_nothing(tmp_path,
     assert not (tmp_path / "sum").exists()
 
 
+def test_summary_names_folders_that_are_not_sizes_once(tmp_path, capsys):
+    """A study's variants/ summarised without --all: every folder is skipped for the same
+    reason, which the one error line says once (it repeated it 19 times for make sizes'
+    study), naming three folders and counting the rest."""
+    from pipeline import summary
+    for key in ("a1", "b2", "c3", "d4", "e5"):
+        _fake_results(tmp_path / "variants" / key, "05", 66.0, "converged")
+    assert summary.main([str(tmp_path / "variants"), "--out", str(tmp_path / "sum")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and err.count("use --all") == 1, err
+    assert "a1, b2, c3 and 2 more (not named for a hook number" in err
+    assert summary.main([str(tmp_path / "variants"), "--all", "--out", str(tmp_path / "sum")]) == 0
+
+
 def test_summary_skips_a_results_json_of_the_wrong_shape(tmp_path, capsys):
     """A results.json edited or cut short (a value of the wrong type, NaN, a list where a
     table belongs): that folder is skipped with its reason, the others are summarised;
