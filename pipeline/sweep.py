@@ -120,8 +120,8 @@ def execute_sweep(size: str | None, case_file: Path | None, base: dict, axes: di
     error = None
     if comm.rank == 0:
         try:
+            out = check_out(out, kind="sweep")  # the cheap check first
             check_variants_fit(tasks, memory_limit_gb, copies, say)
-            out = check_out(out, kind="sweep")
             out.mkdir(parents=True, exist_ok=True)
             lock = acquire_lock(out)
             shutil.rmtree(out / ".claims", ignore_errors=True)  # the lock: no other sweep is running
