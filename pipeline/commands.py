@@ -159,10 +159,13 @@ def execute_converge(case: Case, out_dir: Path, levels: int = 5, ratio: float = 
                 "peak": res["fe"]["peak"]["error_estimate"],
                 "critical": res["fe"]["critical"]["error_estimate"],
                 "peak_features": [describe_location(case, l.peak.location_mm) for l in lv],
-                "critical_features": [describe_location(case, l.critical.location_mm) for l in lv]}
-        # Error of each level against the extrapolated value (only if converged).
+                "critical_features": [describe_location(case, l.critical.location_mm) for l in lv],
+                "not_wanted": {k: res["fe"][k]["not_wanted"] for k in ("peak", "critical")
+                               if res["fe"][k].get("not_wanted")}}
+        # Error of each level against the extrapolated value (only if converged, and only for
+        # a peak the meshes were refined for).
         for key in ("peak", "critical"):
-            ext = conv[key].get("extrapolated")
+            ext = None if key in conv["not_wanted"] else conv[key].get("extrapolated")
             for row in conv["levels"]:
                 v = row["peak_MPa" if key == "peak" else "critical_peak_MPa"]
                 row[f"{key}_error_pct"] = None if ext is None else 100 * (v - ext) / ext

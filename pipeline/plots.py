@@ -12,6 +12,9 @@ import time
 from pathlib import Path
 
 
+NOT_ASKED = "not asked for (--want): not resolved"  # a peak's title when the run skipped its refinement
+
+
 def convergence_plot(path: Path, conv: dict, case) -> bool:
     """Each peak (MPa) against the representative mesh size N^(-1/3) of the study's meshes:
     both nodal readings, the value reported, the finest mesh's error bar and, where the
@@ -37,25 +40,26 @@ def convergence_figure(conv: dict, size: str):
     fig, axes = plt.subplots(1, 2, figsize=(11, 4.2))
     for ax, key, label in ((axes[0], "peak", "global peak"), (axes[1], "critical", "critical-region peak")):
         est = conv[key]
+        asked = key not in conv.get("not_wanted", {})
         h = est["h"]
         ax.plot(h, [lv[f"{key}_unaveraged_MPa"] for lv in levels], "v:", color="C3",
                 label="unaveraged (largest element-node value)")
         ax.plot(h, [lv[f"{key}_averaged_MPa"] for lv in levels], "^:", color="C0",
                 label="averaged (nodal-averaged stress)")
-        ax.plot(h, est["values"], "o-", color="k", label="reported value")
-        if est.get("band") is not None:
+        ax.plot(h, est["values"], "o-", color="k", label="reported value" if asked else "value (meshes not refined for it)")
+        if est.get("band") is not None and asked:
             ax.errorbar([h[0]], [est["values"][0]], yerr=[est["band"]], fmt="none", ecolor="C1",
                         elinewidth=3, capsize=6, label=f"error bar ±{est['band']:.3g} MPa")
         # Only these two statuses extrapolate (pipeline/report.py words them alike); the
         # others' "extrapolated" is the finest value itself or absent.
-        if est.get("extrapolated") is not None and est["status"] in ("converged", "scattered"):
+        if est.get("extrapolated") is not None and est["status"] in ("converged", "scattered") and asked:
             name = "Richardson limit" if est["status"] == "converged" else "least-squares limit"
             ax.plot([0], [est["extrapolated"]], "*", color="C2", ms=12,
                     label=f"{name} {est['extrapolated']:.2f} MPa")
         ax.set_xlim(left=-0.03 * max(h))  # h = 0 (the limit) just inside the frame
         ax.set_xlabel("representative mesh size h = DOFs^(-1/3)")
         ax.set_ylabel("von Mises (MPa)")
-        ax.set_title(f"No. {size}: {label} [{est['status']}]")
+        ax.set_title(f"No. {size}: {label} [{est['status'] if asked else NOT_ASKED}]")
         ax.grid(alpha=0.3)
         ax.legend(fontsize=8)
     fig.tight_layout()
@@ -117,20 +121,21 @@ def peaks_plot(path: Path, res: dict) -> bool:
                                               (axes[1], "critical", "critical", "critical_peak_MPa",
                                                "critical-region peak")):
         block = res["fe"][key]
+        asked = not block.get("not_wanted")
         ax.plot(dofs, [lv[f"{prefix}_unaveraged_MPa"] for lv in levels], "v:", color="C3",
                 label="unaveraged (largest element-node value)")
         ax.plot(dofs, [lv[f"{prefix}_averaged_MPa"] for lv in levels], "^:", color="C0",
                 label="averaged (nodal-averaged stress)")
         ax.plot(dofs, [lv[value_key] for lv in levels], "o-",
-                color="k", label="reported value")
+                color="k", label="reported value" if asked else "value (meshes not refined for it)")
         est = block.get("error_estimate") or {}
-        if est.get("band") is not None:
+        if est.get("band") is not None and asked:
             ax.errorbar([dofs[0]], [block["value_MPa"]], yerr=[est["band"]], fmt="none", ecolor="C1",
                         elinewidth=3, capsize=6, label=f"error bar ±{est['band']:.3g} MPa")
         ax.set_xscale("log")
         ax.set_xlabel("degrees of freedom")
         ax.set_ylabel("von Mises (MPa)")
-        ax.set_title(f"No. {res['case']['size']}: {label} [{est.get('status', 'no estimate')}]")
+        ax.set_title(f"No. {res['case']['size']}: {label} [{est.get('status', 'no estimate') if asked else NOT_ASKED}]")
         ax.grid(alpha=0.3, which="both")
         ax.legend(fontsize=8)
     # Fixed margins for the reason given in sections_plot (tight_layout chose 0.064 here).

@@ -448,7 +448,9 @@ def convergence_table(conv: dict) -> str:
     rows.append("")
     for key, label in (("peak", "global peak"), ("critical", "critical peak")):
         est = conv[key]
-        rows.append(f"- {label}: {error_bar_text({'error_estimate': est})}; status `{est['status']}`.")
+        why = conv.get("not_wanted", {}).get(key)
+        rows.append(f"- {label}: not resolved ({why})." if why else
+                    f"- {label}: {error_bar_text({'error_estimate': est})}; status `{est['status']}`.")
     if conv.get("plot"):
         rows.append(f"\n![convergence]({conv['plot']})\n")
     return "\n".join(rows) + "\n"

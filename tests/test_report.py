@@ -186,3 +186,26 @@ def test_convergence_plot_shows_both_readings_the_error_bar_and_only_a_real_limi
                 "reported value", "error bar ±0.5 MPa"} <= set(labels)
     assert (limit_label in glob) if limit_label else not any("limit" in t for t in glob)
     assert not any("limit" in t for t in crit)
+
+
+def test_a_peak_not_asked_for_gets_no_band_or_limit_in_the_convergence_study():
+    """converge --want critical: the fillet's meshes were not refined, so its 'scattered'
+    fit (a limit at 92 MPa, a ±12 MPa band at No. 05 ×3) was drawn and tabled as if it were
+    a result. Its plot now shows the values only, titled as not asked for, and the report's
+    line says it is not resolved; the critical peak keeps its band and limit."""
+    import matplotlib.pyplot as plt
+
+    from pipeline.plots import convergence_figure
+    from pipeline.report import convergence_table
+    conv = _study("scattered", [100.0, 101.0, 102.0], 99.0, 0.5)
+    conv["not_wanted"] = {"peak": "want = critical: the run did not refine for the global peak"}
+    conv["critical"]["gci_fine"] = 1e-3
+    fig = convergence_figure(conv, "05")
+    (glob, crit), titles = ([[t.get_text() for t in ax.get_legend().get_texts()] for ax in fig.axes],
+                            [ax.get_title() for ax in fig.axes])
+    plt.close(fig)
+    assert not any("limit" in t or "error bar" in t for t in glob) and "not asked for" in titles[0]
+    assert "error bar ±0.5 MPa" in crit and "not asked for" not in titles[1]
+    table = convergence_table(dict(conv, levels=[{"mesh_factor": 1.0, "dofs": 1, "peak_MPa": 100.0,
+                                                  "critical_peak_MPa": 60.0, "time_s": 1.0}]))
+    assert "- global peak: not resolved (want = critical" in table and "status `scattered`" not in table.split("- critical")[0]
