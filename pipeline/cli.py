@@ -199,6 +199,7 @@ CASE_KEYS = ("want", "support", "model", "E_MPa", "nu", "allowable_MPa", "approx
 
 
 NO_COMMAND = "error: command: choose run, converge or sweep (see python -m pipeline --help)"
+LOADS_SHOWN = 3  # loads shown at each end of a long load sweep's terminal line
 TWO_LEVELS = ("levels: 2 meshes give no error bar (the estimate needs 3) and cost a solve; give 1 for no "
               "error bar, or 3 to 8")
 
@@ -473,9 +474,13 @@ def _summary(out: Path) -> None:
     _print(f"formulas: approximate {an['approximate_MPa']:.2f} MPa, exact {an['exact_MPa']:.2f} MPa; "
            f"safety factor {sf('safety_factor')} (global), {sf('critical_safety_factor')} (critical)")
     if res.get("load_sweep"):
-        _print(f"the lines above are at Q = {res['case']['load_N']:g} N; every load (global / critical peak, MPa): "
-               + "; ".join(f"{r['load_N']:g} N {pm(r['peak_MPa'], r.get('peak_band_MPa'))} / "
-                           f"{pm(r['critical_peak_MPa'], r.get('critical_band_MPa'))}" for r in res["load_sweep"]))
+        rows = res["load_sweep"]
+        texts = [f"{r['load_N']:g} N {pm(r['peak_MPa'], r.get('peak_band_MPa'))} / "
+                 f"{pm(r['critical_peak_MPa'], r.get('critical_band_MPa'))}" for r in rows]
+        if len(texts) > 2 * LOADS_SHOWN:  # a line a person can read: the ends, the rest in the files
+            texts = texts[:LOADS_SHOWN] + [f"… {len(rows) - 2 * LOADS_SHOWN} more in results.json …"] + texts[-LOADS_SHOWN:]
+        _print(f"the lines above are at Q = {res['case']['load_N']:g} N; {'every load' if len(rows) <= 2 * LOADS_SHOWN else f'{len(rows)} loads'} "
+               "(global / critical peak, MPa): " + "; ".join(texts))
     named = res.get("files") or {"results": "results.json"}
     files = [named[k] for k in ("report", "results") if k in named] + \
         [f for k, f in named.items() if k not in ("report", "results")]

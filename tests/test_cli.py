@@ -220,3 +220,16 @@ def test_a_load_sweep_matches_a_direct_solve_and_scales_its_error_bars(tmp_path)
     row = next(ln for ln in (tmp_path / "swept" / "report.md").read_text().splitlines() if ln.startswith("| 10 000 |"))
     assert f"{at10['peak_MPa']:.2f} ± {at10['peak_band_MPa']:.2f}" in row
     assert f"10000 N {at10['peak_MPa']:.2f} ± {at10['peak_band_MPa']:.2f}" in swept.stdout
+
+
+def test_a_long_load_sweep_keeps_the_terminal_line_readable(tmp_path):
+    """200 loads printed a 5 200-character line. Beyond six loads the line shows the first
+    and last three and counts the rest, which results.json holds: 20 loads, 14 counted."""
+    p = subprocess.run([sys.executable, "-m", "pipeline", "run", "--size", "05", "--mesh-factor", "3", "--levels", "1",
+                        "--no-fields", "--load", "1000:20000:20", "--out", str(tmp_path / "many")],
+                       cwd=ROOT, capture_output=True, text=True, timeout=600)
+    assert p.returncode == 0, p.stderr
+    line = next(ln for ln in p.stdout.splitlines() if ln.startswith("the lines above"))
+    assert "20 loads" in line and "… 14 more in results.json …" in line and line.count(" N ") == 6, line
+    assert "MPa): 1000 N " in line and line.split("; ")[-1].startswith("20000 N ")  # the ends
+    assert len(json.loads((tmp_path / "many" / "results.json").read_text())["load_sweep"]) == 20
