@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import os
 from dataclasses import dataclass, replace
+from pathlib import Path
 from typing import Sequence
 
 from .case import Case
@@ -38,15 +39,62 @@ class Estimate:
 
 
 def available_bytes() -> float:
-    """Memory the machine can give now (MemAvailable of /proc/meminfo), bytes."""
+    """Memory this process can have now, bytes: what the machine has free (MemAvailable of
+    /proc/meminfo), or less when its control group caps it (a Slurm job's --mem, a
+    container's limit: the kernel ends a process that passes it, however much the machine
+    has free)."""
+    free = None
     try:
         with open("/proc/meminfo") as f:
             for line in f:
                 if line.startswith("MemAvailable:"):
-                    return float(line.split()[1]) * 1024
+                    free = float(line.split()[1]) * 1024
     except OSError:
         pass
-    return float(os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_AVPHYS_PAGES"))
+    if free is None:
+        free = float(os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_AVPHYS_PAGES"))
+    room = cgroup_room_bytes()
+    return free if room is None else min(free, room)
+
+
+NO_LIMIT = 2.0 ** 60  # cgroup v1 writes "no limit" as a number near 2^63
+
+
+def cgroup_room_bytes(proc_cgroup: Path = Path("/proc/self/cgroup"),
+                      root: Path = Path("/sys/fs/cgroup")) -> float | None:
+    """What this process's memory control group and its ancestors still allow (limit −
+    usage, the smallest over the levels that set a limit), bytes; None when no level sets
+    one or nothing can be read. cgroup v2 (memory.max, memory.current) and v1 (the memory
+    controller's limit_in_bytes, usage_in_bytes). A container sees its own group as the
+    root of the tree; a Slurm job's limit sits on a level above its task's."""
+    try:
+        lines = proc_cgroup.read_text(encoding="utf-8").splitlines()
+    except OSError:
+        return None
+    rooms = []
+    for line in lines:
+        parts = line.split(":", 2)
+        if len(parts) != 3:
+            continue
+        hierarchy, controllers, path = parts
+        if hierarchy == "0" and controllers == "":
+            base, names = root, ("memory.max", "memory.current")
+        elif "memory" in controllers.split(","):
+            base, names = root / "memory", ("memory.limit_in_bytes", "memory.usage_in_bytes")
+        else:
+            continue
+        group = base / path.strip("/")
+        for level in [group, *group.parents]:
+            if len(level.parts) < len(base.parts):
+                break
+            try:
+                limit_text = (level / names[0]).read_text(encoding="utf-8").strip()
+                used = float((level / names[1]).read_text(encoding="utf-8").strip())
+            except (OSError, ValueError):
+                continue
+            if limit_text != "max" and float(limit_text) < NO_LIMIT:
+                rooms.append(max(float(limit_text) - used, 0.0))
+    return min(rooms) if rooms else None
 
 
 def needs_probe(case: Case, factors: Sequence[float]) -> bool:

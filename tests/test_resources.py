@@ -64,3 +64,42 @@ def test_meshing_heartbeat_says_it_is_still_working():
     time.sleep(0.25)
     assert 2 <= n <= 4 and len(lines) == n
     assert all(line.startswith("meshing ×0.5: still working") for line in lines)
+
+
+GIB = 2.0 ** 30
+
+
+def _tree(tmp_path: Path, cgroup: str, files: dict[str, str]) -> tuple[Path, Path]:
+    """A /proc/self/cgroup of one line and a /sys/fs/cgroup tree with the given files."""
+    tmp_path.mkdir(parents=True, exist_ok=True)
+    proc = tmp_path / "cgroup"
+    proc.write_text(cgroup + "\n")
+    root = tmp_path / "sys"
+    for rel, text in files.items():
+        (root / rel).parent.mkdir(parents=True, exist_ok=True)
+        (root / rel).write_text(text + "\n")
+    return proc, root
+
+
+def test_a_slurm_job_s_memory_limit_is_found_above_its_task(tmp_path):
+    """cgroup v2 as Slurm sets it: --mem on the job's level (4 GiB, 1 GiB used), none on
+    the task's: 3 GiB left, however much the node has free."""
+    from pipeline.resources import cgroup_room_bytes
+    proc, root = _tree(tmp_path, "0::/job_7/step_0/task_0", {
+        "job_7/memory.max": str(int(4 * GIB)), "job_7/memory.current": str(int(GIB)),
+        "job_7/step_0/task_0/memory.max": "max", "job_7/step_0/task_0/memory.current": str(int(0.5 * GIB))})
+    assert cgroup_room_bytes(proc, root) == pytest.approx(3 * GIB)
+
+
+def test_a_container_s_limit_is_read_at_its_own_root_and_no_limit_is_none(tmp_path):
+    """cgroup v1 in a container: the group named in /proc/self/cgroup is not in the
+    container's view of the tree, whose root is its own group (2 GiB, 0.5 used). A limit
+    of 2^63 (v1's 'none') is no limit; nothing readable is no limit either."""
+    from pipeline.resources import cgroup_room_bytes
+    proc, root = _tree(tmp_path, "4:memory:/docker/abc", {
+        "memory/memory.limit_in_bytes": str(int(2 * GIB)), "memory/memory.usage_in_bytes": str(int(0.5 * GIB))})
+    assert cgroup_room_bytes(proc, root) == pytest.approx(1.5 * GIB)
+    proc, root = _tree(tmp_path / "free", "4:memory:/", {
+        "memory/memory.limit_in_bytes": "9223372036854771712", "memory/memory.usage_in_bytes": "1"})
+    assert cgroup_room_bytes(proc, root) is None
+    assert cgroup_room_bytes(tmp_path / "missing", root) is None
