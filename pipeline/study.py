@@ -16,8 +16,8 @@ from .case import Case, check_error_bar_meshes, resolve
 from .errors import InputError
 
 # A study file's [sweep] keys and their TOML types.
-TOML_NAMES = {str: "a string", int: "an integer", float: "a number", dict: "a table"}
-STUDY_KEYS = {"size": (str,), "case": (str,), "dims": (dict,), "load": (str, int, float), "levels": (int,),
+TOML_NAMES = {str: "a string", int: "an integer", float: "a number", dict: "a table", list: "an array of numbers"}
+STUDY_KEYS = {"size": (str,), "case": (str,), "dims": (dict,), "load": (str, int, float, list), "levels": (int,),
               "ratio": (int, float), "mesh_factor": (int, float), "out": (str,)}
 
 
@@ -86,18 +86,28 @@ def read_study(path: Path) -> dict:
             raise InputError(f"sweep.{key}: expected {' or '.join(TOML_NAMES[t] for t in types)} in {path}, "
                              f"got {value!r}")
     names = list(Dimensions.__dataclass_fields__)
+    if "load" in s:  # loads, like a dimension's values, may be a TOML array of numbers
+        s = dict(s, load=_array_as_list(s["load"], "sweep.load", path))
     dims = {}
     for name, values in s.get("dims", {}).items():
         if name not in names:
             raise InputError(f"sweep.dims.{name}: unknown dimension in {path}; known: {', '.join(names)}")
-        if isinstance(values, list) and values and all(
-                isinstance(v, (int, float)) and not isinstance(v, bool) for v in values):
-            values = ",".join(repr(v) for v in values)  # a TOML array of numbers is a list
+        values = _array_as_list(values, f"sweep.dims.{name}", path)
         if isinstance(values, bool) or not isinstance(values, (str, int, float)):
             raise InputError(f"sweep.dims.{name}: expected \"START:STOP:COUNT\", \"v1,v2,...\", an array of "
                              f"numbers or a number in {path}, got {values!r}")
         dims[name] = values
     return dict(s, **({"dims": dims} if "dims" in s else {}))
+
+
+def _array_as_list(values, name: str, path: Path):
+    """A TOML array of numbers as the list text "a,b,c" (pipeline.valuelist reads it);
+    anything else as it is, except an array holding something other than numbers."""
+    if not isinstance(values, list):
+        return values
+    if values and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in values):
+        return ",".join(repr(v) for v in values)
+    raise InputError(f"{name}: expected an array of numbers in {path}, got {values!r}")
 
 
 def variant_folder(out: Path, key: str) -> Path:

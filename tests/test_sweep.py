@@ -90,6 +90,14 @@ def test_a_study_file_takes_an_array_of_values_like_a_list(tmp_path):
     b.write_text('[sweep]\nsize = "05"\ndims = { rf = "1.0,1.5" }\n')
     va, vb = (parse_values(str(read_study(p)["dims"]["rf"]), "rf", 200) for p in (a, b))
     assert va == vb == [1.0, 1.5]
+    # The loads too (refused as 'expected a string or an integer or a number' before), and
+    # an array of anything but numbers is named as such.
+    c = tmp_path / "c.toml"
+    c.write_text('[sweep]\nsize = "05"\nload = [5000, 10000]\n')
+    assert parse_loads(str(read_study(c)["load"])) == [5000.0, 10000.0]
+    c.write_text('[sweep]\nsize = "05"\nload = ["5000", 1]\n')
+    with pytest.raises(InputError, match="sweep.load: expected an array of numbers"):
+        read_study(c)
 
 
 def test_crossing_is_interpolated_with_its_band():
