@@ -28,6 +28,7 @@ from mpi4py import MPI
 from .atomicfile import write_text
 from .errors import InputError, NumericalError
 from .interrupts import on_stop, stop_outcome
+from .meshing import heartbeat
 from .study import Task, failure_file, plan, variant_folder
 from .sweepresults import value_text, write_outputs
 
@@ -70,10 +71,19 @@ def work(tasks: list[Task], out: Path, levels: int, ratio: float, say: Progress)
     for task in todo:
         if _done(out, task.key) or not _claim(out, task.key):
             continue
-        run_task(task, out, levels, ratio)
+        # A variant says nothing until it ends: a large one (a fine mesh, a small fillet)
+        # is heard from every HEARTBEAT_S while it runs.
+        what = ", ".join(value_text(k, v) for k, v in sorted(task.params.items())) or "the base case"
+        with heartbeat(say, f"sweep: variant {what}"):
+            run_task(task, out, levels, ratio)
         finished = sum(_done(out, t.key) for t in todo)
         say(f"sweep: {finished}/{len(todo)} variants done; "
             f"about {time_left_s(time.perf_counter() - t0, finished - before, len(todo) - finished):.0f} s left")
+
+
+def _count(n: int, noun: str) -> str:
+    """'1 variant', '3 variants'."""
+    return f"{n} {noun}{'' if n == 1 else 's'}"
 
 
 def time_left_s(elapsed_s: float, finished_here: int, left: int) -> float:
@@ -93,7 +103,7 @@ def check_variants_fit(tasks: list[Task], limit_gb: float | None, copies: int, s
     from .resources import check_fits, needs_probe
     large = [t for t in tasks if t.case is not None and needs_probe(t.case, [t.case.mesh_factor])]
     if large:
-        say(f"sweep: estimating the memory of {len(large)} variant(s) that could be large (a mesh each)")
+        say(f"sweep: estimating the memory of {_count(len(large), 'variant')} that could be large (a mesh each)")
     for t in large:
         what = ", ".join(value_text(k, v) for k, v in sorted(t.params.items()))
         check_fits(t.case, [t.case.mesh_factor], limit_gb, copies, what=f"variant {what}: " if what else "")
@@ -139,7 +149,7 @@ def execute_sweep(size: str | None, case_file: Path | None, base: dict, axes: di
         raise error
     out = Path(out).expanduser().resolve()
     valid = sum(t.case is not None for t in tasks)
-    say(f"sweep: {len(tasks)} variants ({valid} valid, {len(tasks) - valid} invalid), "
+    say(f"sweep: {_count(len(tasks), 'variant')} ({valid} valid, {len(tasks) - valid} invalid), "
         f"{sum(_done(out, t.key) for t in tasks if t.case is not None)} already done, {comm.size} rank(s)")
     with contextlib.ExitStack() as stack:
         if lock is not None:  # a stop ends the process with os._exit: the finally below never runs
