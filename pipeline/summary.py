@@ -150,6 +150,12 @@ def collect(results_dir: Path, take_all: bool = False) -> tuple[list[dict], list
             rows.append(row)
         except (OSError, KeyError, TypeError, ValueError, AttributeError) as exc:
             skipped.append(f"{sub.name} (unreadable results.json: {type(exc).__name__}: {exc})")
+    for f in sorted(results_dir.glob("*.failed.json")):  # a study's variant that failed (pipeline.sweep)
+        try:
+            failed = json.loads(f.read_text(encoding="utf-8"))
+            skipped.append(f"No. {failed['size']} (its analysis failed: {failed['error']})")
+        except (OSError, ValueError, KeyError, TypeError):
+            skipped.append(f"{f.name} (a failed variant; its note cannot be read)")
     if unnamed:  # said once: a study's variants/ folder has one per variant
         skipped.append(f"{', '.join(unnamed[:3])}{f' and {len(unnamed) - 3} more' if len(unnamed) > 3 else ''} "
                        "(not named for a hook number of the size table; use --all, as for a study's variants/)")
@@ -331,7 +337,7 @@ def _run_notes(rows: list[dict], skipped: list[str]) -> list[str]:
         total = sum(r["time_s"] or 0.0 for r in rows)
         notes.append(f"Total run time of the rows: {total:.0f} s.")
     if skipped:
-        notes.append("Skipped folders: " + "; ".join(skipped) + ".")
+        notes.append("Not in the table: " + "; ".join(skipped) + ".")
     return notes
 
 

@@ -60,7 +60,8 @@ def run_task(task: Task, out: Path, levels: int, ratio: float) -> None:
                     write_mesh=False, loads=list(task.loads) if len(task.loads) > 1 else None, comm=MPI.COMM_SELF)
     except (NumericalError, GeometryError, InputError) as exc:
         write_text(failure_file(out, task.key),
-                   json.dumps({"error": " ".join(str(exc).split())}) + "\n")
+                   json.dumps({"error": " ".join(str(exc).split()), "size": case.size,
+                               "parameters": task.params}) + "\n")
 
 
 def work(tasks: list[Task], out: Path, levels: int, ratio: float, say: Progress) -> None:

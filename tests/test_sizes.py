@@ -300,6 +300,20 @@ def test_summary_names_folders_that_are_not_sizes_once(tmp_path, capsys):
     assert summary.main([str(tmp_path / "variants"), "--all", "--out", str(tmp_path / "sum")]) == 0
 
 
+def test_summary_names_a_size_whose_analysis_failed(tmp_path):
+    """make sizes' study writes a failed variant's reason beside the others' folders (its
+    <key>.failed.json, as pipeline.sweep writes it); the summary left that size out without
+    a word. It now names the size and the reason under 'Not in the table'."""
+    from pipeline import summary
+    for key, size in (("a1", "1.6"), ("b2", "10")):
+        _fake_results(tmp_path / "variants" / key, size, 66.0, "converged")
+    (tmp_path / "variants" / "c3.failed.json").write_text(json.dumps(
+        {"error": "gmsh could not mesh the part: boom", "size": "4", "parameters": {"size": "4"}}))
+    assert summary.main([str(tmp_path / "variants"), "--all", "--out", str(tmp_path / "sum")]) == 0
+    md = (tmp_path / "sum" / "summary.md").read_text()
+    assert "Not in the table: No. 4 (its analysis failed: gmsh could not mesh the part: boom)." in md
+
+
 def test_summary_skips_a_results_json_of_the_wrong_shape(tmp_path, capsys):
     """A results.json edited or cut short (a value of the wrong type, NaN, a list where a
     table belongs): that folder is skipped with its reason, the others are summarised;

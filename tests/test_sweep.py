@@ -215,6 +215,24 @@ def test_a_plot_marks_the_variants_without_a_peak():
     assert unanalysed(rows[:2], "dims.rf", varying) == {}
 
 
+def test_a_failed_variant_writes_why_with_its_size_and_inputs(tmp_path, monkeypatch):
+    """A variant whose analysis fails is reported, not fatal: its <key>.failed.json says
+    why, and which size and inputs it was (the size summary names it from there)."""
+    from pipeline import commands, sweep as sweep_module
+    from pipeline.errors import NumericalError
+    from pipeline.study import failure_file, plan
+
+    def fails(*a, **k):
+        raise NumericalError("solver pmg did not converge (PETSc reason -3, 1000 iterations)")
+    monkeypatch.setattr(commands, "execute_run", fails)
+    task, = plan("1.6", None, {"mesh_factor": 3.0}, {"dims.rf": [2.0]}, [], 1, 1.3)
+    (tmp_path / "variants").mkdir()
+    sweep_module.run_task(task, tmp_path, 1, 1.3)
+    note = json.loads(failure_file(tmp_path, task.key).read_text())
+    assert note == {"error": "solver pmg did not converge (PETSc reason -3, 1000 iterations)", "size": "1.6",
+                    "parameters": {"dims.rf": 2.0}}
+
+
 def test_small_sweep_contract_invalid_variant_and_resume(tmp_path):
     out = tmp_path / "study"
     first = sweep(out, *GRID)
