@@ -302,7 +302,8 @@ def _passing_lines(summary: dict) -> list[str]:
     a = f"{summary['allowable_MPa']:g} MPa"
 
     def named(rows: list[dict]) -> str:
-        return "; ".join(parameters_text(r, loads) for r in rows[:MOST_NAMED]) + ("; …" if len(rows) > MOST_NAMED else "")
+        more = len(rows) - MOST_NAMED
+        return "; ".join(parameters_text(r, loads) for r in rows[:MOST_NAMED]) + (f"; and {more} more" if more > 0 else "")
     passing = [r for r in done if _verdicts(r) <= {"pass"}]
     undecided = [r for r in done if "undecided" in _verdicts(r) and "fail" not in _verdicts(r)]
     if len(passing) == len(done):
