@@ -9,7 +9,7 @@ changes only load, E or the allowable reuses both, and its solutions too, scaled
 
 Entries live in .venv/cache/runs (pickles and JSON written by this tool only), each
 written to a temporary name and renamed, so concurrent runs never read half a file; at
-most MAX_ENTRIES are kept (the oldest used go first). The key includes a hash of the
+most MAX_BYTES are kept (the least recently used go first). The key includes a hash of the
 geometry and meshing source code, so a changed mesher never reuses an old mesh.
 ``CROSSHEAD_NO_CACHE=1`` turns the cache off (the tests do: they test the mesher itself);
 ``make clean-cache`` empties it.
@@ -29,7 +29,11 @@ from .atomicfile import replacing
 from .environment import CACHE_HOME
 
 ROOT = CACHE_HOME / "runs"
-MAX_ENTRIES = 60
+# Bounded by bytes, not entries: a variant keeps about eight (its pilot's places, four
+# meshes of ~6 MB, a solution, two error-bar results), so the 60 entries kept before held
+# less than a study of every size (about 150 entries, 0.6 GB), and its re-run at another
+# allowable found nothing left to reuse.
+MAX_BYTES = 2 * 1024 ** 3
 _CODE = ("geometry/part.py", "geometry/sizing.py", "geometry/curved.py", "geometry/meshspec.py", "geometry/places.py",
          "pipeline/meshing.py", "pipeline/pilot.py", "pipeline/peaks.py")
 
@@ -72,15 +76,25 @@ def load(name: str) -> Any | None:
 
 
 def store(name: str, value: Any) -> None:
-    """Keep ``value`` under ``name`` (atomic), then drop the oldest entries beyond MAX_ENTRIES."""
+    """Keep ``value`` under ``name`` (atomic), then drop the least recently used entries
+    beyond MAX_BYTES in all."""
     if not enabled():
         return
     try:
         ROOT.mkdir(parents=True, exist_ok=True)
         with replacing(ROOT / f"{name}.pickle", "wb") as f:
             pickle.dump(value, f, protocol=pickle.HIGHEST_PROTOCOL)
-        entries = sorted(ROOT.glob("*.pickle"), key=lambda p: p.stat().st_mtime)
-        for old in entries[:-MAX_ENTRIES]:
-            old.unlink(missing_ok=True)
     except OSError:
-        pass  # a cache that cannot be written only costs time
+        return  # a cache that cannot be written only costs time
+    entries = []
+    for p in ROOT.glob("*.pickle"):
+        try:
+            st = p.stat()
+        except OSError:  # removed by another run meanwhile
+            continue
+        entries.append((st.st_mtime_ns, st.st_size, p))
+    total = 0
+    for _, size, p in sorted(entries, key=lambda e: e[0], reverse=True):  # newest first
+        total += size
+        if total > MAX_BYTES:
+            p.unlink(missing_ok=True)

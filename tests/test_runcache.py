@@ -72,12 +72,22 @@ def test_keys_follow_what_shapes_the_field():
     assert k != rc.key("pilot", dims=replace(d, rf=2.0), nu=0.3, support="bearing")
 
 
-def test_the_cache_is_bounded(cache, monkeypatch):
-    monkeypatch.setattr(rc, "MAX_ENTRIES", 3)
+def test_the_cache_is_bounded_by_bytes_and_keeps_the_recently_used(cache, monkeypatch):
+    """Six entries of one size with room for three and a half: the three newest stay; an
+    old entry read again counts as new (least recently used goes first)."""
+    import os
+    import time
+    rc.store("probe", b"x" * 1000)
+    size = (cache / "probe.pickle").stat().st_size
+    (cache / "probe.pickle").unlink()
+    monkeypatch.setattr(rc, "MAX_BYTES", int(3.5 * size))
     for i in range(6):
-        rc.store(f"x-{i}", i)
+        rc.store(f"x-{i}", b"x" * 1000)
+        os.utime(cache / f"x-{i}.pickle", ns=(time.time_ns(), 1_000_000_000 * (100 + i)))  # distinct ages
     assert sorted(p.stem for p in cache.glob("*.pickle")) == ["x-3", "x-4", "x-5"]
-    assert rc.load("x-5") == 5 and rc.load("x-0") is None
+    assert rc.load("x-3") == b"x" * 1000 and rc.load("x-0") is None  # x-3 read: now the newest
+    rc.store("x-6", b"x" * 1000)
+    assert sorted(p.stem for p in cache.glob("*.pickle")) == ["x-3", "x-5", "x-6"]
 
 
 def test_a_stored_solution_is_found_node_by_node_or_not_at_all():
