@@ -356,9 +356,10 @@ def _report(summary: dict, swept: list[str], plots: list[str]) -> str:
     L += _side_lines(summary)
     L += _passing_lines(summary)
     L.append("")
-    if not summary["crossings"]:
+    # A study over sizes alone has no numeric axis to cross the allowable along: no line.
+    if swept and not summary["crossings"]:
         L.append("No peak crosses the allowable between neighbouring variants of a swept parameter.\n")
-    else:
+    elif summary["crossings"]:
         L.append("Where a peak crosses the allowable between neighbouring variants (linear "
                  "interpolation; the range from their error bars):\n")
     varying = varying_names(summary["rows"], {k for x in summary["crossings"] for k in x["fixed"]})
