@@ -213,11 +213,13 @@ def _plots(rows: list[dict], axis: str, allowable: float, out: Path) -> list[str
 def unanalysed(rows: list[dict], axis: str, varying: set[str]) -> dict[tuple[str, str], list[float]]:
     """The values along ``axis`` of the variants that have no peak, each once, sorted, keyed
     by (status, their line's ``varying`` values as text: '' for a study of one line).
-    Statuses: those of UNANALYSED."""
+    Statuses: those of UNANALYSED. An invalid geometry is invalid at every load, so its
+    text leaves the load out (one mark, not one per load)."""
     out: dict[tuple[str, str], set[float]] = {}
     for status in UNANALYSED:
         for fixed, g in series(rows, axis, status).items():
-            out.setdefault((status, _fixed_text(fixed, varying)), set()).update(r[axis] for r in g)
+            named = [(k, v) for k, v in fixed if not (status == "invalid" and k == "load_N")]
+            out.setdefault((status, _fixed_text(named, varying)), set()).update(r[axis] for r in g)
     return {k: sorted(v) for k, v in out.items()}
 
 
