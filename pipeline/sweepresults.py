@@ -20,9 +20,10 @@ COLUMNS = ("variant", "status", "size", "load_N", "parameters", "peak_MPa", "pea
            "verdict", "critical_verdict", "time_s", "note")
 # Each peak's row fields: value, band, verdict (pass, fail or undecided against the allowable).
 VERDICT_KEYS = (("peak_MPa", "peak_band_MPa", "verdict"), ("critical_peak_MPa", "critical_band_MPa", "critical_verdict"))
-# The row fields of each peak of results.json's fe block.
-UNWANTED_KEYS = {"peak": ("peak_MPa", "peak_band_MPa", "safety_factor"),
-                 "critical": ("critical_peak_MPa", "critical_band_MPa", "critical_safety_factor")}
+# The row fields of each peak of results.json's fe block, and the peak's name.
+UNUSABLE = {"peak": (("peak_MPa", "peak_band_MPa", "safety_factor", "verdict"), "global peak"),
+            "critical": (("critical_peak_MPa", "critical_band_MPa", "critical_safety_factor", "critical_verdict"),
+                         "critical peak")}
 # The statuses of variants with no peak, as a study's plots name them.
 UNANALYSED = {"invalid": "invalid geometry, not analysed", "failed": "analysis failed"}
 
@@ -55,19 +56,34 @@ def rows_of(tasks: list[Task], out: Path) -> list[dict]:
             "critical_band_MPa": (fe["critical"].get("error_estimate") or {}).get("band"),
             "safety_factor": fe["safety_factor"], "critical_safety_factor": fe["critical_safety_factor"]}]
         q0 = res["case"]["load_N"]
-        # A peak the run was not asked for (--want) is not resolved: the study leaves it out
-        # (no value, side, crossing or plot) and says why, rather than treat it as a result.
-        unwanted = [(keys, fe[block]["not_wanted"]) for block, keys in UNWANTED_KEYS.items()
-                    if fe[block].get("not_wanted")]
+        # A peak with no value to design with is left out of the study (no value, verdict,
+        # side, crossing or plot), and the row says why, as the run's report does: one the
+        # run was not asked for (--want: not resolved), or one at a singular feature (it
+        # grows without bound under refinement: the rigid support's edges).
+        unusable = [(keys, *_unusable(fe[block], name)) for block, (keys, name) in UNUSABLE.items()
+                    if _unusable(fe[block], name)[0]]
         for r in per_load:
             row = dict(base, status="done", time_s=res["timings_s"]["total"],
                        critical_section_nominal_MPa=None if nominal is None else nominal * r["load_N"] / q0,
                        **{k: r.get(k) for k in ("load_N", "peak_MPa", "peak_band_MPa", "critical_peak_MPa",
                                                 "critical_band_MPa", "safety_factor", "critical_safety_factor")})
-            for keys, why in unwanted:
-                row.update(dict.fromkeys(keys), note=why.replace("; shown for orientation only", ""))
+            for keys, _, verdict in unusable:
+                row.update(dict.fromkeys(keys[:-1]), **{keys[-1]: verdict})
+            if unusable:
+                row["note"] = "; ".join(why for _, why, _ in unusable)
             rows.append(row)
     return rows
+
+
+def _unusable(block: dict, name: str) -> tuple[str | None, str | None]:
+    """(why a peak block of results.json has no value a study can use, or None; its
+    verdict then): not asked for has none (the case is judged on the peaks it asked for);
+    a singular peak's is "none", as in the run's verdict table (the case cannot pass)."""
+    if block.get("not_wanted"):
+        return block["not_wanted"].replace("; shown for orientation only", ""), None
+    if block.get("singular_feature"):
+        return f"{name} at a singular feature ({block['singular_feature']}): no finite value", "none"
+    return None, None
 
 
 def series(rows: list[dict], axis: str, status: str = "done") -> dict[tuple, list[dict]]:
@@ -140,7 +156,10 @@ def with_verdicts(rows: list[dict], allowable: float) -> list[dict]:
     for r in rows:
         if r["status"] == "done":
             for key, band_key, name in VERDICT_KEYS:
-                r[name] = None if r.get(key) is None else verdict_against(r[key], r.get(band_key), allowable)
+                if r.get(key) is not None:
+                    r[name] = verdict_against(r[key], r.get(band_key), allowable)
+                else:
+                    r.setdefault(name, None)  # rows_of's "none" of a singular peak stays
     return rows
 
 
@@ -307,7 +326,7 @@ def _passing_lines(summary: dict) -> list[str]:
         more = len(rows) - MOST_NAMED
         return "; ".join(parameters_text(r, loads) for r in rows[:MOST_NAMED]) + (f"; and {more} more" if more > 0 else "")
     passing = [r for r in done if _verdicts(r) <= {"pass"}]
-    undecided = [r for r in done if "undecided" in _verdicts(r) and "fail" not in _verdicts(r)]
+    undecided = [r for r in done if "undecided" in _verdicts(r) and not _verdicts(r) & {"fail", "none"}]
     if len(passing) == len(done):
         lines = [f"- Every analysed case passes {a} with every peak, error bars included."]
     elif not passing:
@@ -318,6 +337,10 @@ def _passing_lines(summary: dict) -> list[str]:
     if undecided:
         lines.append(f"- Undecided in {len(undecided)} of {len(done)} (an error bar holds {a}, no peak fails): "
                      f"{named(undecided)}.")
+    judged_none = [r for r in done if "none" in _verdicts(r)]
+    if judged_none:
+        lines.append(f"- No verdict in {len(judged_none)} of {len(done)} (a peak at a singular feature has no "
+                     f"finite value): {named(judged_none)}.")
     return lines
 
 

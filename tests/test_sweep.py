@@ -178,6 +178,22 @@ def test_the_report_names_the_cases_that_pass_with_their_error_bars():
                      "- Undecided in 1 of 4 (an error bar holds 80 MPa, no peak fails): rf = 2 mm."]
 
 
+def test_a_singular_peak_gives_no_verdict_and_the_case_does_not_pass(tmp_path):
+    """The rigid support (cases/05-rigid.toml) puts the global peak on a singular edge: it
+    grows without bound under refinement, and the run gives it no verdict. The study had
+    judged its 918 MPa at mesh factor 3 'fail' like a value (and, once left out, would have
+    let the case 'pass' on its critical peak alone). Now: no value, verdict 'none', the
+    reason in the note, and the case is counted under 'no verdict', not as passing."""
+    out = tmp_path / "rigid"
+    p = sweep(out, "--case", "cases/05-rigid.toml", "--dim", "rf=1,2", "--mesh-factor", "3", "--levels", "3")
+    assert "0 of 2 pass 80 MPa" in p.stdout
+    rows = json.loads((out / "sweep.json").read_text())["rows"]
+    assert all(r["peak_MPa"] is None and r["verdict"] == "none" and "singular" in r["note"] for r in rows)
+    assert all(r["critical_verdict"] == "pass" for r in rows)
+    report = (out / "report.md").read_text(encoding="utf-8")
+    assert "No verdict in 2 of 2 (a peak at a singular feature" in report and "The global peak" not in report
+
+
 def test_a_plot_draws_one_line_per_value_of_the_other_parameters():
     """rf x dj = 3 x 2 finished rows (one failed) at one load: along rf, two lines (dj 16 and
     18), each ordered by rf; along dj, three. A sweep of rf alone is one line. (The plots
