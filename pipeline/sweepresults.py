@@ -181,6 +181,11 @@ def write_outputs(tasks: list[Task], out: Path, axes: dict[str, list[float]], al
                "counts": {s: sum(r["status"] == s for r in rows) for s in ("done", "invalid", "failed", "not run")}}
     write_text(out / "sweep.json", json.dumps(summary, indent=2, default=str) + "\n")
     plots = [p for n in swept for p in _plots(rows, n, allowable, out)]
+    # A re-run into the same folder must not leave a plot this run no longer draws (another
+    # axis, a peak now left out) beside the report: only the study's own plot names.
+    for old in [*out.glob("peak_vs_*.png"), *out.glob("critical_peak_vs_*.png")]:
+        if old.name not in plots:
+            old.unlink(missing_ok=True)
     write_text(out / "report.md", _report(summary, swept, plots))
     return summary
 

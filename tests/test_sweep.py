@@ -192,6 +192,12 @@ def test_a_singular_peak_gives_no_verdict_and_the_case_does_not_pass(tmp_path):
     assert all(r["critical_verdict"] == "pass" for r in rows)
     report = (out / "report.md").read_text(encoding="utf-8")
     assert "No verdict in 2 of 2 (a peak at a singular feature" in report and "The global peak" not in report
+    # No plot of the peak left out, not even one from an earlier run into the same folder.
+    (out / "peak_vs_rf.png").write_bytes(b"an earlier run's plot")
+    (out / "notes_peak_vs_rf.png").write_bytes(b"not the study's name")
+    sweep(out, "--case", "cases/05-rigid.toml", "--dim", "rf=1,2", "--mesh-factor", "3", "--levels", "3")
+    assert not (out / "peak_vs_rf.png").exists() and (out / "critical_peak_vs_rf.png").is_file()
+    assert (out / "notes_peak_vs_rf.png").is_file()
 
 
 def test_a_plot_draws_one_line_per_value_of_the_other_parameters():
