@@ -30,7 +30,7 @@ from .errors import InputError, NumericalError
 from .interrupts import on_stop, stop_outcome
 from .meshing import heartbeat
 from .study import Task, failure_file, plan, variant_folder
-from .sweepresults import value_text, write_outputs
+from .sweepresults import inputs_text, write_outputs
 
 Progress = Callable[[str], None]
 
@@ -74,8 +74,7 @@ def work(tasks: list[Task], out: Path, levels: int, ratio: float, say: Progress)
             continue
         # A variant says nothing until it ends: a large one (a fine mesh, a small fillet)
         # is heard from every HEARTBEAT_S while it runs.
-        what = ", ".join(value_text(k, v) for k, v in sorted(task.params.items())) or "the base case"
-        with heartbeat(say, f"sweep: variant {what}"):
+        with heartbeat(say, f"sweep: variant {inputs_text(task.params)}"):
             run_task(task, out, levels, ratio)
         finished = sum(_done(out, t.key) for t in todo)
         say(f"sweep: {finished}/{len(todo)} variants done; "
@@ -106,8 +105,7 @@ def check_variants_fit(tasks: list[Task], limit_gb: float | None, copies: int, s
     if large:
         say(f"sweep: estimating the memory of {_count(len(large), 'variant')} that could be large (a mesh each)")
     for t in large:
-        what = ", ".join(value_text(k, v) for k, v in sorted(t.params.items()))
-        check_fits(t.case, [t.case.mesh_factor], limit_gb, copies, what=f"variant {what}: " if what else "")
+        check_fits(t.case, [t.case.mesh_factor], limit_gb, copies, what=f"variant {inputs_text(t.params)}: ")
 
 
 def execute_sweep(size: str | None, case_file: Path | None, base: dict, axes: dict[str, list[float]],

@@ -272,14 +272,19 @@ def value_text(name: str, value: float | str) -> str:
     return f"{name.replace('dims.', '')} = {value:g} mm"
 
 
-def parameters_text(row: dict, with_load: bool = False) -> str:
-    """A row's swept inputs for a person: 'dj = 16 mm, rf = 0.5 mm' (a size by its number),
-    and its load when ``with_load`` (a study over loads)."""
-    params = json.loads(row["parameters"])
+def inputs_text(params: dict, load_N: float | None = None) -> str:
+    """A variant's swept inputs for a person: 'No. 2.5, dj = 16 mm, rf = 0.5 mm' (the size
+    first), then the load (N) when given; 'the base case' when none."""
     parts = [value_text(k, v) for k, v in sorted(params.items(), key=lambda kv: (kv[0] != "size", kv[0]))]
-    if with_load and row.get("load_N") is not None:
-        parts.append(value_text("load_N", row["load_N"]))
+    if load_N is not None:
+        parts.append(value_text("load_N", load_N))
     return ", ".join(parts) or "the base case"
+
+
+def parameters_text(row: dict, with_load: bool = False) -> str:
+    """A row's swept inputs for a person (:func:`inputs_text`), and its load when
+    ``with_load`` (a study over loads)."""
+    return inputs_text(json.loads(row["parameters"]), row.get("load_N") if with_load else None)
 
 
 def _side_lines(summary: dict) -> list[str]:
