@@ -477,9 +477,10 @@ def _summary(out: Path) -> None:
         rows = res["load_sweep"]
         texts = [f"{r['load_N']:g} N {pm(r['peak_MPa'], r.get('peak_band_MPa'))} / "
                  f"{pm(r['critical_peak_MPa'], r.get('critical_band_MPa'))}" for r in rows]
-        if len(texts) > 2 * LOADS_SHOWN:  # a line a person can read: the ends, the rest in the files
+        long = len(rows) > 2 * LOADS_SHOWN  # a line a person can read: the ends, the rest in the files
+        if long:
             texts = texts[:LOADS_SHOWN] + [f"… {len(rows) - 2 * LOADS_SHOWN} more in results.json …"] + texts[-LOADS_SHOWN:]
-        _print(f"the lines above are at Q = {res['case']['load_N']:g} N; {'every load' if len(rows) <= 2 * LOADS_SHOWN else f'{len(rows)} loads'} "
+        _print(f"the lines above are at Q = {res['case']['load_N']:g} N; {f'{len(rows)} loads' if long else 'every load'} "
                "(global / critical peak, MPa): " + "; ".join(texts))
     named = res.get("files") or {"results": "results.json"}
     files = [named[k] for k in ("report", "results") if k in named] + \

@@ -46,12 +46,13 @@ def build_results(case: Case, levels: list[Level], timings: dict[str, float],
                                  case.exact_span_mm)
     est_peak = estimate_levels(levels, case, "peak") if len(levels) >= 3 else None
     est_crit = estimate_levels(levels, case, "critical") if len(levels) >= 3 else None
-    peak_b = peak_block(case, fine.peak, est_peak, refined=case.want != "critical")
-    crit_b = peak_block(case, fine.critical, est_crit, refined=case.want != "global")
-    unwanted = {"critical": (peak_b, "global"), "global": (crit_b, "critical")}.get(case.want)
-    if unwanted is not None:
-        unwanted[0]["not_wanted"] = (f"want = {case.want}: the run did not refine for the {unwanted[1]} peak; "
-                                     "shown for orientation only")
+    asked = {"global": case.want != "critical", "critical": case.want != "global"}
+    peak_b = peak_block(case, fine.peak, est_peak, refined=asked["global"])
+    crit_b = peak_block(case, fine.critical, est_crit, refined=asked["critical"])
+    for name, block in (("global", peak_b), ("critical", crit_b)):
+        if not asked[name]:
+            block["not_wanted"] = (f"want = {case.want}: the run did not refine for the {name} peak; "
+                                   "shown for orientation only")
     return {
         "units": {"length": "mm", "force": "N", "stress": "MPa"},
         "case": case.as_dict(),

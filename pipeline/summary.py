@@ -40,6 +40,7 @@ TITLE = "# Crosshead stresses across hook sizes"  # summary.md's first line
 JACOBIAN_SUSPECT = 0.01   # worst det J ratio of a curved tet below this: nearly inverted
 BAND_TOO_WIDE = 0.25      # error bar above this fraction of the value: not usable
 NOT_ASKED = "not asked"   # the status of a peak the run did not resolve (--want): no value
+STATUS_OF = {"fe_peak_MPa": "fe_peak_status", "fe_critical_MPa": "fe_critical_status"}  # a peak's status column
 
 
 def hook_value(size: str) -> float:
@@ -108,8 +109,8 @@ def checked(row: dict) -> dict:
         if k in TEXT_COLUMNS:
             ok = isinstance(v, str)
         else:
-            asked = not (k.startswith("fe_") and row.get(k.replace("_MPa", "_status")) == NOT_ASKED)
-            ok = (v is None and (k not in NEEDED_COLUMNS or not asked)) or (
+            not_asked = k in STATUS_OF and row.get(STATUS_OF[k]) == NOT_ASKED
+            ok = (v is None and (k not in NEEDED_COLUMNS or not_asked)) or (
                 isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v))
         if not ok:
             raise ValueError(f"{k} = {v!r}")
@@ -200,9 +201,11 @@ def markdown(rows: list[dict], skipped: list[str], png_name: str | None) -> str:
     if not rows:
         lines.append("No results found.")
     notes = _source_notes(rows)
-    places = [f"{name} peak at: {_peak_places(asked, key)}." for name, key in
-              (("Global", "fe_peak"), ("Critical", "fe_critical"))
-              for asked in [[r for r in rows if r[f"{key}_status"] != NOT_ASKED]] if asked]
+    places = []
+    for name, key in (("Global", "fe_peak"), ("Critical", "fe_critical")):
+        asked = [r for r in rows if r[f"{key}_status"] != NOT_ASKED]
+        if asked:
+            places.append(f"{name} peak at: {_peak_places(asked, key)}.")
     if places:
         notes.append(" ".join(places))
     notes += _status_notes(rows)

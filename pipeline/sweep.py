@@ -28,6 +28,9 @@ from mpi4py import MPI
 from .atomicfile import write_text
 from .errors import InputError, NumericalError
 from .interrupts import on_stop, stop_outcome
+# pipeline.meshing loads DOLFINx, whose import starts PETSc collectively over COMM_WORLD:
+# importing it here, on every rank as the command starts, keeps rank 0's later memory probe
+# from being the only rank to do so (it met the others' broadcast and aborted them).
 from .meshing import heartbeat
 from .study import Task, failure_file, plan, variant_folder
 from .sweepresults import inputs_text, write_outputs
@@ -121,10 +124,6 @@ def execute_sweep(size: str | None, case_file: Path | None, base: dict, axes: di
     node = comm.Split_type(MPI.COMM_TYPE_SHARED)
     copies = node.size  # the ranks that share this machine's memory, each with a variant
     node.Free()
-    # Rank 0's memory probe meshes with gmsh through pipeline.meshing, whose import loads
-    # DOLFINx and so initialises PETSc: collective over COMM_WORLD. Alone on rank 0 it met
-    # the other ranks' broadcast below and aborted them ("stack smashing detected").
-    from . import meshing  # noqa: F401
     lock = None
     error = None
     if comm.rank == 0:

@@ -20,10 +20,11 @@ COLUMNS = ("variant", "status", "size", "load_N", "parameters", "peak_MPa", "pea
            "verdict", "critical_verdict", "time_s", "note")
 # Each peak's row fields: value, band, verdict (pass, fail or undecided against the allowable).
 VERDICT_KEYS = (("peak_MPa", "peak_band_MPa", "verdict"), ("critical_peak_MPa", "critical_band_MPa", "critical_verdict"))
-# The row fields of each peak of results.json's fe block, and the peak's name.
-UNUSABLE = {"peak": (("peak_MPa", "peak_band_MPa", "safety_factor", "verdict"), "global peak"),
-            "critical": (("critical_peak_MPa", "critical_band_MPa", "critical_safety_factor", "critical_verdict"),
-                         "critical peak")}
+# Each peak of results.json's fe block: its name and its row fields (value, band, safety
+# factor) and verdict field.
+PEAK_FIELDS = {"peak": ("global peak", ("peak_MPa", "peak_band_MPa", "safety_factor"), "verdict"),
+               "critical": ("critical peak", ("critical_peak_MPa", "critical_band_MPa", "critical_safety_factor"),
+                            "critical_verdict")}
 # The statuses of variants with no peak, as a study's plots name them.
 UNANALYSED = {"invalid": "invalid geometry, not analysed", "failed": "analysis failed"}
 
@@ -60,17 +61,18 @@ def rows_of(tasks: list[Task], out: Path) -> list[dict]:
         # side, crossing or plot), and the row says why, as the run's report does: one the
         # run was not asked for (--want: not resolved), or one at a singular feature (it
         # grows without bound under refinement: the rigid support's edges).
-        unusable = [(keys, *_unusable(fe[block], name)) for block, (keys, name) in UNUSABLE.items()
-                    if _unusable(fe[block], name)[0]]
+        unusable = [(fields, verdict_key, *_unusable(fe[block], name))
+                    for block, (name, fields, verdict_key) in PEAK_FIELDS.items()]
+        unusable = [u for u in unusable if u[2] is not None]
         for r in per_load:
             row = dict(base, status="done", time_s=res["timings_s"]["total"],
                        critical_section_nominal_MPa=None if nominal is None else nominal * r["load_N"] / q0,
                        **{k: r.get(k) for k in ("load_N", "peak_MPa", "peak_band_MPa", "critical_peak_MPa",
                                                 "critical_band_MPa", "safety_factor", "critical_safety_factor")})
-            for keys, _, verdict in unusable:
-                row.update(dict.fromkeys(keys[:-1]), **{keys[-1]: verdict})
+            for fields, verdict_key, _, verdict in unusable:
+                row.update(dict.fromkeys(fields), **{verdict_key: verdict})
             if unusable:
-                row["note"] = "; ".join(why for _, why, _ in unusable)
+                row["note"] = "; ".join(why for _, _, why, _ in unusable)
             rows.append(row)
     return rows
 
@@ -140,8 +142,6 @@ def band_reach(ya: float, yb: float, wa: float, wb: float) -> tuple[float, float
     the crossing, or outside the step, when the bands differ much.)"""
     lo, hi = 0.0, 1.0
     for f0, f1 in ((ya - wa, yb - wb), (-ya - wa, -yb - wb)):
-        if f0 > 0 and f1 > 0:  # cannot happen while y crosses zero and w >= 0; guard anyway
-            continue
         if f0 > 0:
             lo = max(lo, f0 / (f0 - f1))
         elif f1 > 0:
