@@ -6,6 +6,7 @@ process, whose children would inherit MPI's environment.
 """
 from __future__ import annotations
 
+import json
 import os
 from pathlib import Path
 from typing import Callable
@@ -13,6 +14,20 @@ from typing import Callable
 MARKER = ".crosshead-results"  # written last into every results folder: "this folder is ours"
 STAGING_MARK = ".crosshead-staging"  # written first into every staging folder
 REPOSITORY = Path(__file__).resolve().parents[1]
+
+
+def marked_kind(out: Path) -> str:
+    """The kind of results folder ``out``'s marker names: "sweep" and "summary" say so in
+    it; any other marker (a run's, an earlier version's) is a run's."""
+    try:
+        data = json.loads((out / MARKER).read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return "run"
+    if isinstance(data, dict):
+        for kind in ("sweep", "summary"):
+            if data.get(kind) is True:
+                return kind
+    return "run"
 
 
 def _is_same_or_above(folder: Path, other: Path) -> bool:

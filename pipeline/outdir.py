@@ -24,7 +24,7 @@ from typing import Iterator
 from mpi4py import MPI
 
 from .errors import InputError
-from .folders import MARKER, REPOSITORY, STAGING_MARK, protected_reason
+from .folders import MARKER, REPOSITORY, STAGING_MARK, marked_kind, protected_reason
 from .idle import wait_for_ranks
 from .interrupts import on_stop, signals_wait, stop_outcome
 
@@ -47,20 +47,6 @@ def default_out(name: str) -> Path:
 
 # What the marker of each kind of results folder says it holds, for the refusal line.
 KINDS = {"run": "a run's results", "sweep": "a design study's results", "summary": "a size summary"}
-
-
-def marked_kind(out: Path) -> str:
-    """The kind of results folder ``out``'s marker names: "sweep" and "summary" say so in
-    it; any other marker (a run's, an earlier version's) is a run's."""
-    try:
-        data = json.loads((out / MARKER).read_text(encoding="utf-8"))
-    except (OSError, ValueError):
-        return "run"
-    if isinstance(data, dict):
-        for kind in ("sweep", "summary"):
-            if data.get(kind) is True:
-                return kind
-    return "run"
 
 
 def ownership_reason(out: Path, kind: str = "run") -> str | None:
