@@ -409,6 +409,17 @@ def plot(rows: list[dict], path: Path) -> bool:
     return True
 
 
+def default_out(results: Path) -> Path:
+    """Where the summary of ``results`` goes without --out: ``<results>/summary``, except
+    for a design study's ``variants/`` folder, whose sub-folders are the study's variants
+    only: there it is ``summary/`` in the study's folder, beside ``variants/``."""
+    from .folders import MARKER, marked_kind
+    study = results.parent
+    if results.name == "variants" and (study / MARKER).is_file() and marked_kind(study) == "sweep":
+        return study / "summary"
+    return results / "summary"
+
+
 def refusal(out: Path) -> str | None:
     """Why the summary may not write into ``out``, or None. It writes into a new or empty
     folder, or one that holds a summary it wrote (its marker says "summary"; an earlier
@@ -454,7 +465,8 @@ def main(argv: list[str] | None = None) -> int:
     p = OneLineParser(prog="python -m pipeline.summary", description=__doc__.split("\n\n")[0])
     p.add_argument("results", type=Path, nargs="?", default=Path("results"),
                    help="folder holding one sub-folder per size (default results)")
-    p.add_argument("--out", type=Path, help="output folder (default <results>/summary)")
+    p.add_argument("--out", type=Path, help="output folder (default <results>/summary; for a study's "
+                   "variants/ folder, summary/ beside it in the study's folder)")
     p.add_argument("--all", action="store_true", help="every sub-folder with a results.json, not only table sizes")
     args = p.parse_args(argv)
     received: list[int] = []
@@ -483,7 +495,7 @@ def _summarise(args: argparse.Namespace, received: list[int]) -> int:
     if not args.results.is_dir():
         sys.stderr.write(f"error: results: no such folder {args.results}\n")
         return 2
-    out = args.out or args.results / "summary"
+    out = args.out or default_out(args.results)
     why = refusal(out)
     if why is not None:
         sys.stderr.write(why + "\n")

@@ -300,6 +300,25 @@ def test_summary_names_folders_that_are_not_sizes_once(tmp_path, capsys):
     assert summary.main([str(tmp_path / "variants"), "--all", "--out", str(tmp_path / "sum")]) == 0
 
 
+def test_summary_of_a_study_goes_beside_its_variants_not_among_them(tmp_path):
+    """Without --out the summary of a study's variants/ went into variants/summary, among
+    the variants' folders; it now goes to summary/ in the study's folder. A folder named
+    variants that is not a study's keeps the plain default <results>/summary."""
+    from pipeline import summary
+    from pipeline.folders import MARKER
+    study = tmp_path / "study"
+    for key, size in (("a1", "1.6"), ("b2", "10")):
+        _fake_results(study / "variants" / key, size, 66.0, "converged")
+    (study / MARKER).write_text('{"tool": "crosshead", "sweep": true}\n')
+    assert summary.main([str(study / "variants"), "--all"]) == 0
+    assert (study / "summary" / "summary.md").is_file()
+    assert sorted(p.name for p in (study / "variants").iterdir()) == ["a1", "b2"]
+    plain = tmp_path / "other" / "variants"
+    _fake_results(plain / "a1", "1.6", 66.0, "converged")
+    assert summary.main([str(plain), "--all"]) == 0
+    assert (plain / "summary" / "summary.md").is_file()
+
+
 def test_summary_names_a_size_whose_analysis_failed(tmp_path):
     """make sizes' study writes a failed variant's reason beside the others' folders (its
     <key>.failed.json, as pipeline.sweep writes it); the summary left that size out without
