@@ -118,3 +118,19 @@ def variant_folder(out: Path, key: str) -> Path:
 def failure_file(out: Path, key: str) -> Path:
     """Where task ``key`` of the study in ``out`` writes why it failed, instead of a run."""
     return out / "variants" / f"{key}.failed.json"
+
+
+def earlier_variants(out: Path, keys: set[str]) -> list[Path]:
+    """The results in the study folder ``out`` of variants that are not among ``keys``:
+    what a run of the study with other inputs left (a variant's key hashes every input).
+    Only what a variant writes is named: a folder with the results marker, or a
+    ``<key>.failed.json``."""
+    from .folders import MARKER
+    found = []
+    folder = out / "variants"
+    for p in sorted(folder.iterdir()) if folder.is_dir() else []:
+        if p.is_dir() and not p.is_symlink() and p.name not in keys and (p / MARKER).is_file():
+            found.append(p)
+        elif p.is_file() and p.name.endswith(".failed.json") and p.name.removesuffix(".failed.json") not in keys:
+            found.append(p)
+    return found

@@ -32,7 +32,7 @@ from .interrupts import on_stop, stop_outcome
 # importing it here, on every rank as the command starts, keeps rank 0's later memory probe
 # from being the only rank to do so (it met the others' broadcast and aborted them).
 from .meshing import heartbeat
-from .study import Task, failure_file, plan, variant_folder
+from .study import Task, earlier_variants, failure_file, plan, variant_folder
 from .sweepresults import inputs_text, write_outputs
 
 Progress = Callable[[str], None]
@@ -111,6 +111,22 @@ def check_variants_fit(tasks: list[Task], limit_gb: float | None, copies: int, s
         check_fits(t.case, [t.case.mesh_factor], limit_gb, copies, what=f"variant {inputs_text(t.params)}: ")
 
 
+def remove_earlier_variants(out: Path, tasks: list[Task], say: Progress) -> None:
+    """Remove the results of variants that this study does not have, once it has finished:
+    left by a run of it with other inputs, they would be read beside its own (a summary
+    of ``variants/`` would list a size twice) and only take room. Until the study
+    finishes they stay, so an interrupted re-run loses nothing."""
+    gone = earlier_variants(out, {t.key for t in tasks})
+    for p in gone:
+        if p.is_dir():
+            shutil.rmtree(p)
+        else:
+            p.unlink()
+    if gone:
+        say(f"sweep: removed the results of {_count(len(gone), 'variant')} of earlier inputs "
+            f"that this study does not have")
+
+
 def execute_sweep(size: str | None, case_file: Path | None, base: dict, axes: dict[str, list[float]],
                   loads: list[float], out: Path, levels: int, ratio: float, say: Progress,
                   comm: MPI.Comm = MPI.COMM_WORLD, sizes: list[str] | None = None,
@@ -158,6 +174,7 @@ def execute_sweep(size: str | None, case_file: Path | None, base: dict, axes: di
             while not request.Test():
                 time.sleep(0.05)
             if comm.rank == 0:
+                remove_earlier_variants(out, tasks, say)
                 allowable = next((t.case.allowable_MPa for t in tasks if t.case is not None), 80.0)
                 axes_out = dict(axes, **({"load_N": loads} if len(loads) > 1 else {}))
                 return write_outputs(tasks, out, axes_out, allowable)

@@ -255,6 +255,30 @@ def test_a_failed_variant_writes_why_with_its_size_and_inputs(tmp_path, monkeypa
                     "parameters": {"dims.rf": 2.0}}
 
 
+def test_only_results_of_other_variants_are_removed(tmp_path):
+    """What a finished study removes from its variants/: the folders (with the results
+    marker) and failure notes of keys it does not have; its own, and anything the tool did
+    not write, stay."""
+    from pipeline.folders import MARKER
+    from pipeline.sweep import remove_earlier_variants
+    from pipeline.study import Task
+    v = tmp_path / "variants"
+    for key in ("aaa", "bbb"):
+        (v / key).mkdir(parents=True)
+        (v / key / MARKER).write_text("{}")
+    (v / "ccc.failed.json").write_text("{}")
+    (v / "ddd.failed.json").write_text("{}")
+    (v / "users").mkdir()                      # no marker: not a variant's
+    (v / "notes.txt").write_text("mine")
+    said = []
+    remove_earlier_variants(tmp_path, [Task("aaa", {}, None, (1.0,)), Task("ddd", {}, None, (1.0,))], said.append)
+    assert sorted(p.name for p in v.iterdir()) == ["aaa", "ddd.failed.json", "notes.txt", "users"]
+    assert said == ["sweep: removed the results of 2 variants of earlier inputs that this study does not have"]
+    said.clear()
+    remove_earlier_variants(tmp_path, [Task("aaa", {}, None, (1.0,))], said.append)
+    assert said == ["sweep: removed the results of 1 variant of earlier inputs that this study does not have"]
+
+
 def test_small_sweep_contract_invalid_variant_and_resume(tmp_path):
     out = tmp_path / "study"
     first = sweep(out, *GRID)
@@ -286,6 +310,11 @@ def test_small_sweep_contract_invalid_variant_and_resume(tmp_path):
     assert json.loads((out / "sweep.json").read_text())["rows"] == data["rows"]
     changed = sweep(out, *GRID, "--E", "200000")  # another input: not mistaken for a finished variant
     assert "0 already done" in changed.stdout
+    # The first run's two variants are gone once the study is done: only this study's remain
+    # (a summary of variants/ listed both before).
+    assert "removed the results of 2 variants of earlier inputs" in changed.stdout
+    keys = {r["variant"] for r in json.loads((out / "sweep.json").read_text())["rows"] if r["status"] == "done"}
+    assert {p.name for p in (out / "variants").iterdir()} == keys and len(keys) == 2
 
 
 def test_a_study_leaves_out_the_peak_it_was_not_asked_for(tmp_path):
