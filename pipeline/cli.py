@@ -433,7 +433,10 @@ def _sweep(args, rank0: bool) -> int:
     if rank0 and res is not None and not args.quiet:
         from pipeline.sweepresults import passing_count
         c = res["counts"]
-        _print(f"sweep: {c['done']} done, {c['invalid']} invalid, {c['failed']} failed; "
+        # With several loads a row is a case (a variant at one load), and the counts are of cases.
+        n = sum(c.values())
+        cases = f"{n} cases ({n // len(loads)} variants at {len(loads)} loads): " if len(loads) > 1 else ""
+        _print(f"sweep: {cases}{c['done']} done, {c['invalid']} invalid, {c['failed']} failed; "
                f"{passing_count(res['rows'])} of {c['done']} pass {res['allowable_MPa']:g} MPa with every peak; "
                f"{len(res['crossings'])} crossing(s) of the allowable; written to {out}/ (sweep.csv, sweep.json, report.md)")
     return 0

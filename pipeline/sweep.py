@@ -163,7 +163,8 @@ def execute_sweep(size: str | None, case_file: Path | None, base: dict, axes: di
         raise error
     out = Path(out).expanduser().resolve()
     valid = sum(t.case is not None for t in tasks)
-    say(f"sweep: {_count(len(tasks), 'variant')} ({valid} valid, {len(tasks) - valid} invalid), "
+    each = f" at {len(loads)} loads each" if len(loads) > 1 else ""
+    say(f"sweep: {_count(len(tasks), 'variant')}{each} ({valid} valid, {len(tasks) - valid} invalid), "
         f"{sum(_done(out, t.key) for t in tasks if t.case is not None)} already done, {comm.size} rank(s)")
     with contextlib.ExitStack() as stack:
         if lock is not None:  # a stop ends the process with os._exit: the finally below never runs

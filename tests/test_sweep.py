@@ -377,3 +377,13 @@ def test_sweep_over_sizes_uses_each_rated_load(tmp_path):
     rows = json.loads((out / "sweep.json").read_text())["rows"]
     assert {r["size"]: r["load_N"] for r in rows} == {s: lookup(s).load_N for s in ("05", "1")}
     assert all(r["status"] == "done" for r in rows)
+
+
+def test_a_study_at_several_loads_counts_variants_and_cases_apart(tmp_path):
+    """Two geometries (one invalid: rf = 3 mm breaks the rules) at two loads are 2 variants
+    and 4 cases (rows). The first line counted variants and the last one cases, both
+    unnamed: "2 variants (1 valid, 1 invalid)" and then "2 done, 2 invalid"."""
+    p = sweep(tmp_path / "s", "--size", "05", "--dim", "rf=1,3", "--load", "5000,10000", "--mesh-factor", "3",
+              "--levels", "1")
+    assert "sweep: 2 variants at 2 loads each (1 valid, 1 invalid), 0 already done" in p.stdout, p.stdout
+    assert "sweep: 4 cases (2 variants at 2 loads): 2 done, 2 invalid, 0 failed; " in p.stdout, p.stdout
