@@ -18,6 +18,7 @@ import re
 import signal
 import sys
 import tempfile
+from dataclasses import asdict
 from pathlib import Path
 
 from geometry.table import is_scaled_row
@@ -33,7 +34,7 @@ CSV_COLUMNS = (
     "fe_peak_last_change_MPa", "fe_peak_feature",
     "fe_critical_MPa", "fe_critical_band_MPa", "fe_critical_status", "fe_critical_extrapolated_MPa",
     "fe_critical_last_change_MPa", "fe_critical_feature", "allowable_MPa", "safety_factor", "critical_safety_factor",
-    "mesh_min_jacobian_ratio", "mesh_factor", "meshes", "dofs", "time_s", "warnings", "source")
+    "mesh_min_jacobian_ratio", "mesh_factor", "meshes", "dofs", "time_s", "warnings", "source", "changed_dims")
 
 SUMMARY_FILES = frozenset({"summary.md", "summary.csv", "summary.png"})
 TITLE = "# Crosshead stresses across hook sizes"  # summary.md's first line
@@ -68,6 +69,20 @@ def _estimate(block: dict) -> tuple[float | None, str, float | None, float | Non
     return band, est["status"], ext, change
 
 
+def changed_dims(case: dict) -> str:
+    """The dimensions (mm) in which a run's case differs from its size's row of the table,
+    as "rf = 2 mm (table 1.5)", comma-separated; '' when none does or the size is not in
+    the table (a design study's variants are rows with changed dimensions)."""
+    from geometry.table import load_table
+    row = load_table().get(str(case.get("size")))
+    dims = case.get("dims")
+    if row is None or not isinstance(dims, dict):
+        return ""
+    table = asdict(row.dims)
+    return ", ".join(f"{k} = {v:g} mm (table {table[k]:g})" for k, v in dims.items()
+                     if k in table and not math.isclose(v, table[k], rel_tol=1e-12, abs_tol=1e-12))
+
+
 def row_of(folder: Path, res: dict) -> dict:
     """One summary row (flat dict, CSV_COLUMNS) from one results.json."""
     case, fe, an = res["case"], res["fe"], res["analytic"]
@@ -92,12 +107,12 @@ def row_of(folder: Path, res: dict) -> dict:
         "mesh_min_jacobian_ratio": fe.get("mesh_min_jacobian_ratio"),
         "mesh_factor": case.get("mesh_factor"), "meshes": len(fe.get("levels", [])) or None,
         "dofs": fe.get("dofs"), "time_s": res.get("timings_s", {}).get("total"),
-        "source": src,
+        "source": src, "changed_dims": changed_dims(case),
     }
 
 
 TEXT_COLUMNS = frozenset({"size", "folder", "dimensions", "fe_peak_status", "fe_peak_feature", "fe_critical_status",
-                          "fe_critical_feature", "source"})
+                          "fe_critical_feature", "source", "changed_dims"})
 NEEDED_COLUMNS = frozenset({"load_N", "approximate_MPa", "exact_MPa", "fe_peak_MPa", "fe_critical_MPa"})
 
 
@@ -237,6 +252,8 @@ def _table_lines(rows: list[dict]) -> list[str]:
     for r in rows:
         dims = r["dimensions"] if r["scale_s"] in (None, 1.0) or r["dimensions"].startswith("table row") \
             else f"scaled ×{r['scale_s']:.3f} (not DIN)"
+        if r["changed_dims"]:
+            dims += f"; changed: {r['changed_dims']}"
         flag = " ⚠" if r.get("warnings") else ""
         lines.append(
             f"| {r['size']}{flag} | {dims} | {r['load_N']:.0f} | {_n(r['approximate_MPa'])} | "
@@ -267,10 +284,13 @@ def _source_notes(rows: list[dict]) -> list[str]:
     """Where the rows' dimensions come from: the rows taken from the table as given, with
     their sources, and what the scaled (not DIN) rows are."""
     notes = []
-    own = [r for r in rows if r["dimensions"].startswith("table row")]
-    if own:
-        notes.append("Rows from the table as given (not scaled): " + "; ".join(
-            f"No. {r['size']}: {r['source']}" for r in own) + ".")
+    own = {r["size"]: r["source"] for r in rows if r["dimensions"].startswith("table row")}
+    if own:  # each size once: a study's variants are several rows of one size
+        notes.append("Rows from the table (not scaled): " + "; ".join(
+            f"No. {size}: {source}" for size, source in own.items()) + ".")
+    if any(r["changed_dims"] for r in rows):
+        notes.append("Rows with *changed* dimensions differ from their size's table row in the "
+                     "dimensions named (mm); the formulas and the FE are of the changed part.")
     if any(not r["dimensions"].startswith("table row") for r in rows):
         notes.append(
             "Rows marked *scaled* are NOT DIN 15412 dimensions: every length of No. 05 times "

@@ -319,6 +319,27 @@ def test_summary_of_a_study_goes_beside_its_variants_not_among_them(tmp_path):
     assert (plain / "summary" / "summary.md").is_file()
 
 
+def test_summary_names_the_dimensions_a_row_changed_from_its_table_row(tmp_path):
+    """A study's variants of No. 05 with rf = 1 and 2 mm were both labelled "table row (see
+    source)", as if they were the table's No. 05 (rf 1.5 mm in geometry/sizes.csv), and the
+    table row's source was listed once per variant. Now the changed dimension is named with
+    the table's value; the unchanged row is not flagged; the source is listed once."""
+    from pipeline import summary
+    for key, rf in (("a1", 1.0), ("b2", 2.0), ("c3", TABLE["05"].dims.rf)):
+        _fake_results(tmp_path / "variants" / key, "05", 66.0, "converged")
+        f = tmp_path / "variants" / key / "results.json"
+        res = json.loads(f.read_text())
+        res["case"]["dims"] = dict(asdict(TABLE["05"].dims), rf=rf)
+        f.write_text(json.dumps(res))
+    assert summary.main([str(tmp_path / "variants"), "--all", "--out", str(tmp_path / "sum")]) == 0
+    md = (tmp_path / "sum" / "summary.md").read_text()
+    assert "changed: rf = 1 mm (table 1.5)" in md and "changed: rf = 2 mm (table 1.5)" in md
+    assert md.count("; changed:") == 2 and md.count(TABLE["05"].source) == 1
+    with open(tmp_path / "sum" / "summary.csv", newline="") as fh:
+        changed = sorted(r["changed_dims"] for r in csv.DictReader(fh))
+    assert changed == ["", "rf = 1 mm (table 1.5)", "rf = 2 mm (table 1.5)"]
+
+
 def test_summary_names_a_size_whose_analysis_failed(tmp_path):
     """make sizes' study writes a failed variant's reason beside the others' folders (its
     <key>.failed.json, as pipeline.sweep writes it); the summary left that size out without
