@@ -56,6 +56,8 @@ def plan(size: str | None, case_file: Path | None, base: dict, axes: dict[str, l
         tasks.append(Task(key=key, params=params, case=case, loads=qs, note=note))
     valid = [t.case for t in tasks if t.case is not None]
     if not valid:  # refused before the output folder is touched: nothing to analyse
+        if len({t.note for t in tasks}) == 1:  # not the variants: an input they all share is wrong
+            raise InputError(tasks[0].note)
         raise InputError(f"sweep: every variant is invalid; the first: {tasks[0].note}")
     check_error_bar_meshes(valid[0], levels, ratio)
     return tasks

@@ -262,6 +262,9 @@ CORPUS = [
     ("sweep-empty-item", ["sweep", "--size", "05", "--dim", "rf=1,,2"], None, ("dims.rf", "empty item")),
     ("sweep-dim-twice", ["sweep", "--size", "05", "--dim", "rf=1,2", "--dim", "rf=3,4"], None, ("dim", "rf given twice")),
     ("sweep-all-invalid", ["sweep", "--size", "05", "--dim", "rf=-1,-2"], None, ("every variant is invalid", "rf")),
+    # found 2026-11-26: an input every variant shares was blamed on the variants
+    ("sweep-shared-input-invalid", ["sweep", "--size", "05", "--dim", "rf=1,2", "--nu", "0.7"], None,
+     ("nu", "Poisson's ratio must lie in (-1, 0.5), got 0.7")),
     ("sweep-size-and-sizes", ["sweep", "--sizes", "05,1", "--size", "1.6"], None, ("--size", "--sizes", "not both")),
     ("study-size-and-sizes", ["sweep", "--sizes", "05,1", "--study", "{case}"],
      '[sweep]\nsize = "1.6"\ndims = { rf = "1,2" }\n', ("study file's size", "--sizes", "not both")),

@@ -387,3 +387,16 @@ def test_a_study_at_several_loads_counts_variants_and_cases_apart(tmp_path):
               "--levels", "1")
     assert "sweep: 2 variants at 2 loads each (1 valid, 1 invalid), 0 already done" in p.stdout, p.stdout
     assert "sweep: 4 cases (2 variants at 2 loads): 2 done, 2 invalid, 0 failed; " in p.stdout, p.stdout
+
+
+def test_an_input_every_variant_shares_is_named_as_it_is():
+    """E = -5 MPa makes every variant invalid for one reason, which is not the variants':
+    the line is the one a run gives ("E_MPa: must be > 0, got -5"), not "every variant is
+    invalid; the first: ...". Variants invalid for reasons of their own keep that line."""
+    from pipeline.study import plan
+    with pytest.raises(InputError) as shared:
+        plan("05", None, {"E_MPa": -5.0}, {"dims.rf": [1.0, 2.0]}, [], 3, 1.3)
+    assert str(shared.value) == "E_MPa: must be > 0, got -5"
+    with pytest.raises(InputError) as own:
+        plan("05", None, {}, {"dims.rf": [-1.0, -2.0]}, [], 3, 1.3)
+    assert str(own.value).startswith("sweep: every variant is invalid; the first: ")
