@@ -30,6 +30,7 @@ from .elasticity import (
     volume_measures,
 )
 from .errors import NumericalError
+from .interrupts import yield_to_stop
 from .pmultigrid import p_multigrid
 
 
@@ -204,6 +205,7 @@ def _krylov(system: _System, mat: Material, facet_tags, constraints: Sequence[Co
             for k in options:
                 del opts[prefix + k]
         uh = fem.Function(V, name="displacement_mm")
+        ksp.setMonitor(_let_threads_run)
         ksp.solve(b, uh.vector)
         uh.x.scatter_forward()
         reason, its = ksp.getConvergedReason(), ksp.getIterationNumber()
@@ -218,6 +220,21 @@ def _krylov(system: _System, mat: Material, facet_tags, constraints: Sequence[Co
         for obj in mg_parts:
             obj.destroy()
     return uh, reason, its, res_rel
+
+
+def _let_threads_run(ksp: PETSc.KSP, its: int, rnorm: float) -> None:
+    """A KSP monitor that lets this process's other Python threads run once per iteration.
+
+    Why: PETSc's solve holds the interpreter lock from start to end, so the stop watcher
+    (pipeline/interrupts.py) and the progress heartbeat waited for the whole solve: a
+    Ctrl-C during a long solve took effect only after it. Once a stop has begun, the solve
+    waits here for it to end the process: taking the lock back for a whole iteration each
+    time the watcher gave it up (at every file it removes) slowed the clean-up to seconds.
+    An iteration of a Krylov solver takes milliseconds or more; giving up the lock costs
+    microseconds (docs/decisions.md). A direct solve (MUMPS) has no iterations and still
+    holds it throughout."""
+    time.sleep(0)  # releases the interpreter lock, and takes it back after any waiting thread
+    yield_to_stop()
 
 
 def _check(uh: fem.Function, reason: int, its: int, res_rel: float, solver: str, rtol: float) -> None:
