@@ -7,7 +7,9 @@ Python handler runs only between bytecodes, and a run spends seconds inside C ca
 already left; an exception would then come late or never. The C-level signal handler
 writes the signal number to a wake-up pipe even while the main thread is blocked; the
 watcher reads it, runs the clean-ups registered with :func:`on_stop` (newest first),
-writes one line (rank 0) and ends the process with ``os._exit``.
+writes one line (rank 0) and ends the process with ``os._exit``. The watcher needs the
+interpreter lock, which gmsh gives up while it meshes; PETSc's Krylov solves hold it, so
+their monitor gives it up at every iteration (pipeline/solve.py).
 
 The main thread runs on while the watcher works. So the clean-ups run under the same
 lock as the blocks that must not be cut in two (:func:`signals_wait`: putting the
