@@ -1,7 +1,8 @@
 """A design study's inputs (mm, N): the axes of the grid (``START:STOP:COUNT`` or lists),
 study files (TOML, one ``[sweep]`` table), and the plan: one task per geometry and
-material, each at every load, keyed by a hash of all its resolved inputs so that a
-re-run recognises a finished task and re-runs one whose inputs changed. Invalid variants
+material, each at every load, keyed by a hash of all its resolved inputs and of the code
+that analyses it, so that a re-run recognises a finished task and re-runs one whose inputs
+or code changed. Invalid variants
 (rules of docs/design.md §2) are planned with the rule they break, never analysed.
 """
 from __future__ import annotations
@@ -137,7 +138,8 @@ def failure_file(out: Path, key: str) -> Path:
 
 def earlier_variants(out: Path, keys: set[str]) -> list[Path]:
     """The results in the study folder ``out`` of variants that are not among ``keys``:
-    what a run of the study with other inputs left (a variant's key hashes every input).
+    what a run of the study with other inputs or older code left (a variant's key hashes
+    both).
     Only what a variant writes is named: a folder with the results marker, or a
     ``<key>.failed.json``."""
     from .folders import MARKER

@@ -114,7 +114,7 @@ def check_variants_fit(tasks: list[Task], limit_gb: float | None, copies: int, s
 
 def remove_earlier_variants(out: Path, tasks: list[Task], say: Progress) -> None:
     """Remove the results of variants that this study does not have, once it has finished:
-    left by a run of it with other inputs, they would be read beside its own (a summary
+    left by a run of it with other inputs or older code, they would be read beside its own (a summary
     of ``variants/`` would list a size twice) and only take room. Until the study
     finishes they stay, so an interrupted re-run loses nothing."""
     gone = earlier_variants(out, {t.key for t in tasks})
@@ -124,8 +124,8 @@ def remove_earlier_variants(out: Path, tasks: list[Task], say: Progress) -> None
         else:
             p.unlink()
     if gone:
-        say(f"sweep: removed the results of {_count(len(gone), 'variant')} of earlier inputs "
-            f"that this study does not have")
+        say(f"sweep: removed the results of {_count(len(gone), 'variant')} that this study does not have "
+            f"(earlier inputs or code)")
 
 
 def execute_sweep(size: str | None, case_file: Path | None, base: dict, axes: dict[str, list[float]],

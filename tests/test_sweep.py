@@ -273,10 +273,10 @@ def test_only_results_of_other_variants_are_removed(tmp_path):
     said = []
     remove_earlier_variants(tmp_path, [Task("aaa", {}, None, (1.0,)), Task("ddd", {}, None, (1.0,))], said.append)
     assert sorted(p.name for p in v.iterdir()) == ["aaa", "ddd.failed.json", "notes.txt", "users"]
-    assert said == ["sweep: removed the results of 2 variants of earlier inputs that this study does not have"]
+    assert said == ["sweep: removed the results of 2 variants that this study does not have (earlier inputs or code)"]
     said.clear()
     remove_earlier_variants(tmp_path, [Task("aaa", {}, None, (1.0,))], said.append)
-    assert said == ["sweep: removed the results of 1 variant of earlier inputs that this study does not have"]
+    assert said == ["sweep: removed the results of 1 variant that this study does not have (earlier inputs or code)"]
 
 
 def test_small_sweep_contract_invalid_variant_and_resume(tmp_path):
@@ -312,7 +312,7 @@ def test_small_sweep_contract_invalid_variant_and_resume(tmp_path):
     assert "0 already done" in changed.stdout
     # The first run's two variants are gone once the study is done: only this study's remain
     # (a summary of variants/ listed both before).
-    assert "removed the results of 2 variants of earlier inputs" in changed.stdout
+    assert "removed the results of 2 variants that this study does not have" in changed.stdout
     keys = {r["variant"] for r in json.loads((out / "sweep.json").read_text())["rows"] if r["status"] == "done"}
     assert {p.name for p in (out / "variants").iterdir()} == keys and len(keys) == 2
 
