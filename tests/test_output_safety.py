@@ -267,8 +267,8 @@ def test_a_stop_during_a_solve_acts_before_the_solve_ends(tmp_path, earlier):
     """Ctrl-C as the first Krylov solve starts (tests/stop_while_solving.py): the stop's
     clean-ups run while that solve is still iterating (PETSc's reason 0), the solve never
     ends, and the earlier result stays. Before the fix PETSc's solve held the interpreter
-    lock to its end, so the stop waited for every solve it fell into (3.7-6.6 s at mesh
-    factor 0.6): its clean-ups found the solver already destroyed."""
+    lock to its end, so the stop waited for every solve it fell into (docs/decisions.md):
+    its clean-ups found the solver already destroyed."""
     out = fresh_copy(earlier, tmp_path / "res")
     before = snapshot(out)
     where = tmp_path / "where.txt"
