@@ -139,8 +139,7 @@ def failure_file(out: Path, key: str) -> Path:
 def earlier_variants(out: Path, keys: set[str]) -> list[Path]:
     """The results in the study folder ``out`` of variants that are not among ``keys``:
     what a run of the study with other inputs or older code left (a variant's key hashes
-    both).
-    Only what a variant writes is named: a folder with the results marker, or a
+    both). Only what a variant writes is named: a folder with the results marker, or a
     ``<key>.failed.json``."""
     from .folders import MARKER
     found = []

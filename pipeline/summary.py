@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import argparse
 import csv
+import functools
 import io
 import json
 import math
@@ -69,12 +70,18 @@ def _estimate(block: dict) -> tuple[float | None, str, float | None, float | Non
     return band, est["status"], ext, change
 
 
+@functools.cache
+def _table() -> dict:
+    """The size table (geometry/sizes.csv), read once per process."""
+    from geometry.table import load_table
+    return load_table()
+
+
 def changed_dims(case: dict) -> str:
     """The dimensions (mm) in which a run's case differs from its size's row of the table,
     as "rf = 2 mm (table 1.5)", comma-separated; '' when none does or the size is not in
     the table (a design study's variants are rows with changed dimensions)."""
-    from geometry.table import load_table
-    row = load_table().get(str(case.get("size")))
+    row = _table().get(str(case.get("size")))
     dims = case.get("dims")
     if row is None or not isinstance(dims, dict):
         return ""
@@ -148,10 +155,7 @@ def warnings_of(r: dict) -> list[str]:
 def collect(results_dir: Path, take_all: bool = False) -> tuple[list[dict], list[str]]:
     """Rows for every size folder with a results.json, sorted by hook number; and notes
     on folders that were skipped."""
-    sizes = None
-    if not take_all:
-        from geometry.table import load_table
-        sizes = set(load_table())
+    sizes = None if take_all else set(_table())
     rows, skipped, unnamed = [], [], []
     for sub in sorted(p for p in results_dir.iterdir() if p.is_dir()):
         f = sub / "results.json"
@@ -433,9 +437,9 @@ def default_out(results: Path) -> Path:
     """Where the summary of ``results`` goes without --out: ``<results>/summary``, except
     for a design study's ``variants/`` folder, whose sub-folders are the study's variants
     only: there it is ``summary/`` in the study's folder, beside ``variants/``."""
-    from .folders import MARKER, marked_kind
+    from .folders import marked_kind
     study = results.parent
-    if results.name == "variants" and (study / MARKER).is_file() and marked_kind(study) == "sweep":
+    if results.name == "variants" and marked_kind(study) == "sweep":
         return study / "summary"
     return results / "summary"
 

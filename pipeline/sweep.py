@@ -68,11 +68,11 @@ def run_task(task: Task, out: Path, levels: int, ratio: float) -> None:
                                "parameters": task.params}) + "\n")
 
 
-def work(tasks: list[Task], out: Path, levels: int, ratio: float, say: Progress) -> None:
-    """Every rank takes the next unclaimed, unfinished task until none is left."""
+def work(tasks: list[Task], out: Path, levels: int, ratio: float, say: Progress, before: int) -> None:
+    """Every rank takes the next unclaimed, unfinished task until none is left; ``before``
+    tasks had finished when the study started (the pace counts only this run's)."""
     todo = [t for t in tasks if t.case is not None]
     t0 = time.perf_counter()
-    before = sum(_done(out, t.key) for t in todo)
     for task in todo:
         if _done(out, task.key) or not _claim(out, task.key):
             continue
@@ -114,9 +114,9 @@ def check_variants_fit(tasks: list[Task], limit_gb: float | None, copies: int, s
 
 def remove_earlier_variants(out: Path, tasks: list[Task], say: Progress) -> None:
     """Remove the results of variants that this study does not have, once it has finished:
-    left by a run of it with other inputs or older code, they would be read beside its own (a summary
-    of ``variants/`` would list a size twice) and only take room. Until the study
-    finishes they stay, so an interrupted re-run loses nothing."""
+    left by a run of it with other inputs or older code, they would be read beside its own
+    (a summary of ``variants/`` would list a size twice) and only take room. Until the
+    study finishes they stay, so an interrupted re-run loses nothing."""
     gone = earlier_variants(out, {t.key for t in tasks})
     for p in gone:
         if p.is_dir():
@@ -164,14 +164,15 @@ def execute_sweep(size: str | None, case_file: Path | None, base: dict, axes: di
         raise error
     out = Path(out).expanduser().resolve()
     valid = sum(t.case is not None for t in tasks)
+    before = sum(_done(out, t.key) for t in tasks if t.case is not None)
     each = f" at {len(loads)} loads each" if len(loads) > 1 else ""
     say(f"sweep: {_count(len(tasks), 'variant')}{each} ({valid} valid, {len(tasks) - valid} invalid), "
-        f"{sum(_done(out, t.key) for t in tasks if t.case is not None)} already done, {comm.size} rank(s)")
+        f"{before} already done, {comm.size} rank(s)")
     with contextlib.ExitStack() as stack:
         if lock is not None:  # a stop ends the process with os._exit: the finally below never runs
             stack.enter_context(on_stop(lock.release))
         try:
-            work(tasks, out, levels, ratio, say)
+            work(tasks, out, levels, ratio, say, before)
             request = comm.Ibarrier()
             while not request.Test():
                 time.sleep(0.05)

@@ -14,17 +14,17 @@ from .errorbar import verdict_against
 from .report import pm
 from .study import Task, failure_file, variant_folder
 
-PEAKS = (("peak_MPa", "peak_band_MPa", "global peak"), ("critical_peak_MPa", "critical_band_MPa", "critical peak"))
 COLUMNS = ("variant", "status", "size", "load_N", "parameters", "peak_MPa", "peak_band_MPa", "critical_peak_MPa",
            "critical_band_MPa", "critical_section_nominal_MPa", "safety_factor", "critical_safety_factor",
            "verdict", "critical_verdict", "time_s", "note")
-# Each peak's row fields: value, band, verdict (pass, fail or undecided against the allowable).
-VERDICT_KEYS = (("peak_MPa", "peak_band_MPa", "verdict"), ("critical_peak_MPa", "critical_band_MPa", "critical_verdict"))
 # Each peak of results.json's fe block: its name and its row fields (value, band, safety
-# factor) and verdict field.
+# factor) and verdict field (pass, fail or undecided against the allowable).
 PEAK_FIELDS = {"peak": ("global peak", ("peak_MPa", "peak_band_MPa", "safety_factor"), "verdict"),
                "critical": ("critical peak", ("critical_peak_MPa", "critical_band_MPa", "critical_safety_factor"),
                             "critical_verdict")}
+# The same, per peak: (value, band, name) and (value, band, verdict) fields of a row.
+PEAKS = tuple((fields[0], fields[1], name) for name, fields, _ in PEAK_FIELDS.values())
+VERDICT_KEYS = tuple((fields[0], fields[1], verdict) for _, fields, verdict in PEAK_FIELDS.values())
 # The statuses of variants with no peak, as a study's plots name them.
 UNANALYSED = {"invalid": "invalid geometry, not analysed", "failed": "analysis failed"}
 
