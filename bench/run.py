@@ -52,15 +52,14 @@ from pathlib import Path  # noqa: E402
 
 from pipeline.choices import SOLVERS  # noqa: E402
 from pipeline.folders import refusal  # noqa: E402
+from pipeline.codekey import code_key, source_files  # noqa: E402
 from pipeline.jsonio import json_safe  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 OWN_FILES = frozenset({"bench.json", "bench.csv", "bench.png", "bench.md"})  # written into --out (bench.md: earlier versions)
 # The files that decide a reference study's numbers: the part, its mesh, the loads, the
 # solve, how peaks are read and how the study extrapolates.
-REFERENCE_INPUTS = ("geometry/part.py", "geometry/sizing.py", "geometry/curved.py", "pipeline/meshing.py",
-                    "pipeline/loads.py", "pipeline/solve.py", "pipeline/peaks.py", "pipeline/level.py",
-                    "pipeline/errorbar.py")
+REFERENCE_INPUTS = tuple(f.relative_to(ROOT).as_posix() for f in source_files(ROOT))
 DEFAULT_REFERENCE = Path("results/05-converge/results.json")
 FULL_FACTORS = (2.0, 1.5, 1.15, 0.9, 0.7)
 P3_FACTORS = (2.0, 1.5)
@@ -379,16 +378,9 @@ def _write_outputs(out: Path, meta: dict, ref: dict, rows: list[dict], summ: dic
 
 
 def source_fingerprint() -> str:
-    """Hash of the sources that decide the mesh and the solution (a bench needs them frozen)."""
-    import hashlib
-    h = hashlib.sha1()
-    files = sorted((ROOT / "geometry").glob("*.py")) + sorted((ROOT / "pipeline").glob("*.py")) + \
-        [ROOT / "geometry" / "sizes.csv"]
-    for f in files:
-        if f.exists():
-            h.update(f.name.encode())
-            h.update(f.read_bytes())
-    return h.hexdigest()[:16]
+    """The code key of the sources that decide the mesh and the solution (a bench needs them frozen)."""
+    code_key.cache_clear()
+    return code_key(ROOT)[:16]
 
 
 def _versions() -> dict:

@@ -24,10 +24,6 @@ from . import runcache
 from .case import Case
 from .level import Level
 from .peaks import NodalPeak, Peak
-from .solvecache import SOLVE_CODE
-
-# The code whose result an entry is, beyond the mesher's (in every runcache key).
-LEVEL_CODE = SOLVE_CODE + ("pipeline/level.py", "pipeline/features.py", "pipeline/levelcache.py")
 
 
 @dataclass
@@ -42,8 +38,7 @@ class Stored:
 def key(case: Case, spec) -> str:
     """The run-cache key of the case's results on the mesh of ``spec`` (a MeshSpec)."""
     return runcache.key("level", spec=spec, dims=case.dims, model=case.model, support=case.support,
-                        nu=case.nu, order=case.order, solver=case.solver, rtol=case.rtol,
-                        code=runcache.source_hash(LEVEL_CODE))
+                        nu=case.nu, order=case.order, solver=case.solver, rtol=case.rtol)
 
 
 def store(name: str, lv: Level, case: Case) -> None:

@@ -26,6 +26,7 @@ from pathlib import Path
 from typing import Any
 
 from .atomicfile import replacing
+from .codekey import code_key
 from .environment import CACHE_HOME
 
 ROOT = CACHE_HOME / "runs"
@@ -34,23 +35,10 @@ ROOT = CACHE_HOME / "runs"
 # less than a study of every size (about 150 entries, 0.6 GB), and its re-run at another
 # allowable found nothing left to reuse.
 MAX_BYTES = 2 * 1024 ** 3
-_CODE = ("geometry/part.py", "geometry/sizing.py", "geometry/curved.py", "geometry/meshspec.py", "geometry/places.py",
-         "pipeline/meshing.py", "pipeline/pilot.py", "pipeline/peaks.py")
 
 
 def enabled() -> bool:
     return os.environ.get("CROSSHEAD_NO_CACHE", "") in ("", "0")
-
-
-@functools.cache
-def source_hash(files: tuple[str, ...]) -> str:
-    """A hash of the source files (paths from the repository root) whose code makes an entry;
-    read once per process (its sources do not change while it runs)."""
-    repo = Path(__file__).resolve().parents[1]
-    h = hashlib.sha1()
-    for rel in files:
-        h.update((repo / rel).read_bytes())
-    return h.hexdigest()
 
 
 def key(kind: str, **parts: Any) -> str:
@@ -58,7 +46,7 @@ def key(kind: str, **parts: Any) -> str:
     def plain(v):
         return dataclasses.asdict(v) if dataclasses.is_dataclass(v) else v
     text = json.dumps({k: plain(v) for k, v in parts.items()}, sort_keys=True, default=str)
-    return f"{kind}-{hashlib.sha1((text + source_hash(_CODE)).encode()).hexdigest()[:20]}"
+    return f"{kind}-{hashlib.sha1((text + code_key()).encode()).hexdigest()[:20]}"
 
 
 def load(name: str) -> Any | None:

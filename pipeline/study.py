@@ -7,7 +7,6 @@ or code changed. Invalid variants
 """
 from __future__ import annotations
 
-import functools
 import hashlib
 import itertools
 import json
@@ -15,6 +14,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from .case import Case, check_error_bar_meshes, resolve
+from .codekey import code_key
 from .errors import InputError
 
 # A study file's [sweep] keys and their TOML types.
@@ -53,7 +53,7 @@ def plan(size: str | None, case_file: Path | None, base: dict, axes: dict[str, l
         except InputError as exc:
             case, qs, note = None, tuple(loads), " ".join(str(exc).split())
         ident = {"case": None if case is None else case.as_dict(), "loads": qs, "levels": levels,
-                 "ratio": ratio, "params": params, "code": analysis_code()}
+                 "ratio": ratio, "params": params, "code": code_key()}
         key = hashlib.sha1(json.dumps(ident, sort_keys=True, default=str).encode()).hexdigest()[:12]
         tasks.append(Task(key=key, params=params, case=case, loads=qs, note=note))
     valid = [t.case for t in tasks if t.case is not None]
@@ -112,18 +112,6 @@ def _array_as_list(values, name: str, path: Path):
     if values and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in values):
         return ",".join(repr(v) for v in values)
     raise InputError(f"{name}: expected an array of numbers in {path}, got {values!r}")
-
-
-@functools.cache
-def analysis_code(root: Path = Path(__file__).resolve().parents[1]) -> str:
-    """A hash of the code that analyses a variant and writes its results (every Python
-    file of pipeline/ and geometry/ under ``root``, the repository): part of a variant's
-    key, so that a study re-run after the code changed (an upgrade) analyses its variants
-    again instead of taking the older code's results as finished. Read once per process."""
-    h = hashlib.sha1()
-    for f in sorted(f for folder in ("pipeline", "geometry") for f in (root / folder).glob("*.py")):
-        h.update(f.relative_to(root).as_posix().encode() + b"\0" + f.read_bytes())
-    return h.hexdigest()
 
 
 def variant_folder(out: Path, key: str) -> Path:

@@ -7,7 +7,7 @@ next task that is neither finished nor claimed by creating ``.claims/<key>`` exc
 (atomic on a local or shared file system), so a slow variant holds only its own rank. A
 task is one geometry and material; the loads of the grid are solved once for it and
 scaled (linear elasticity, traction loads only). A task's key hashes every resolved input
-and the analysing code (study.analysis_code), so a re-run skips finished tasks and re-runs
+and the analysing code (codekey.code_key), so a re-run skips finished tasks and re-runs
 any whose inputs or code changed. Invalid variants
 (rules of docs/design.md §2) are reported and skipped; a failed variant is reported, not
 fatal. Results: ``sweep.csv``, ``sweep.json``, one plot per peak and swept parameter,

@@ -402,21 +402,12 @@ def test_an_input_every_variant_shares_is_named_as_it_is():
     assert str(own.value).startswith("sweep: every variant is invalid; the first: ")
 
 
-def test_a_variant_s_key_follows_the_code_that_analyses_it(tmp_path, monkeypatch):
-    """A re-run after the code changed took the older code's results as finished (the key
-    held the inputs only), so `make sizes` after an upgrade kept the old numbers. The key
-    now holds a hash of pipeline/ and geometry/: one changed byte there changes it."""
-    import shutil
+def test_a_variant_s_key_follows_the_code_that_analyses_it(monkeypatch):
+    """A variant's key holds the code key (pipeline.codekey): a study re-run under other
+    code analyses its variants again instead of taking the older code's results."""
     from pipeline import study
-    for folder in ("pipeline", "geometry"):
-        shutil.copytree(ROOT / folder, tmp_path / folder, ignore=shutil.ignore_patterns("__pycache__"))
-    before = study.analysis_code(tmp_path)
-    with open(tmp_path / "pipeline" / "solve.py", "a") as fh:
-        fh.write("\n# changed\n")
-    study.analysis_code.cache_clear()
-    assert study.analysis_code(tmp_path) != before
     keys = {}
     for code in ("old", "new"):
-        monkeypatch.setattr(study, "analysis_code", lambda code=code: code)
+        monkeypatch.setattr(study, "code_key", lambda code=code: code)
         keys[code] = [t.key for t in study.plan("05", None, {}, {"dims.rf": [1.0, 2.0]}, [], 3, 1.3)]
     assert not set(keys["old"]) & set(keys["new"])
