@@ -5,9 +5,9 @@
 SHELL := /bin/bash
 PY := .venv/bin/python
 SETUP := .venv/.setup-done
-# run and converge use every core (MPI ranks through pipeline.launch); RANKS=1 runs without MPI.
+# run and converge use every core (MPI ranks through pipeline.runtime.launch); RANKS=1 runs without MPI.
 RANKS ?= $(shell nproc 2>/dev/null || echo 1)
-RUN := $(if $(filter 1,$(RANKS)),$(PY) -m pipeline,$(PY) -m pipeline.launch $(RANKS))
+RUN := $(if $(filter 1,$(RANKS)),$(PY) -m pipeline,$(PY) -m pipeline.runtime.launch $(RANKS))
 SIZES := $(shell awk -F, '!/^\#/ && $$1 != "size" && NF > 1 {print $$1}' geometry/sizes.csv)
 
 .PHONY: run test converge bench bench-sweeps reference sizes setup clean clean-cache $(SIZES)
@@ -59,7 +59,7 @@ $(SIZES): $(SETUP)
 # skips finished sizes), then the batch summary in results/summary/.
 sizes: $(SETUP)
 	$(RUN) sweep --sizes all --out results/sizes
-	$(PY) -m pipeline.summary results/sizes/variants --all --out results/summary
+	$(PY) -m pipeline.study.summary results/sizes/variants --all --out results/summary
 
 # Removes the results folders crosshead wrote (those carrying its .crosshead-results marker),
 # staging folders and locks left by killed runs; names and keeps anything else in results/.

@@ -8,12 +8,12 @@ differ only in element formulation (quadrature) and linear solver.
   numbered 1..N; elements: ``mesh.geometry.dofmap`` reordered to the C3D10 node order
   (DOLFINx tetra10 → C3D10 is ``DOLFINX_TO_C3D10``; it equals gmsh's tetra10 order with
   the last two nodes swapped, docs/stack.md). Curved (isoparametric) mid-side nodes are kept.
-- Supports: the DOFs the pipeline's own Dirichlet conditions fix (pipeline.solve), as
+- Supports: the DOFs the pipeline's own Dirichlet conditions fix (pipeline.fe.solve), as
   node sets with ``*BOUNDARY``.
 - Loads: ``*CLOAD`` nodal forces equal to the consistent load vector DOLFINx assembles
   for the same tractions (P2 on P2 geometry: one vector DOF block per geometry node).
 - Output: ``*NODE PRINT`` of U to the .dat file, read back into a DOLFINx P2 function
-  so von Mises and its peaks come from pipeline.peaks, exactly as for the pipeline.
+  so von Mises and its peaks come from pipeline.post.peaks, exactly as for the pipeline.
 
 CalculiX reads every number from a field of at most 20 characters (docs/stack.md): floats are
 written with 12 significant digits (``%.12g``: at most 19 characters), every input line
@@ -37,10 +37,10 @@ from dolfinx.fem.petsc import assemble_vector
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from pipeline.loads import LoadCase
+from pipeline.fe.loads import LoadCase
 from pipeline.errors import NumericalError
-from pipeline.elasticity import Material
-from pipeline.assembly import dirichlet_bc
+from pipeline.fe.elasticity import Material
+from pipeline.fe.assembly import dirichlet_bc
 
 # Local node i of a C3D10 element is DOLFINx tetra10 node DOLFINX_TO_C3D10[i].
 # DOLFINx: vertices 0-3, then edges (2,3) (1,3) (1,2) (0,3) (0,2) (0,1).
@@ -293,7 +293,7 @@ def compare(case, factor: float, threads: int = 1, solver: str = "mumps",
     """
     from dataclasses import replace
 
-    from pipeline.level import peaks_of, set_up, solve_level
+    from pipeline.analysis.level import peaks_of, set_up, solve_level
 
     if case.order != 2:
         raise ValueError("the CalculiX comparison needs the P2 (C3D10) case")
@@ -325,7 +325,7 @@ def main(argv: list[str] | None = None) -> int:
     import argparse
     import json
 
-    from pipeline.case import resolve
+    from pipeline.inputs.case import resolve
     p = argparse.ArgumentParser(prog="python -m bench.calculix",
                                 description="Solve one mesh with DOLFINx P2 and CalculiX C3D10; compare peaks.")
     p.add_argument("--size", default="05")

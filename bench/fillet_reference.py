@@ -37,13 +37,13 @@ import time
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
-from pipeline.environment import configure  # noqa: E402
+from pipeline.runtime.environment import configure  # noqa: E402
 
-configure()  # before numpy, PETSc or DOLFINx load (pipeline/environment.py)
+configure()  # before numpy, PETSc or DOLFINx load (pipeline/runtime/environment.py)
 
 import numpy as np  # noqa: E402
 
-from pipeline.folders import refusal  # noqa: E402
+from pipeline.runtime.folders import refusal  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 OWN_FILES = frozenset({"points.jsonl", "reference.json"})  # what it writes into --out
@@ -56,7 +56,7 @@ BALL_RADIUS_MM = 2.5        # the refined ball around the hot spot (at rf = 0.06
 # P3's DOFs.
 H_BALLS_MM = (0.4, 0.3, 0.225, 0.17, 0.128)
 ORDERS_AT = {2: H_BALLS_MM, 3: H_BALLS_MM, 4: H_BALLS_MM[:3]}
-# Richardson's order below which three levels are not converging (as pipeline.errorbar's
+# Richardson's order below which three levels are not converging (as pipeline.post.errorbar's
 # P_SINGULAR): their limit is not used.
 MIN_ORDER = 0.5
 
@@ -98,7 +98,7 @@ def von_mises_tensor_field(u, mat):
     """The stress tensor (MPa) in DG(order−1): the space the pipeline's peaks come from."""
     from dolfinx import fem
 
-    from pipeline.elasticity import stress
+    from pipeline.fe.elasticity import stress
     mesh = u.function_space.mesh
     order = u.function_space.ufl_element().degree()
     T = fem.TensorFunctionSpace(mesh, ("DG", order - 1))
@@ -222,7 +222,7 @@ def fillet_gap(mesh, torus: Torus, d, centres: np.ndarray, radius: float) -> tup
 def study_case(size: str, dims: dict[str, float]):
     """The part the study measures: hook number ``size`` with dimensions ``dims`` (mm)
     overriding its table row, at its rated load."""
-    from pipeline.case import resolve
+    from pipeline.inputs.case import resolve
     return resolve(size=size, overrides={f"dims.{k}": v for k, v in dims.items()})
 
 
@@ -234,10 +234,10 @@ def run_point(order: int, h_ball: float, centres: tuple[tuple[float, float, floa
     from dolfinx import geometry
     from mpi4py import MPI
 
-    from pipeline.elasticity import Material
-    from pipeline.level import solve_level
-    from pipeline.meshing import make_mesh
-    from pipeline.peaks import peak
+    from pipeline.fe.elasticity import Material
+    from pipeline.analysis.level import solve_level
+    from pipeline.fe.meshing import make_mesh
+    from pipeline.post.peaks import peak
     comm = MPI.COMM_WORLD
     # P4 is beyond the orders a case offers (the check refuses it); the study sets it directly.
     case = replace(study_case(size, dims or {}), order=order, solver="pmg", rtol=1e-10)

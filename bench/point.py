@@ -12,7 +12,7 @@ import time
 
 T_START = time.perf_counter()
 
-from pipeline.environment import configure  # noqa: E402
+from pipeline.runtime.environment import configure  # noqa: E402
 
 configure()  # the pipeline's form cache and PETSc options in every point process
 
@@ -26,8 +26,8 @@ from pathlib import Path  # noqa: E402
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:  # for annotations only: a point imports its modules when it runs (timed)
-    from pipeline.case import Case
-    from pipeline.meshing import Mesher
+    from pipeline.inputs.case import Case
+    from pipeline.fe.meshing import Mesher
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -44,11 +44,11 @@ def run_point(spec: dict) -> dict | None:
     imports = _import_modules(spec["kind"])
     from mpi4py import MPI
 
-    from pipeline.case import resolve
-    from pipeline.meshing import Mesher
+    from pipeline.inputs.case import resolve
+    from pipeline.fe.meshing import Mesher
     comm = MPI.COMM_WORLD
     if comm.rank == 0:  # a bench stopped while compiling left a claim that would fail every point
-        from pipeline.formcache import jit_cache_dir, remove_interrupted
+        from pipeline.cache.forms import jit_cache_dir, remove_interrupted
         remove_interrupted(jit_cache_dir())
     order = int(spec.get("order", 2))
     case = resolve(spec.get("size", "05"),
@@ -73,8 +73,8 @@ def _import_modules(kind: str) -> float:
     the solver's); the time this takes (s), which the point reports apart from its stages
     as ``imports_s``."""
     t_imp = time.perf_counter()
-    solver = ("pipeline.level",) if kind == "dolfinx" else ("bench.calculix", "pipeline.level")
-    for name in ("mpi4py.MPI", "pipeline.case", "pipeline.meshing", "pipeline.pilot", *solver):
+    solver = ("pipeline.analysis.level",) if kind == "dolfinx" else ("bench.calculix", "pipeline.analysis.level")
+    for name in ("mpi4py.MPI", "pipeline.inputs.case", "pipeline.fe.meshing", "pipeline.analysis.pilot", *solver):
         importlib.import_module(name)
     return time.perf_counter() - t_imp
 
@@ -82,10 +82,10 @@ def _import_modules(kind: str) -> float:
 def _pilot_hotspots(spec: dict, case: Case, comm, mesher: Mesher) -> tuple[tuple, float | None]:
     """The places (mm) a run of the case refines the mesh at, and the time finding them
     took (s), when the spec asks for the pilot: the pilot's, or for the critical peak alone
-    the known bore edges (pipeline.pilot.refinement_places); else no places and None."""
+    the known bore edges (pipeline.analysis.pilot.refinement_places); else no places and None."""
     if not spec.get("pilot"):
         return (), None
-    from pipeline.pilot import refinement_places
+    from pipeline.analysis.pilot import refinement_places
     pl = refinement_places(case, comm=comm, mesher=mesher)
     return pl.hotspots, pl.time_s
 
@@ -94,7 +94,7 @@ def _solve_dolfinx(spec: dict, case: Case, comm, hotspots: tuple, mesher: Mesher
                    t0: float) -> tuple[float, dict[str, float], dict]:
     """Solve the point with the pipeline: its wall time since t0 (s), its stage times (s)
     and its result fields (size, iterations, both peaks in MPa and where they are, mm)."""
-    from pipeline.level import solve_level
+    from pipeline.analysis.level import solve_level
     lv = solve_level(case, spec["factor"], comm=comm, hotspots=hotspots, mesher=mesher)
     mesher.close()
     total = time.perf_counter() - t0
@@ -112,7 +112,7 @@ def _solve_calculix(spec: dict, case: Case, comm, hotspots: tuple, mesher: Meshe
     from its displacement as in the pipeline: wall time since t0 (s), stage times (s) and
     result fields (as :func:`_solve_dolfinx`'s, plus ccx's own peak memory, MiB)."""
     from bench.calculix import solve_ccx
-    from pipeline.level import peaks_of, set_up
+    from pipeline.analysis.level import peaks_of, set_up
     if comm.size != 1:
         raise SystemExit("CalculiX points run on one rank (use threads)")
     prob = set_up(case, spec["factor"], comm=comm, hotspots=hotspots, mesher=mesher)

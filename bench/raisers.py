@@ -1,5 +1,5 @@
 """Known stress raisers against the pilot: does refinement placed from the dimensions alone
-(pipeline.features.known_raisers) give the peaks and error bars of the pilot's places?
+(pipeline.post.features.known_raisers) give the peaks and error bars of the pilot's places?
 
     CROSSHEAD_NO_CACHE=1 mpirun -n 2 .venv/bin/python -m bench.raisers --sizes all
 
@@ -23,9 +23,9 @@ from mpi4py import MPI
 def analyse_both(size: str, comm, want: str = "both") -> dict:
     """Both analyses of one size for the peaks ``want`` asks for (the case's scene): peaks
     and bands (MPa), finest DOFs, places, wall time (s)."""
-    from pipeline.analysis import analyse, estimate_levels
-    from pipeline.case import resolve
-    from pipeline.pilot import known_places, pilot
+    from pipeline.analysis.analyse import analyse, estimate_levels
+    from pipeline.inputs.case import resolve
+    from pipeline.analysis.pilot import known_places, pilot
 
     case = resolve(size, overrides={"want": want})
     row: dict = {"size": size, "want": want}

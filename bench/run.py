@@ -36,7 +36,7 @@ import time
 
 T_START = time.perf_counter()
 
-from pipeline.environment import configure  # noqa: E402
+from pipeline.runtime.environment import configure  # noqa: E402
 
 configure()  # the pipeline's form cache and PETSc options in every bench process
 
@@ -50,10 +50,10 @@ import subprocess  # noqa: E402
 import sys  # noqa: E402
 from pathlib import Path  # noqa: E402
 
-from pipeline.choices import SOLVERS  # noqa: E402
-from pipeline.folders import refusal  # noqa: E402
-from pipeline.codekey import code_key, source_files  # noqa: E402
-from pipeline.jsonio import json_safe  # noqa: E402
+from pipeline.inputs.choices import SOLVERS  # noqa: E402
+from pipeline.runtime.folders import refusal  # noqa: E402
+from pipeline.cache.codekey import code_key, source_files  # noqa: E402
+from pipeline.output.jsonio import json_safe  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 OWN_FILES = frozenset({"bench.json", "bench.csv", "bench.png", "bench.md"})  # written into --out (bench.md: earlier versions)
@@ -123,7 +123,7 @@ def build_matrix(args) -> list[tuple[dict, int, int]]:
             for f in fs:
                 for s in args.solvers:
                     if order == 1 and s == "pmg" and "gamg" in args.solvers:
-                        continue  # the same solver for P1 (pipeline.solve)
+                        continue  # the same solver for P1 (pipeline.fe.solve)
                     pts.append(({"kind": "dolfinx", "order": order, "factor": f, "solver": s, "pilot": pl,
                                  "want": args.want}, 1, thr))
         if args.ccx:

@@ -27,7 +27,7 @@ import sys
 import time
 from pathlib import Path
 
-from pipeline.folders import MARKER, refusal
+from pipeline.runtime.folders import MARKER, refusal
 
 ROOT = Path(__file__).resolve().parents[1]
 GRID = ["--size", "05", "--dim", "rf=0.5:2.5:6", "--dim", "dj=16,17,18,19"]
@@ -42,8 +42,8 @@ OWN_FILES = frozenset({"sweeps.json", "work"})  # what it writes into --out
 
 
 def command(ranks: int, args: list[str], out: Path) -> list[str]:
-    """The sweep's command line on ``ranks`` MPI ranks (pipeline.launch for more than one)."""
-    head = [sys.executable, "-m", "pipeline"] if ranks == 1 else [sys.executable, "-m", "pipeline.launch", str(ranks)]
+    """The sweep's command line on ``ranks`` MPI ranks (pipeline.runtime.launch for more than one)."""
+    head = [sys.executable, "-m", "pipeline"] if ranks == 1 else [sys.executable, "-m", "pipeline.runtime.launch", str(ranks)]
     return head + ["sweep", *args, "--out", str(out), "--quiet"]
 
 

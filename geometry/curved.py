@@ -105,7 +105,7 @@ def _gmsh_tet10() -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | Non
     """The 10-node tets of the current gmsh mesh, or None when it has none: (node tags,
     the index of each tag into the node arrays, the tets as node indices (m×10, gmsh's
     order), node coordinates (n×3, a copy)). Lengths are gmsh's: mm of the part scaled to
-    h3 = 25 mm (pipeline/meshing.py, meshing_scale)."""
+    h3 = 25 mm (pipeline/fe/meshing.py, meshing_scale)."""
     _, conn = gmsh.model.mesh.getElementsByType(11)
     if len(conn) == 0:
         return None

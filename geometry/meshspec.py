@@ -67,5 +67,5 @@ def fillet_scale(d: Dimensions) -> float:
     (1 on the table's rows whose rf is that, exactly; 1 for a sharp corner, rf = 0).
 
     The refined places on the journal root (their ball radius here, their spacing and
-    rounding in pipeline.pilot) are those lengths × this ratio."""
+    rounding in pipeline.analysis.pilot) are those lengths × this ratio."""
     return d.rf / (RF_PER_H * d.h3) if d.rf > 0 else 1.0

@@ -147,7 +147,7 @@ def _seat(d: Dimensions, quarter: bool) -> list[tuple[int, int]]:
 
 
 def _constraint_points(d: Dimensions, quarter: bool) -> tuple[tuple[float, float, float], ...]:
-    """Points (mm) for the constraints that remove rigid-body motion (see pipeline.solve), at
+    """Points (mm) for the constraints that remove rigid-body motion (see pipeline.fe.solve), at
     the middles of the body's bottom edges: one for the quarter (on its plane x = 0), three
     for the full part."""
     a = d.b1 / 2

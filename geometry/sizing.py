@@ -75,7 +75,7 @@ def mesh(d: Dimensions, spec: MeshSpec) -> float:
     # DOLFINx's importer needs contiguous node tags.
     gmsh.model.mesh.renumberNodes()
     gmsh.model.mesh.renumberElements()
-    # Remove the size fields, so that the next mesh of this part (pipeline.meshing.Mesher)
+    # Remove the size fields, so that the next mesh of this part (pipeline.fe.meshing.Mesher)
     # starts from the state of a new session. They are 1..fmin: gmsh numbers a new field
     # after the largest, and there were none before this call (a new session, or the last
     # call removed its own).

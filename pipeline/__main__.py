@@ -2,7 +2,7 @@
 import signal
 import sys
 
-from pipeline.interrupts import stop_before_start
+from pipeline.runtime.interrupts import stop_before_start
 
 if __name__ == "__main__":
     # Until the run's own stop is set up (pipeline.cli.main), Ctrl-C or SIGTERM ends the

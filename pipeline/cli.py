@@ -18,18 +18,18 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:  # for annotations only: the commands import what they use when they run
-    from pipeline.case import Case
+    from pipeline.inputs.case import Case
 
 T_START = time.perf_counter()
 
-from pipeline.environment import configure  # noqa: E402
+from pipeline.runtime.environment import configure  # noqa: E402
 
-configure()  # before numpy, PETSc or DOLFINx load (pipeline/environment.py)
+configure()  # before numpy, PETSc or DOLFINx load (pipeline/runtime/environment.py)
 
 from geometry.table import is_scaled_row  # noqa: E402
-from pipeline.choices import MODELS, SOLVERS, SUPPORTS, WANTS  # noqa: E402
+from pipeline.inputs.choices import MODELS, SOLVERS, SUPPORTS, WANTS  # noqa: E402
 from pipeline.errors import OneLineParser, given_twice  # noqa: E402
-from pipeline.interrupts import (  # noqa: E402
+from pipeline.runtime.interrupts import (  # noqa: E402
     first_rank_by_environment, install as install_interrupts, new_command, stop_line, yield_to_stop)
 
 DESCRIPTION = """\
@@ -56,7 +56,7 @@ the earlier result in the output folder is left as it was
 
 
 def _number(text: str) -> float:
-    """An option's number; its range is checked with the case (pipeline/case.py), so that a
+    """An option's number; its range is checked with the case (pipeline/inputs/case.py), so that a
     case file's value and the option's are refused alike."""
     try:
         v = float(text)
@@ -75,9 +75,9 @@ def _gib(text: str) -> float:
 
 def _loads(text: str) -> list[float]:
     """--load: one value, a comma list (5000,10000) or a range START:STOP:COUNT, in N
-    (pipeline.valuelist, the grammar study files use too)."""
+    (pipeline.inputs.valuelist, the grammar study files use too)."""
     from pipeline.errors import InputError
-    from pipeline.valuelist import parse_loads
+    from pipeline.inputs.valuelist import parse_loads
     try:
         return parse_loads(text)
     except InputError as exc:
@@ -188,7 +188,7 @@ examples:
   python -m pipeline sweep --size 05 --dim rf=0.5:2.5:5            the fillet radius from 0.5 to 2.5 mm
   python -m pipeline sweep --size 05 --dim rf=1,2 --dim dj=16,18,20 a grid of six variants
   python -m pipeline sweep --study cases/sweep-rf.toml
-  python -m pipeline.launch 2 sweep --size 05 --dim rf=1:2:3         variants spread over 2 ranks
+  python -m pipeline.runtime.launch 2 sweep --size 05 --dim rf=1:2:3         variants spread over 2 ranks
 A re-run with the same --out skips the variants already finished.
 """
 
@@ -206,7 +206,7 @@ TWO_LEVELS = ("levels: 2 meshes give no error bar (the estimate needs 3) and cos
 
 def main(argv: list[str] | None = None, handle_signals: bool = False) -> int:
     """The command line; ``handle_signals`` (the program, not a test calling in) makes
-    Ctrl-C and SIGTERM stop a run cleanly with exit 130 / 143 (pipeline.interrupts)."""
+    Ctrl-C and SIGTERM stop a run cleanly with exit 130 / 143 (pipeline.runtime.interrupts)."""
     args = make_parser().parse_args(argv)
     if args.command is None:
         make_parser().print_help()
@@ -227,12 +227,12 @@ def _dispatch(args: argparse.Namespace) -> int:
     """Do the command; a failure becomes one line on stderr (rank 0) and its exit status:
     2 bad input or an output folder that cannot be written, 3 the computation failed.
     Under more than one MPI rank a failure on any rank ends the run on all of them
-    (pipeline.rankfailure)."""
+    (pipeline.runtime.rankfailure)."""
     from mpi4py import MPI
 
     from geometry.part import GeometryError
     from pipeline.errors import InputError, NumericalError
-    from pipeline.rankfailure import RankFailures
+    from pipeline.runtime.rankfailure import RankFailures
     rank0 = MPI.COMM_WORLD.rank == 0
     new_command()
     with RankFailures(MPI.COMM_WORLD) as failures:
@@ -265,7 +265,7 @@ def _run_or_converge(args: argparse.Namespace, rank0: bool, stack: contextlib.Ex
     if rank0:  # before any form is compiled; the other ranks wait for rank 0's compiles
         _guard_form_cache(stack)
     _check_memory(args, case, rank0)
-    from pipeline.outdir import check_out, default_out
+    from pipeline.runtime.outdir import check_out, default_out
     out = args.out if args.out is not None else default_out(
         case.name if args.command == "run" else f"{case.name}-converge")
     check_out(out)  # refused before any work; checked again under the lock
@@ -290,7 +290,7 @@ def _case_of(args: argparse.Namespace) -> tuple[Case, list[float]]:
     passes the same checks as the first; raises InputError otherwise."""
     from dataclasses import replace
 
-    from pipeline.case import check, resolve
+    from pipeline.inputs.case import check, resolve
     from pipeline.errors import InputError
     overrides = {k: getattr(args, k) for k in CASE_KEYS}
     overrides.update({f"dims.{k}": v for k, v in args.dim})
@@ -312,7 +312,7 @@ def _check_levels(args: argparse.Namespace, case: Case) -> None:
     coarsest error-bar mesh of a run, must pass the case's mesh checks too."""
     from dataclasses import replace
 
-    from pipeline.case import check, check_error_bar_meshes
+    from pipeline.inputs.case import check, check_error_bar_meshes
     from pipeline.errors import InputError
     if args.levels < 1 or args.levels > 8:
         raise InputError(f"levels: must lie in 1..8, got {args.levels}")
@@ -338,8 +338,8 @@ def _check_levels(args: argparse.Namespace, case: Case) -> None:
 def _guard_form_cache(stack: contextlib.ExitStack) -> None:
     """Rank 0, before any form is compiled: remove the form-cache claims that interrupted
     compiles left, and have this command remove its own if it is stopped (on ``stack``)."""
-    from pipeline.formcache import claims_since, jit_cache_dir, remove_interrupted
-    from pipeline.interrupts import on_stop
+    from pipeline.cache.forms import claims_since, jit_cache_dir, remove_interrupted
+    from pipeline.runtime.interrupts import on_stop
     cache, started = jit_cache_dir(), time.time()
     # A compile cut short by Ctrl-C leaves its claim, and every later run needing
     # that form would wait for it and time out: a stopped run removes its own.
@@ -351,7 +351,7 @@ def _guard_form_cache(stack: contextlib.ExitStack) -> None:
 def _check_memory(args: argparse.Namespace, case: Case, rank0: bool) -> None:
     """Refuse a command whose meshes would not fit in memory (--memory-limit, GiB; raises
     InputError), and warn that a large one's meshing alone may take minutes."""
-    from pipeline.resources import check_fits, factors_of
+    from pipeline.runtime.resources import check_fits, factors_of
     est = check_fits(case, factors_of(case, args.command, args.levels, args.ratio), args.memory_limit)
     if est is not None and est.tets > 3e5 and rank0 and not args.quiet:
         _progress(f"a large run: the finest mesh has about {est.tets:.1e} tets, {est.dofs:.1e} DOFs, "
@@ -378,12 +378,12 @@ def _announce(args: argparse.Namespace, case: Case, say: Callable[[str], None], 
 
 
 def _sweep(args, rank0: bool) -> int:
-    """The sweep command: a grid from --dim/--load (or a study file), then pipeline.sweep."""
+    """The sweep command: a grid from --dim/--load (or a study file), then pipeline.study.sweep."""
     from pipeline.errors import InputError
-    from pipeline.outdir import default_out
-    from pipeline.study import read_study
-    from pipeline.valuelist import MOST_DIM_VALUES, parse_loads, parse_values
-    from pipeline.sweep import execute_sweep
+    from pipeline.runtime.outdir import default_out
+    from pipeline.study.plan import read_study
+    from pipeline.inputs.valuelist import MOST_DIM_VALUES, parse_loads, parse_values
+    from pipeline.study.sweep import execute_sweep
     study = read_study(args.study) if args.study else {}
     size = args.size or study.get("size")
     case_file = args.case or (Path(study["case"]) if "case" in study else None)
@@ -431,7 +431,7 @@ def _sweep(args, rank0: bool) -> int:
     res = execute_sweep(size, case_file, base, axes, loads, out, levels, ratio, say, sizes=sizes,
                         memory_limit_gb=args.memory_limit)
     if rank0 and res is not None and not args.quiet:
-        from pipeline.sweepresults import passing_count
+        from pipeline.study.table import passing_count
         c = res["counts"]
         # With several loads a row is a case (a variant at one load), and the counts are of cases.
         n = sum(c.values())
@@ -465,7 +465,7 @@ def _summary(out: Path) -> None:
     memory: the lines say what the file says)."""
     import json
 
-    from pipeline.report import error_bar_text, feature_text, no_safety_factor_reason, pm
+    from pipeline.output.report import error_bar_text, feature_text, no_safety_factor_reason, pm
     res = json.loads((out / "results.json").read_text(encoding="utf-8"))
     fe = res["fe"]
     _print(f"global peak   {fe['peak']['value_MPa']:8.2f} MPa  {error_bar_text(fe['peak'])}  [{feature_text(fe['peak'])}]")

@@ -11,19 +11,19 @@ from pathlib import Path
 
 from mpi4py import MPI
 
-from .case import Case
-from .meshing import Mesher
-from .interrupts import on_stop
-from .outdir import staged_dir
-from .jsonio import write_json
-from .fields import write_fields as write_field_files
-from .report import write_report
-from .level import Level, Progress
-from .analysis import analyse
-from .results import build_results, load_sweep, sum_timings
-from .drawing import Picture, finish_picture, start_picture
-from .features import describe_location
-from .pilot import Pilot, refinement_places
+from pipeline.inputs.case import Case
+from pipeline.fe.meshing import Mesher
+from pipeline.runtime.interrupts import on_stop
+from pipeline.runtime.outdir import staged_dir
+from pipeline.output.jsonio import write_json
+from pipeline.output.fields import write_fields as write_field_files
+from pipeline.output.report import write_report
+from pipeline.analysis.level import Level, Progress
+from pipeline.analysis.analyse import analyse
+from pipeline.output.results import build_results, load_sweep, sum_timings
+from pipeline.output.drawing import Picture, finish_picture, start_picture
+from pipeline.post.features import describe_location
+from pipeline.analysis.pilot import Pilot, refinement_places
 
 
 def execute_run(case: Case, out_dir: Path, levels: int = 3, ratio: float = 1.3,
@@ -170,7 +170,7 @@ def execute_converge(case: Case, out_dir: Path, levels: int = 5, ratio: float = 
                 v = row["peak_MPa" if key == "peak" else "critical_peak_MPa"]
                 row[f"{key}_error_pct"] = None if ext is None else 100 * (v - ext) / ext
         if comm.rank == 0:
-            from .plots import convergence_plot
+            from pipeline.output.plots import convergence_plot
             if convergence_plot(stage / "convergence.png", conv, case):
                 conv["plot"] = "convergence.png"
         res["convergence"] = conv

@@ -8,7 +8,7 @@ if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
 
-from pipeline.environment import configure  # noqa: E402
+from pipeline.runtime.environment import configure  # noqa: E402
 
 configure()  # the same form cache, BLAS threads and PETSc options as the command line
 os.environ.setdefault("CROSSHEAD_NO_CACHE", "1")  # tests exercise the mesher and the pilot themselves

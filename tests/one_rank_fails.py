@@ -4,9 +4,9 @@ usage: mpirun -n 2 python tests/one_rank_fails.py RANK[:busy] ARGS...
 
 Rank RANK raises RuntimeError("injected ...") just before its first solve on the whole
 communicator, while the other ranks enter that solve's collectives: the failure the
-product must end cleanly on every rank (pipeline.rankfailure) instead of hanging. With
+product must end cleanly on every rank (pipeline.runtime.rankfailure) instead of hanging. With
 ":busy" rank 0 (healthy) instead spends minutes in one C call that holds Python's lock, so
-that its failure listener cannot run (the fallback of pipeline.rankfailure).
+that its failure listener cannot run (the fallback of pipeline.runtime.rankfailure).
 """
 from __future__ import annotations
 
@@ -17,12 +17,12 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from mpi4py import MPI
 
-import pipeline.level
+import pipeline.analysis.level
 from pipeline.cli import main
 
 FAILING_RANK = int(sys.argv[1].split(":")[0])
 BUSY = sys.argv[1].endswith(":busy")
-_solve_or_scale = pipeline.level.solve_or_scale
+_solve_or_scale = pipeline.analysis.level.solve_or_scale
 
 
 def failing_solve_or_scale(case, prob, reuse=True):
@@ -33,7 +33,7 @@ def failing_solve_or_scale(case, prob, reuse=True):
     return _solve_or_scale(case, prob, reuse)
 
 
-pipeline.level.solve_or_scale = failing_solve_or_scale
+pipeline.analysis.level.solve_or_scale = failing_solve_or_scale
 
 if __name__ == "__main__":
     sys.exit(main(sys.argv[2:], handle_signals=True))

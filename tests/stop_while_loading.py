@@ -2,9 +2,9 @@
 
 usage: python tests/stop_while_loading.py SIGNAL MODULE ARGS...
 
-Runs ``python -m MODULE ARGS`` (pipeline or pipeline.launch) and sends itself SIGNAL
+Runs ``python -m MODULE ARGS`` (pipeline or pipeline.runtime.launch) and sends itself SIGNAL
 (SIGINT or SIGTERM) just before pipeline.cli is imported: after the program has started
-and before the run's own stop is set up (pipeline.interrupts.install). Sending it at a
+and before the run's own stop is set up (pipeline.runtime.interrupts.install). Sending it at a
 chosen import, not after a delay, makes the moment the same on every machine.
 
 The product must then end with the signal's exit status (130, 143) and one line, no

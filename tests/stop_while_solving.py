@@ -3,7 +3,7 @@
 usage: python tests/stop_while_solving.py REPORT ARGS...
 
 The process sends itself SIGINT as its first Krylov solve starts. A clean-up registered
-with the stop (pipeline.interrupts.on_stop) writes to REPORT where that solve stood when
+with the stop (pipeline.runtime.interrupts.on_stop) writes to REPORT where that solve stood when
 the stop ran: ``reason R at iteration N`` with PETSc's converged reason (0 while it still
 iterates, > 0 once converged), or why it could not be read (the solver was already
 destroyed). The stop must act during the solve, not after it.
@@ -19,9 +19,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from petsc4py import PETSc
 
-import pipeline.solve
+import pipeline.fe.solve
 from pipeline.cli import main
-from pipeline.interrupts import on_stop
+from pipeline.runtime.interrupts import on_stop
 
 REPORT = Path(sys.argv[1])
 first: list[PETSc.KSP] = []
@@ -38,7 +38,7 @@ class _SignalledKSP(PETSc.KSP):
 
 
 class _PETSc:
-    """petsc4py's PETSc as pipeline.solve sees it, with the KSP above."""
+    """petsc4py's PETSc as pipeline.fe.solve sees it, with the KSP above."""
 
     KSP = _SignalledKSP
 
@@ -56,7 +56,7 @@ def report() -> None:
     REPORT.write_text(text + "\n")
 
 
-pipeline.solve.PETSc = _PETSc()
+pipeline.fe.solve.PETSc = _PETSc()
 
 if __name__ == "__main__":
     with on_stop(report):

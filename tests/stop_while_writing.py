@@ -3,7 +3,7 @@
 usage: python tests/stop_while_writing.py WHEN ARGS...
 
 The process sends itself SIGINT at a chosen moment of the output folder's last steps
-(pipeline.outdir.staged_dir), where a stop races with the main thread's own writing:
+(pipeline.runtime.outdir.staged_dir), where a stop races with the main thread's own writing:
 
 - ``writing``: when every file is in the staging folder (with EARLY_FILES more, so that
   removing it takes a while), and the main thread then goes on writing files into it for
@@ -23,15 +23,15 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-import pipeline.outdir
+import pipeline.runtime.outdir
 from pipeline.cli import main
 
 WHEN = sys.argv[1]
 OUT = Path(sys.argv[sys.argv.index("--out") + 1]).resolve()
 WRITE_FOR_S = 1.0
 EARLY_FILES = 3000
-_wait_for_ranks = pipeline.outdir.wait_for_ranks
-_publish = pipeline.outdir._publish
+_wait_for_ranks = pipeline.runtime.outdir.wait_for_ranks
+_publish = pipeline.runtime.outdir._publish
 
 
 def stop_while_writing(comm) -> None:
@@ -57,9 +57,9 @@ def stop_while_publishing(staging: Path, out: Path) -> None:
 
 
 if WHEN == "writing":
-    pipeline.outdir.wait_for_ranks = stop_while_writing
+    pipeline.runtime.outdir.wait_for_ranks = stop_while_writing
 elif WHEN == "publishing":
-    pipeline.outdir._publish = stop_while_publishing
+    pipeline.runtime.outdir._publish = stop_while_publishing
 else:
     raise SystemExit(f"WHEN: writing or publishing, not {WHEN!r}")
 

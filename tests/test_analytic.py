@@ -4,7 +4,7 @@ import math
 import pytest
 
 from geometry.table import lookup
-from pipeline import formulas
+from pipeline.post import formulas
 
 D05 = lookup("05").dims
 Q = 10_000.0

@@ -24,12 +24,12 @@ import pytest
 from hypothesis import HealthCheck, event, given, settings
 from hypothesis import strategies as st
 
-import pipeline.level
-import pipeline.solve
+import pipeline.analysis.level
+import pipeline.fe.solve
 import pipeline.commands
 from geometry.part import GeometryError
 from pipeline import cli as cli_main
-from pipeline.case import SCHEMA, Case, check, resolve
+from pipeline.inputs.case import SCHEMA, Case, check, resolve
 from pipeline.errors import InputError
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -336,7 +336,7 @@ def test_bad_input_subprocess(tmp_path, argv, toml, expect):
 
 
 def launch(*args: str) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "pipeline.launch", *map(str, args)], cwd=ROOT,
+    return subprocess.run([sys.executable, "-m", "pipeline.runtime.launch", *map(str, args)], cwd=ROOT,
                           capture_output=True, text=True, timeout=120)
 
 
@@ -382,7 +382,7 @@ def test_geometry_failure_exit_3(monkeypatch, no_stage_left):
 
     def fail(*a, **k):
         raise GeometryError("OpenCASCADE could not fuse the journal")
-    monkeypatch.setattr(pipeline.level, "make_mesh", fail)
+    monkeypatch.setattr(pipeline.analysis.level, "make_mesh", fail)
     code, _, err = call_main(["run", "--size", "05", "--levels", "1", "--quiet", "--out", out])
     assert code == 3 and "Traceback" not in err
     assert err.splitlines() == ["numerical failure: OpenCASCADE could not fuse the journal; nothing written"]
@@ -392,11 +392,11 @@ def test_geometry_failure_exit_3(monkeypatch, no_stage_left):
 def test_solver_not_converging_exit_3(monkeypatch, no_stage_left):
     """One real coarse mesh and solve, with CG stopped after one iteration."""
     out, check_clean = no_stage_left
-    real = pipeline.solve.solver_options
+    real = pipeline.fe.solve.solver_options
 
     def one_iteration(name, rtol):
         return dict(real(name, rtol), ksp_max_it=1)
-    monkeypatch.setattr(pipeline.solve, "solver_options", one_iteration)
+    monkeypatch.setattr(pipeline.fe.solve, "solver_options", one_iteration)
     code, _, err = call_main(["run", "--size", "05", "--mesh-factor", "2.5", "--levels", "1",
                               "--no-fields", "--quiet", "--out", out])
     assert code == 3, err
@@ -652,8 +652,8 @@ def test_byte_order_mark_is_accepted(tmp_path):
 def test_singular_peak_has_no_safety_factor():
     """results.safety_factors: a peak at a singular feature gets None and a note; others
     allowable / peak (arithmetic checked by hand: 80 / 40 = 2)."""
-    from pipeline.report import safety_text
-    from pipeline.results import safety_factors
+    from pipeline.output.report import safety_text
+    from pipeline.output.results import safety_factors
     sf = safety_factors(80.0, {"safety_factor": (812.0, {"singular_feature": "edge of the rigid patch"}),
                                "critical_safety_factor": (40.0, {})})
     assert sf["safety_factor"] is None and "singular" in sf["safety_factor_note"]
@@ -667,7 +667,7 @@ def test_verdict_pass_fail_undecided_and_capacity():
     margin +100 % and capacity 20 000 N (19 512-20 513 N from the band); 100 fails; 79 ± 2
     straddles 80 (undecided); a singular peak and a nominal stress without band (null,
     not 0: a band of zero would claim an exact value)."""
-    from pipeline.results import verdict
+    from pipeline.output.results import verdict
     v = verdict(80.0, 10_000.0, {"a": (40.0, {"error_estimate": {"band": 1.0}}),
                                  "b": (100.0, {}), "c": (79.0, {"error_estimate": {"band": 2.0}}),
                                  "s": (500.0, {"singular_feature": "edge of the rigid patch"}),
@@ -700,7 +700,7 @@ def test_rigid_support_run_gives_no_global_safety_factor(tmp_path):
 
 def test_zero_fillet_peak_is_named_the_journal_root():
     """rf = 0: a point on the journal root circle is named as the sharp corner it is."""
-    from pipeline.features import describe_location
+    from pipeline.post.features import describe_location
     case = resolve("05", None, {"dims.rf": 0.0})
     d = case.dims
     assert "journal root" in describe_location(case, (d.b1 / 2, 0.0, d.h3 / 2 - d.dj / 2))

@@ -3,7 +3,7 @@ and the targets' verdicts, on made-up wall times (s) whose answers are worked ou
 import pytest
 
 from bench.sweeps import STUDIES, command, remove_study, summarise
-from pipeline.outdir import MARKER
+from pipeline.runtime.outdir import MARKER
 
 
 def _runs(*walls):
@@ -24,7 +24,7 @@ def test_commands_use_the_launcher_for_two_ranks(tmp_path):
     one = command(*STUDIES["sizes-1"], tmp_path)
     two = command(*STUDIES["sizes-2"], tmp_path)
     assert one[1:3] == ["-m", "pipeline"] and "sweep" in one
-    assert two[1:4] == ["-m", "pipeline.launch", "2"] and two[-3:] == ["--out", str(tmp_path), "--quiet"]
+    assert two[1:4] == ["-m", "pipeline.runtime.launch", "2"] and two[-3:] == ["--out", str(tmp_path), "--quiet"]
 
 
 def test_only_a_sweep_folder_is_removed_between_repeats(tmp_path):

@@ -22,14 +22,14 @@ from dolfinx.fem.petsc import LinearProblem
 from mpi4py import MPI
 
 from bench.calculix import FIELD_MAX, LINE_MAX, fmt, read_dat_displacements, solve_ccx
-from pipeline.case import resolve
-from pipeline.loads import crosshead_loads
-from pipeline.meshing import make_mesh
-from pipeline.peaks import peak, von_mises
-from pipeline.features import critical_region
-from pipeline.elasticity import Material, strain, stress
-from pipeline.assembly import dirichlet_bc
-from pipeline.solve import solve
+from pipeline.inputs.case import resolve
+from pipeline.fe.loads import crosshead_loads
+from pipeline.fe.meshing import make_mesh
+from pipeline.post.peaks import peak, von_mises
+from pipeline.post.features import critical_region
+from pipeline.fe.elasticity import Material, strain, stress
+from pipeline.fe.assembly import dirichlet_bc
+from pipeline.fe.solve import solve
 
 ROOT = Path(__file__).resolve().parents[1]
 FACTOR = 2.0
@@ -226,10 +226,10 @@ def test_bench_ranks_at_targets_adds_the_default_solver_and_calculix_on_every_le
 def test_bench_want_critical_gives_both_kinds_the_known_places():
     """--want critical: every point, the pipeline's and CalculiX's, is made for the critical
     peak alone, so both mesh the known bore edges instead of a pilot's places (the run's
-    scene); the places are those of pipeline.features for No. 05. (Matrix and places only.)"""
+    scene); the places are those of pipeline.post.features for No. 05. (Matrix and places only.)"""
     from bench import run as bench
     from bench.point import _pilot_hotspots
-    from pipeline.case import resolve
+    from pipeline.inputs.case import resolve
     argv = ["--orders", "2", "--solvers", "pmg", "--factors", "4.0", "--ccx-solvers", "iterative",
             "--pilot", "on", "--want", "critical"]
     pts = bench.build_matrix(bench.make_parser().parse_args(argv))

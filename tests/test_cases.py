@@ -61,7 +61,7 @@ def test_a_peak_not_asked_for_is_not_judged_at_any_load(tmp_path):
     the meshes, which made it 'singular' (safety factor 'none (singular peak)', Kt 'the
     peak is singular') and its values were listed at every load. It is now not asked for:
     no value or band at any load, no singular verdict, no Kt; the critical peak keeps all."""
-    from pipeline.report import render_markdown
+    from pipeline.output.report import render_markdown
     res = run(ROOT / "cases" / "05.toml", tmp_path / "crit", "--mesh-factor", "3", "--want", "critical",
               "--load", "5000,10000")
     fe = res["fe"]
@@ -106,8 +106,8 @@ def test_want_critical_skips_the_fillet_and_keeps_the_critical_peak(tmp_path):
 @pytest.mark.parametrize("study", STUDIES, ids=[s.stem for s in STUDIES])
 def test_study_files_plan_a_grid(study):
     """A study file under cases/ names a valid base case and a grid with valid variants."""
-    from pipeline.study import plan, read_study
-    from pipeline.valuelist import MOST_DIM_VALUES, parse_values
+    from pipeline.study.plan import plan, read_study
+    from pipeline.inputs.valuelist import MOST_DIM_VALUES, parse_values
     s = read_study(study)
     axes = {f"dims.{k}": parse_values(str(v), k, MOST_DIM_VALUES) for k, v in s["dims"].items()}
     tasks = plan(s.get("size"), None, {"mesh_factor": s.get("mesh_factor", 1.0)}, axes, [], 3, 1.3)

@@ -108,11 +108,11 @@ def _tet_cube(n: int) -> tuple[np.ndarray, np.ndarray]:
 
 
 def test_picture_draws_the_outer_surface_only():
-    """pipeline.picture.boundary_surface on a cube of 5·n³ disconnected tets: the outer
+    """pipeline.output.picture.boundary_surface on a cube of 5·n³ disconnected tets: the outer
     surface of a cube split into tets has 2 triangles per face square, 12 n² in all,
     whatever the split; the triangles use original nodes (by index, so each keeps its own
     value). (numpy only: no VTK in this process, which cannot share one with DOLFINx.)"""
-    from pipeline.picture import boundary_surface
+    from pipeline.output.picture import boundary_surface
     n = 3
     pts, tets = _tet_cube(n)
     used, tri = boundary_surface(pts, tets)
@@ -124,11 +124,11 @@ def test_picture_draws_the_outer_surface_only():
 
 
 def test_picture_numbers_equal_positions_alike(monkeypatch):
-    """pipeline.picture._position_numbers gives equal positions one number and different
+    """pipeline.output.picture._position_numbers gives equal positions one number and different
     positions different numbers, as numpy's unique rows do, on 4 000 rows drawn from 300
     positions (with -0.0 beside 0.0); and still does when every position shares one sort
     key (weights zero), which must send it to its exact three-column sort."""
-    from pipeline import picture
+    from pipeline.output import picture
     rng = np.random.default_rng(5)
     positions = np.round(rng.normal(size=(300, 3)), 3)
     positions[:20, 1] = 0.0
@@ -144,11 +144,11 @@ def test_picture_numbers_equal_positions_alike(monkeypatch):
 
 
 def test_picture_colour_map_is_kept_as_matplotlib_made_it(tmp_path):
-    """pipeline.picture.turbo_rgba gives matplotlib's turbo at 256 points, whether it makes
+    """pipeline.output.picture.turbo_rgba gives matplotlib's turbo at 256 points, whether it makes
     the table (no file yet, or a damaged one) or reads the copy it kept."""
     from matplotlib import colormaps
 
-    from pipeline.picture import turbo_rgba
+    from pipeline.output.picture import turbo_rgba
     expected = colormaps["turbo"](np.linspace(0.0, 1.0, 256))
     table = tmp_path / "colours" / "turbo-256.npy"
     assert np.array_equal(turbo_rgba(table), expected) and table.exists()
@@ -159,11 +159,11 @@ def test_picture_colour_map_is_kept_as_matplotlib_made_it(tmp_path):
 
 
 def test_picture_marks_a_peak_only_where_the_camera_sees_it():
-    """pipeline.picture.seen_from / mark_places on the cube [-1.5, 1.5]³: from an eye on the
+    """pipeline.output.picture.seen_from / mark_places on the cube [-1.5, 1.5]³: from an eye on the
     −x side a node of the −x face is seen, one of the +x face is not (the cube is in the
     way); mirrored (a quarter drawn whole), the +x peak's image in x on the −x face is
     marked instead, and an eye on the +x side marks the peak itself."""
-    from pipeline.picture import boundary_surface, mark_places, seen_from
+    from pipeline.output.picture import boundary_surface, mark_places, seen_from
     pts, tets = _tet_cube(3)
     used, tri = boundary_surface(pts - 1.5, tets)
     surf = (pts - 1.5)[used]

@@ -1,8 +1,10 @@
-"""The one code key (pipeline.codekey) that every cache entry and study variant holds."""
+"""The one code key (pipeline.cache.codekey) that every cache entry and study variant holds."""
 import shutil
 from pathlib import Path
 
-from pipeline import codekey, runcache
+from pipeline.cache import codekey
+
+from pipeline.cache import runs as runcache
 
 ROOT = Path(__file__).resolve().parents[1]
 

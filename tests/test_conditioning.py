@@ -18,8 +18,8 @@ from pathlib import Path
 
 import pytest
 
-from pipeline.case import resolve
-from pipeline.level import solve_level
+from pipeline.inputs.case import resolve
+from pipeline.analysis.level import solve_level
 
 ROOT = Path(__file__).resolve().parents[1]
 FACTORS = (2.5, 1.8, 1.3)      # coarse to fine
@@ -31,7 +31,7 @@ def residual_limit(rtol: float) -> float:
     """What CG's stopping test promises for the true residual: it stops when the residual of
     its recurrence is below rtol·‖b‖ (unpreconditioned norm, zero initial guess), and the
     true residual drifts from the recurrence's by far less than 10× in double precision.
-    Not the pipeline's own acceptance limit (max(1000·rtol, 1e-6), pipeline/solve.py), which
+    Not the pipeline's own acceptance limit (max(1000·rtol, 1e-6), pipeline/fe/solve.py), which
     every returned solve meets by construction."""
     return 10 * rtol
 

@@ -3,11 +3,11 @@
 import numpy as np
 import pytest
 
-from pipeline.case import resolve
-from pipeline.errorbar import TWO_READINGS, estimate, observed_order, two_reading_estimate
-from pipeline.analysis import analyse
-from pipeline.results import build_results
-from pipeline.features import singular_feature
+from pipeline.inputs.case import resolve
+from pipeline.post.errorbar import TWO_READINGS, estimate, observed_order, two_reading_estimate
+from pipeline.analysis.analyse import analyse
+from pipeline.output.results import build_results
+from pipeline.post.features import singular_feature
 
 H = [1.0, 1.3, 1.69]
 
@@ -103,7 +103,7 @@ def test_two_readings_growing_without_limit_are_singular():
 
 def _levels(uppers, lowers, dofs, rule):
     from types import SimpleNamespace
-    from pipeline.peaks import NodalPeak, Peak
+    from pipeline.post.peaks import NodalPeak, Peak
     at = (0.0, 0.0, 0.0)
     return [SimpleNamespace(dofs=n, peak=NodalPeak(Peak(u, at), Peak(lo, at), rule))
             for u, lo, n in zip(uppers, lowers, dofs)]
@@ -112,8 +112,8 @@ def _levels(uppers, lowers, dofs, rule):
 def test_studies_of_four_meshes_fit_a_midpoint_by_both_readings():
     """estimate_levels: a midpoint over four meshes gets the two-reading fit (and at least
     its bracket); over three meshes, or read unaveraged, the values' own fit."""
-    from pipeline.analysis import estimate_levels
-    from pipeline.peaks import MIDPOINT, UNAVERAGED
+    from pipeline.analysis.analyse import estimate_levels
+    from pipeline.post.peaks import MIDPOINT, UNAVERAGED
     case = resolve("05")
     dofs = [int(round((1.0 / h) ** 3 * 1e5)) for h in H4]
     upper, lower = [113.8 + 0.9 * h ** 2 for h in H4], [113.8 - 0.5 * h ** 2 for h in H4]
@@ -206,8 +206,8 @@ def test_pilot_is_never_coarser_than_the_fillet():
     """run.pilot_factor: 2.2 × the case's mesh factor, capped where the pilot's fillet
     elements (0.25·rf × factor by default) would exceed rf, i.e. at 4, and never finer than
     the case's own mesh. No. 05: rf = 1.5 mm, fillet size 0.375 mm."""
-    from pipeline.case import resolve
-    from pipeline.pilot import pilot_factor
+    from pipeline.inputs.case import resolve
+    from pipeline.analysis.pilot import pilot_factor
     assert pilot_factor(resolve("05")) == pytest.approx(2.2)
     assert pilot_factor(resolve("05", overrides={"mesh_factor": 1.69})) == pytest.approx(1.69 * 2.2)
     assert pilot_factor(resolve("05", overrides={"mesh_factor": 2.5})) == pytest.approx(1.5 / 0.375)

@@ -1,4 +1,4 @@
-"""The process settings of pipeline/environment.py: what they set, and what they leave to
+"""The process settings of pipeline/runtime/environment.py: what they set, and what they leave to
 the user."""
 import os
 import subprocess
@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
-SHOW = "from pipeline.environment import configure; import os; configure(); print(os.environ.get('OMPI_MCA_pml'))"
+SHOW = "from pipeline.runtime.environment import configure; import os; configure(); print(os.environ.get('OMPI_MCA_pml'))"
 
 
 def pml_after_configure(**env: str) -> str:

@@ -1,11 +1,11 @@
-"""Places on the part (pipeline.features): the a-priori stress raisers lie on the surfaces
+"""Places on the part (pipeline.post.features): the a-priori stress raisers lie on the surfaces
 they name, checked against the fillet's torus and the bore's circle written out here."""
 import math
 
 import pytest
 
-from pipeline.case import resolve
-from pipeline.features import describe_location, known_raisers
+from pipeline.inputs.case import resolve
+from pipeline.post.features import describe_location, known_raisers
 
 
 @pytest.mark.parametrize("size", ["025", "05", "16"])
@@ -36,7 +36,7 @@ def test_known_places_follow_the_wanted_peaks_and_the_fillet():
 
 
 def test_inside_refinement_counts_the_mirror_images():
-    from pipeline.pilot import KNOWN, Pilot, inside_refinement
+    from pipeline.analysis.pilot import KNOWN, Pilot, inside_refinement
     pl = Pilot(factor=None, hotspots=((0.0, 10.5, 0.0),), time_s=0.0, source=KNOWN)
     assert inside_refinement((0.0, 10.5, 0.0), pl, 0.6)
     assert inside_refinement((-0.3, -10.2, 0.1), pl, 0.6)     # mirrored in x = 0 and y = 0: 0.5 mm away
@@ -47,8 +47,8 @@ def test_misplaced_known_places_fall_back_to_the_pilot():
     """Known places that miss the critical peak (here one place on the top face, far from
     both bore edges) make the analysis find the places by a pilot solve instead: the result
     is the pilot route's own, the same meshes and the same critical peak."""
-    from pipeline.analysis import analyse
-    from pipeline.pilot import KNOWN, PILOT, Pilot, pilot
+    from pipeline.analysis.analyse import analyse
+    from pipeline.analysis.pilot import KNOWN, PILOT, Pilot, pilot
     case = resolve("05", overrides={"want": "critical", "mesh_factor": 3.0})
     wrong = Pilot(factor=None, hotspots=((5.0, 20.0, 25.0),), time_s=0.0, source=KNOWN)
     levels, used = analyse(case, levels=1, pl=wrong)
@@ -59,13 +59,13 @@ def test_misplaced_known_places_fall_back_to_the_pilot():
 
 
 def test_bridged_places_leave_no_gap_on_the_crest():
-    """pipeline.pilot.bridged on No. 05's pilot places: between two fillet places 1.6 mm
+    """pipeline.analysis.pilot.bridged on No. 05's pilot places: between two fillet places 1.6 mm
     apart (balls of 0.6 mm) every point of the segment ends within 0.9 × 0.6 mm of a
     place (sampled at 201 points); two fillet places farther apart than the reach and two
     bore-edge places keep their gap; the given places are all kept."""
     import numpy as np
 
-    from pipeline.pilot import BRIDGE_COVER, bridged
+    from pipeline.analysis.pilot import BRIDGE_COVER, bridged
     d = resolve("05").dims
     a, b = (23.25, 5.75, 4.0), (23.25, 7.0, 5.0)          # on the journal root
     far = (23.25, 4.25, 3.25), (23.25, 8.0, 6.25)        # 4.8 mm apart
@@ -94,7 +94,7 @@ def test_the_pilot_refines_where_the_reference_puts_no_1_6s_fillet_peak():
     import numpy as np
 
     from geometry.places import at_journal_root
-    from pipeline.pilot import pilot
+    from pipeline.analysis.pilot import pilot
 
     case = resolve("1.6")
     d = case.dims

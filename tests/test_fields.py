@@ -1,4 +1,4 @@
-"""The ParaView files (pipeline/fields.py) read back against the solution they were
+"""The ParaView files (pipeline/output/fields.py) read back against the solution they were
 written from (mm, MPa): the displacement file's 10-node tets, their node order and the
 mirrored whole part."""
 from __future__ import annotations
@@ -10,9 +10,9 @@ from dolfinx import fem
 from dolfinx.mesh import CellType, create_box
 from mpi4py import MPI
 
-from pipeline.elasticity import Material
-from pipeline.fields import write_fields
-from pipeline.peaks import von_mises
+from pipeline.fe.elasticity import Material
+from pipeline.output.fields import write_fields
+from pipeline.post.peaks import von_mises
 
 
 def field(x: np.ndarray) -> np.ndarray:
@@ -51,12 +51,12 @@ def test_displacement_file_holds_the_p2_field(tmp_path, whole):
 
 @pytest.mark.parametrize("kind, k", [("tetra", 4), ("tetra10", 10)])
 def test_vtu_file_reads_back_in_vtk_and_meshio(tmp_path, kind, k):
-    """The raw-appended .vtu (pipeline/vtu.py) read by two independent readers, VTK's own
+    """The raw-appended .vtu (pipeline/output/vtu.py) read by two independent readers, VTK's own
     (what ParaView and the picture use) and meshio's, gives back every array bit for bit."""
     from vtkmodules.util.numpy_support import vtk_to_numpy
     from vtkmodules.vtkIOXML import vtkXMLUnstructuredGridReader
 
-    from pipeline.vtu import VTK_CELL_TYPES, write_vtu
+    from pipeline.output.vtu import VTK_CELL_TYPES, write_vtu
     rng = np.random.default_rng(7)
     points = rng.normal(size=(40, 3)) * 25.0
     cells = rng.integers(0, 40, size=(9, k))
@@ -82,7 +82,7 @@ def test_vtu_file_reads_back_in_vtk_and_meshio(tmp_path, kind, k):
 
 
 def test_vtu_writer_refuses_a_mismatched_array(tmp_path):
-    from pipeline.vtu import write_vtu
+    from pipeline.output.vtu import write_vtu
     with pytest.raises(ValueError, match="von_mises_MPa"):
         write_vtu(tmp_path / "bad.vtu", np.zeros((4, 3)), np.array([[0, 1, 2, 3]]), "tetra",
                   {"von_mises_MPa": np.zeros(3)})

@@ -8,7 +8,7 @@ import pytest
 
 from bench.fillet_reference import (BALL_RADIUS_MM, H_BALLS_MM, Torus, _parse_centres, _scale, _scaled,
                                     fillet_torus, near, reference_value, richardson)
-from pipeline.case import resolve
+from pipeline.inputs.case import resolve
 
 
 def test_surface_points_are_on_the_torus_and_tangent_to_the_neighbours():

@@ -1,7 +1,7 @@
-"""pipeline.formcache: interrupted form compiles are cleaned up, nothing else is touched."""
+"""pipeline.cache.forms: interrupted form compiles are cleaned up, nothing else is touched."""
 import os
 
-from pipeline.formcache import STALE_AFTER_S, remove_interrupted
+from pipeline.cache.forms import STALE_AFTER_S, remove_interrupted
 
 
 def _touch(path, age_s, now):

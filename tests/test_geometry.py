@@ -99,7 +99,7 @@ def test_mesher_meshes_like_a_new_session():
     import numpy as np
 
     from geometry.meshspec import MeshSpec
-    from pipeline.meshing import Mesher, generate
+    from pipeline.fe.meshing import Mesher, generate
     d = lookup("05").dims
     places = ((0.0, 10.5, 0.0), (23.25, 8.0, 6.25))           # as a pilot finds them (mm)
     specs = [MeshSpec.default_for(d, 4.0), replace(MeshSpec.default_for(d, 4.0), hotspots=places),
@@ -122,7 +122,7 @@ def _tets_near_places(rf: float):
     import numpy as np
 
     from geometry.meshspec import MeshSpec
-    from pipeline.meshing import generate
+    from pipeline.fe.meshing import generate
     d = with_overrides(lookup("05").dims, rf=rf)
     s = rf * (1 - math.sqrt(0.5))
     bore, fillet = (0.0, d.d2 / 2, 0.0), (d.b1 / 2 + s, 0.0, d.h3 / 2 - d.dj / 2 - s)

@@ -23,9 +23,9 @@ import time
 import pytest
 
 from geometry.part import GeometryError
-from pipeline.case import resolve
+from pipeline.inputs.case import resolve
 from pipeline.errors import InputError, NumericalError
-from pipeline.level import solve_level
+from pipeline.analysis.level import solve_level
 
 FACTOR = 2.5
 MAX_ITERATIONS = 200      # a cap far above the default solver's (CG + p-multigrid) ~25-40 on sound meshes; 1000 is the solver's own

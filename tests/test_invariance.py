@@ -31,9 +31,9 @@ import numpy as np
 import pytest
 
 from geometry.table import lookup
-from pipeline.case import resolve
-from pipeline.analysis import estimate_levels
-from pipeline.level import solve_level
+from pipeline.inputs.case import resolve
+from pipeline.analysis.analyse import estimate_levels
+from pipeline.analysis.level import solve_level
 
 ROOT = Path(__file__).resolve().parents[1]
 FACTOR = 2.0              # coarse mesh for every solve in this file
@@ -123,7 +123,7 @@ def test_quarter_and_full_model_agree_within_discretisation_error(base):
     123 MPa (5 %), converging together, so it is mesh error, not a model difference. Its
     three-mesh estimate at these factors is "oscillatory", no usable error bar.
     """
-    from pipeline.features import known_raisers
+    from pipeline.post.features import known_raisers
     bore = known_raisers(case(want="critical"))     # the two bore edges in x = 0 (quarter coordinates)
     levels = [solve_level(case(), FACTOR * RATIO ** k, hotspots=bore) for k in (0, 1, 2)]
     full = solve_level(case(model="full"), FACTOR, hotspots=bore)
@@ -201,7 +201,7 @@ def test_one_and_two_mpi_ranks_agree(tmp_path):
 
     The partition changes the order of floating-point sums and GAMG's aggregates (so the
     iterates), not the converged answer; stresses are sampled in a DG space (no averaging
-    across the partition) and peak ties are broken by coordinates (pipeline.peaks.peak).
+    across the partition) and peak ties are broken by coordinates (pipeline.post.peaks.peak).
     On 2 ranks the two coarser meshes are made by rank 1 while rank 0 makes the finest
     (meshing.make_meshes): a mesh must not depend on the rank that made it.
     """
@@ -212,7 +212,7 @@ def test_one_and_two_mpi_ranks_agree(tmp_path):
     assert len(one["levels"]) == 3
     for a, b in zip(one["levels"], two["levels"], strict=True):
         assert (a["dofs"], a["cells"]) == (b["dofs"], b["cells"]), (a, b)
-        # The averaged readings sum cells over both ranks (pipeline.peaks.averaged_von_mises).
+        # The averaged readings sum cells over both ranks (pipeline.post.peaks.averaged_von_mises).
         for key in ("peak_MPa", "critical_peak_MPa", "peak_averaged_MPa", "critical_averaged_MPa"):
             assert rel(b[key], a[key]) <= TOL, f"mesh x{a['mesh_factor']:.3g} {key}: {b[key]} vs {a[key]}"
     for key in ("peak_MPa", "critical_peak_MPa"):

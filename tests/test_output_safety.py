@@ -3,7 +3,7 @@
 - ``--out`` never replaces a folder the tool did not write: a user's folder, the working
   folder, the repository, ``/``, the home folder, mount points (symlinks judged by target);
 - Ctrl-C and SIGTERM end a run with exit 130 / 143 and one line, leave no staging folder and
-  leave the earlier result as it was, with one process and under MPI (pipeline.launch);
+  leave the earlier result as it was, with one process and under MPI (pipeline.runtime.launch);
 - a staging folder left by a killed run is removed by the next run to the same folder;
 - a second run to a folder that is being written stops with exit 2 naming the other run;
 - a closed stdout does not lose the result; a full disk is exit 2 with nothing written;
@@ -157,7 +157,7 @@ def test_an_empty_folder_and_our_own_results_are_replaced(tmp_path, earlier):
 
 def start(args: list[str], launcher_ranks: int | None = None) -> subprocess.Popen:
     cmd = [PY, "-m", "pipeline", *map(str, args)] if launcher_ranks is None else \
-        [PY, "-m", "pipeline.launch", str(launcher_ranks), *map(str, args)]
+        [PY, "-m", "pipeline.runtime.launch", str(launcher_ranks), *map(str, args)]
     return subprocess.Popen(cmd, cwd=ROOT, env=ENV, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                             text=True)
 
@@ -189,7 +189,7 @@ def test_signal_mid_run_cleans_up_and_keeps_the_earlier_result(tmp_path, earlier
 
 
 @pytest.mark.parametrize("sig,code,word", [("SIGINT", 130, "interrupted"), ("SIGTERM", 143, "terminated")])
-@pytest.mark.parametrize("module,args", [("pipeline", []), ("pipeline.launch", ["2"])])
+@pytest.mark.parametrize("module,args", [("pipeline", []), ("pipeline.runtime.launch", ["2"])])
 def test_a_stop_while_the_program_loads_says_so_in_one_line(tmp_path, sig, code, word, module, args):
     """Ctrl-C before the run's own stop was set up printed Python's traceback (SIGTERM
     ended the process without a line); now either ends it with its status and one line."""
@@ -377,7 +377,7 @@ def one_rank_fails(out: Path, how: str) -> tuple[subprocess.CompletedProcess, fl
 @pytest.mark.parametrize("failing_rank", [0, 1])
 def test_a_failure_on_one_rank_ends_every_rank_with_one_line(tmp_path, earlier, failing_rank):
     """One rank raises before a solve that the other has entered (tests/one_rank_fails.py).
-    Before pipeline.rankfailure the other rank waited in the solve's collectives for ever;
+    Before pipeline.runtime.rankfailure the other rank waited in the solve's collectives for ever;
     now the run ends within seconds, exit 3, one line naming the failure, the earlier
     result as it was and nothing left beside it."""
     out = fresh_copy(earlier, tmp_path / "res")
@@ -396,7 +396,7 @@ def test_a_failure_while_rank_0_cannot_listen_still_ends_the_run(tmp_path, earli
     cannot take the line: after HAND_OVER_WAIT_S rank 1 writes it and ends, mpirun ends
     rank 0 (exit 3, one line, the earlier result as it was), and the staging folder rank 0
     could not remove is removed by the next run to the same folder."""
-    from pipeline.rankfailure import HAND_OVER_WAIT_S, SAME_FAILURE_WAIT_S
+    from pipeline.runtime.rankfailure import HAND_OVER_WAIT_S, SAME_FAILURE_WAIT_S
     out = fresh_copy(earlier, tmp_path / "res")
     before = snapshot(out)
     proc, seconds = one_rank_fails(out, "1:busy")

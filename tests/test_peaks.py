@@ -1,5 +1,5 @@
-"""The two nodal readings of a peak (pipeline/peaks.py) and the error bar of their midpoint
-(pipeline/errorbar.py), against closed forms (mm, MPa).
+"""The two nodal readings of a peak (pipeline/post/peaks.py) and the error bar of their midpoint
+(pipeline/post/errorbar.py), against closed forms (mm, MPa).
 
 A quadratic displacement has a linear stress field, which P2 (and P3) reproduce exactly in
 every element: the unaveraged and the averaged nodal stresses then both equal the closed
@@ -14,9 +14,9 @@ from dolfinx import fem
 from dolfinx.mesh import CellType, create_box
 from mpi4py import MPI
 
-import pipeline.elasticity as pe
-import pipeline.peaks as pp
-from pipeline.errorbar import Estimate, with_bracket
+import pipeline.fe.elasticity as pe
+import pipeline.post.peaks as pp
+from pipeline.post.errorbar import Estimate, with_bracket
 
 MAT = pe.Material(E=210_000.0, nu=0.3)
 MU, LAM = MAT.lame

@@ -34,11 +34,11 @@ numbers with the date.
 """
 import pytest
 
-from pipeline import formulas
-from pipeline.analysis import analyse, estimate_levels
-from pipeline.case import resolve
-from pipeline.pilot import pilot
-from pipeline.level import solve_level
+from pipeline.post import formulas
+from pipeline.analysis.analyse import analyse, estimate_levels
+from pipeline.inputs.case import resolve
+from pipeline.analysis.pilot import pilot
+from pipeline.analysis.level import solve_level
 
 GLOBAL_LIMIT = 113.82                    # make reference (docs/fillet-reference.md)
 GLOBAL_BAND = 0.01 * GLOBAL_LIMIT

@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from pipeline.mirror import mirror_quarter
+from pipeline.output.mirror import mirror_quarter
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -112,8 +112,8 @@ def test_published_values_only_for_their_row(run_folder, tmp_path):
 def test_load_arrows_point_where_the_loads_act():
     """Seat arrows point down onto the top face on the seat's mean radius; support arrows
     point up at the journals' underside; the quarter shows its own share of them."""
-    from pipeline.case import resolve
-    from pipeline.picture import load_arrows
+    from pipeline.inputs.case import resolve
+    from pipeline.output.picture import load_arrows
     d = resolve("05").as_dict()["dims"]
     whole, quarter = load_arrows(d, 10_000.0, True), load_arrows(d, 10_000.0, False)
     assert [c for *_, c in whole].count("red") == 8 and [c for *_, c in whole].count("green") == 2
@@ -131,7 +131,7 @@ def test_load_arrows_point_where_the_loads_act():
 def test_verdict_capacities_follow_linearity_and_the_lowest_is_named(run_folder):
     """Each row's capacity is the hook load at which that stress reaches the allowable:
     Q·allowable/σ (linear elasticity, loads only); the report names the row with the lowest."""
-    from pipeline.report import VERDICT_NAMES
+    from pipeline.output.report import VERDICT_NAMES
     res = json.loads((run_folder / "results.json").read_text())
     q, allow = res["case"]["load_N"], res["case"]["allowable_MPa"]
     rows = {k: r for k, r in res["fe"]["verdict"].items() if r["verdict"] != "none"}
@@ -145,7 +145,7 @@ def test_verdict_capacities_follow_linearity_and_the_lowest_is_named(run_folder)
 def test_report_flags_scaled_rows_and_singular_peaks(run_folder):
     """A scaled row of the size table is said to be no DIN value at the top; a singular global
     peak gets no Kt and names its singular feature where the peak is listed."""
-    from pipeline.report import render_markdown
+    from pipeline.output.report import render_markdown
     res = json.loads((run_folder / "results.json").read_text())
     plain = render_markdown(res)
     assert "not DIN 15412 values" not in plain and "singular:" not in plain
@@ -176,7 +176,7 @@ def test_convergence_plot_shows_both_readings_the_error_bar_and_only_a_real_limi
     and none for a settled peak (its 'limit' is the finest value itself)."""
     import matplotlib.pyplot as plt
 
-    from pipeline.plots import convergence_figure
+    from pipeline.output.plots import convergence_figure
     fig = convergence_figure(_study(status, [100.0, 101.0, 102.0], None if status == "unsettled" else 99.0, 0.5),
                              "05")
     glob, crit = ([t.get_text() for t in ax.get_legend().get_texts()] for ax in fig.axes)
@@ -195,8 +195,8 @@ def test_a_peak_not_asked_for_gets_no_band_or_limit_in_the_convergence_study():
     line says it is not resolved; the critical peak keeps its band and limit."""
     import matplotlib.pyplot as plt
 
-    from pipeline.plots import convergence_figure
-    from pipeline.report import convergence_table
+    from pipeline.output.plots import convergence_figure
+    from pipeline.output.report import convergence_table
     conv = _study("scattered", [100.0, 101.0, 102.0], 99.0, 0.5)
     conv["not_wanted"] = {"peak": "want = critical: the run did not refine for the global peak"}
     conv["critical"]["gci_fine"] = 1e-3

@@ -1,4 +1,4 @@
-"""The memory estimate made before meshing (pipeline/resources.py) against real meshes,
+"""The memory estimate made before meshing (pipeline/runtime/resources.py) against real meshes,
 and the refusal of runs that cannot fit (exit 2 before any meshing)."""
 from __future__ import annotations
 
@@ -10,9 +10,9 @@ from pathlib import Path
 
 import pytest
 
-from pipeline.case import resolve
-from pipeline.meshing import Mesher
-from pipeline.resources import REFINED_PLACES, estimate, needs_probe, probe
+from pipeline.inputs.case import resolve
+from pipeline.fe.meshing import Mesher
+from pipeline.runtime.resources import REFINED_PLACES, estimate, needs_probe, probe
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -56,7 +56,7 @@ def test_runs_that_cannot_fit_are_refused_before_meshing(tmp_path, args):
 
 def test_meshing_heartbeat_says_it_is_still_working():
     """gmsh gives no progress while it meshes: a heartbeat line every interval, none after."""
-    from pipeline.meshing import heartbeat
+    from pipeline.fe.meshing import heartbeat
     lines: list[str] = []
     with heartbeat(lines.append, "meshing ×0.5", every_s=0.1):
         time.sleep(0.35)
@@ -84,7 +84,7 @@ def _tree(tmp_path: Path, cgroup: str, files: dict[str, str]) -> tuple[Path, Pat
 def test_a_slurm_job_s_memory_limit_is_found_above_its_task(tmp_path):
     """cgroup v2 as Slurm sets it: --mem on the job's level (4 GiB, 1 GiB used), none on
     the task's: 3 GiB left, however much the node has free."""
-    from pipeline.resources import cgroup_room_bytes
+    from pipeline.runtime.resources import cgroup_room_bytes
     proc, root = _tree(tmp_path, "0::/job_7/step_0/task_0", {
         "job_7/memory.max": str(int(4 * GIB)), "job_7/memory.current": str(int(GIB)),
         "job_7/step_0/task_0/memory.max": "max", "job_7/step_0/task_0/memory.current": str(int(0.5 * GIB))})
@@ -95,7 +95,7 @@ def test_a_container_s_limit_is_read_at_its_own_root_and_no_limit_is_none(tmp_pa
     """cgroup v1 in a container: the group named in /proc/self/cgroup is not in the
     container's view of the tree, whose root is its own group (2 GiB, 0.5 used). A limit
     of 2^63 (v1's 'none') is no limit; nothing readable is no limit either."""
-    from pipeline.resources import cgroup_room_bytes
+    from pipeline.runtime.resources import cgroup_room_bytes
     proc, root = _tree(tmp_path, "4:memory:/docker/abc", {
         "memory/memory.limit_in_bytes": str(int(2 * GIB)), "memory/memory.usage_in_bytes": str(int(0.5 * GIB))})
     assert cgroup_room_bytes(proc, root) == pytest.approx(1.5 * GIB)

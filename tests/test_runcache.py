@@ -1,5 +1,5 @@
-"""Reusing meshes, pilot places and solutions between runs (pipeline/runcache.py,
-pipeline/solvecache.py): a run that changes only the load or E reuses all three, and its
+"""Reusing meshes, pilot places and solutions between runs (pipeline/cache/runs.py,
+pipeline/cache/solutions.py): a run that changes only the load or E reuses all three, and its
 stresses equal those of a new solve at that load and E with the cache off (an independent
 check of the scaling); what shapes the field changes the key."""
 from __future__ import annotations
@@ -8,8 +8,8 @@ from dataclasses import replace
 
 import pytest
 
-import pipeline.runcache as rc
-from pipeline.case import resolve
+import pipeline.cache.runs as rc
+from pipeline.inputs.case import resolve
 from pipeline.commands import execute_run
 
 
@@ -25,7 +25,7 @@ def test_a_load_change_reuses_mesh_pilot_and_solution(cache, tmp_path, monkeypat
     first = execute_run(case, tmp_path / "a", levels=3, write_fields=False)
     n_entries = len(list(cache.glob("*.pickle")))
     # The pilot's mesh, its places; the requested mesh and its solution; each of the two
-    # error-bar meshes, its solution and its results (pipeline/levelcache.py).
+    # error-bar meshes, its solution and its results (pipeline/cache/levels.py).
     assert n_entries == 10
     changed = replace(case, load_N=2.5 * case.load_N, E_MPa=70_000.0)
     second = execute_run(changed, tmp_path / "b", levels=3, write_fields=False)
@@ -96,7 +96,7 @@ def test_a_stored_solution_is_found_node_by_node_or_not_at_all():
     its stored position (another mesh with the same counts), finds nothing."""
     import numpy as np
 
-    from pipeline.solvecache import Stored, stored_rows
+    from pipeline.cache.solutions import Stored, stored_rows
     ids = np.array([0, 3, 5, 9])
     nodes = np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]])
     entry = Stored(10_000.0, 210_000.0, ids, nodes, nodes * 0.1, nodes * 2.0, [], 1, 2, 1e-9, 12, "pmg")

@@ -1,4 +1,4 @@
-"""Section results (pipeline/sections.py) against statics and closed forms.
+"""Section results (pipeline/post/sections.py) against statics and closed forms.
 
 - The critical section's moment from the FE reactions equals the statics of the applied
   loads (the loads' moment about the section's axis, from the assembled load vector and a
@@ -19,14 +19,14 @@ from dolfinx import fem
 from mpi4py import MPI
 from petsc4py import PETSc
 
-import pipeline.elasticity as pe
-import pipeline.solve as ps
+import pipeline.fe.elasticity as pe
+import pipeline.fe.solve as ps
 import verification_problems as vp
 from test_verification import BB, BH, BI, BL  # the cantilever's dimensions (mm)
-from pipeline.case import resolve
-from pipeline.loads import crosshead_loads
-from pipeline.meshing import make_mesh
-from pipeline.sections import journal_nominal, linearised_line, sigma_xx_field, ligament_resultants, linearise, peterson_kt_bending, plane_resultants
+from pipeline.inputs.case import resolve
+from pipeline.fe.loads import crosshead_loads
+from pipeline.fe.meshing import make_mesh
+from pipeline.post.sections import journal_nominal, linearised_line, sigma_xx_field, ligament_resultants, linearise, peterson_kt_bending, plane_resultants
 
 
 def test_linearisation_is_exact_for_a_linear_profile():
@@ -134,7 +134,7 @@ def test_a_failed_pull_back_takes_the_next_cell_and_never_raises(monkeypatch):
     there raises (Newton's method fails). sigma_xx_at takes the value from the next cell
     holding the point, or leaves NaN; it raises nothing, since a rank that raised would
     leave the others waiting in the allgather."""
-    import pipeline.sections as sec
+    import pipeline.post.sections as sec
 
     class Links:
         def __init__(self, rows):

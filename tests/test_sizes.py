@@ -27,9 +27,9 @@ import gmsh
 
 from geometry.part import build
 from geometry.table import G_MS2, TABLE_PATH, load_table, validate
-from pipeline import formulas
-from pipeline.case import resolve
-from pipeline.errorbar import estimate, representative_size
+from pipeline.post import formulas
+from pipeline.inputs.case import resolve
+from pipeline.post.errorbar import estimate, representative_size
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tools"))
@@ -157,7 +157,7 @@ def test_makefile_has_a_target_per_row_and_sizes_sweeps_then_summarises():
         assert any(f"-m pipeline run --size {size} --out results/{size}" in ln for ln in dry(size)), size
     out = dry("sizes")
     assert "sweep --sizes all --out results/sizes" in out[-2]
-    assert "-m pipeline.summary results/sizes/variants --all --out results/summary" in out[-1]
+    assert "-m pipeline.study.summary results/sizes/variants --all --out results/summary" in out[-1]
 
 
 # ---------------------------------------------------------------- batch summary (no FE)
@@ -180,7 +180,7 @@ def _fake_results(folder: Path, size: str, crit: float, status: str) -> None:
 
 
 def test_summary_tables_and_plot(tmp_path):
-    from pipeline import summary
+    from pipeline.study import summary
     for size, crit, st in (("1.6", 66.0, "converged"), ("025", 68.0, "oscillatory"), ("05", 67.5, "singular"),
                            ("10", 65.0, "scattered")):
         _fake_results(tmp_path / "res" / size, size, crit, st)
@@ -202,7 +202,7 @@ def test_summary_leaves_out_a_peak_the_runs_were_not_asked_for(tmp_path):
     """Runs made with --want critical say their global peak is not resolved: the summary
     shows no value, band or warning for it (a 99.61 ± 49.40 MPa fillet peak of a coarse
     --want critical run was flagged and plotted before), and its status says why."""
-    from pipeline import summary
+    from pipeline.study import summary
     for size, crit in (("1.6", 66.0), ("1", 64.0)):  # (the fake No. 05 has a flagged mesh)
         _fake_results(tmp_path / "res" / size, size, crit, "converged")
         f = tmp_path / "res" / size / "results.json"
@@ -227,8 +227,8 @@ def test_summary_never_writes_into_a_folder_it_did_not_make(tmp_path, capsys):
     results folder: exit 2, one line, the folder as it was. A folder the summary wrote
     (its marker), an earlier version's summary (its files only, summary.md under its
     title) or a new folder is written."""
-    from pipeline import summary
-    from pipeline.outdir import MARKER
+    from pipeline.study import summary
+    from pipeline.runtime.outdir import MARKER
     _fake_results(tmp_path / "res" / "05", "05", 66.0, "converged")
     alone, beside, run = tmp_path / "alone", tmp_path / "beside", tmp_path / "res" / "05"
     alone.mkdir()
@@ -255,7 +255,7 @@ def test_summary_never_writes_into_a_folder_it_did_not_make(tmp_path, capsys):
 
 @pytest.mark.parametrize("argv", [["a", "b"], ["--bogus"], ["--out"]])
 def test_summary_usage_errors_are_one_line(argv, capsys):
-    from pipeline import summary
+    from pipeline.study import summary
     with pytest.raises(SystemExit) as exc:
         summary.main(argv)
     err = capsys.readouterr().err
@@ -269,7 +269,7 @@ def test_a_stop_swallowed_while_the_summary_draws_still_writes_nothing(tmp_path,
     import os
     import signal
     import time
-    from pipeline import summary
+    from pipeline.study import summary
 
     def plot_swallowing_a_stop(rows, path):
         try:
@@ -290,7 +290,7 @@ def test_summary_names_folders_that_are_not_sizes_once(tmp_path, capsys):
     """A study's variants/ summarised without --all: every folder is skipped for the same
     reason, which the one error line says once (it repeated it 19 times for make sizes'
     study), naming three folders and counting the rest."""
-    from pipeline import summary
+    from pipeline.study import summary
     for key in ("a1", "b2", "c3", "d4", "e5"):
         _fake_results(tmp_path / "variants" / key, "05", 66.0, "converged")
     assert summary.main([str(tmp_path / "variants"), "--out", str(tmp_path / "sum")]) == 2
@@ -304,8 +304,8 @@ def test_summary_of_a_study_goes_beside_its_variants_not_among_them(tmp_path):
     """Without --out the summary of a study's variants/ went into variants/summary, among
     the variants' folders; it now goes to summary/ in the study's folder. A folder named
     variants that is not a study's keeps the plain default <results>/summary."""
-    from pipeline import summary
-    from pipeline.folders import MARKER
+    from pipeline.study import summary
+    from pipeline.runtime.folders import MARKER
     study = tmp_path / "study"
     for key, size in (("a1", "1.6"), ("b2", "10")):
         _fake_results(study / "variants" / key, size, 66.0, "converged")
@@ -324,7 +324,7 @@ def test_summary_names_the_dimensions_a_row_changed_from_its_table_row(tmp_path)
     source)", as if they were the table's No. 05 (rf 1.5 mm in geometry/sizes.csv), and the
     table row's source was listed once per variant. Now the changed dimension is named with
     the table's value; the unchanged row is not flagged; the source is listed once."""
-    from pipeline import summary
+    from pipeline.study import summary
     for key, rf in (("a1", 1.0), ("b2", 2.0), ("c3", TABLE["05"].dims.rf)):
         _fake_results(tmp_path / "variants" / key, "05", 66.0, "converged")
         f = tmp_path / "variants" / key / "results.json"
@@ -342,9 +342,9 @@ def test_summary_names_the_dimensions_a_row_changed_from_its_table_row(tmp_path)
 
 def test_summary_names_a_size_whose_analysis_failed(tmp_path):
     """make sizes' study writes a failed variant's reason beside the others' folders (its
-    <key>.failed.json, as pipeline.sweep writes it); the summary left that size out without
+    <key>.failed.json, as pipeline.study.sweep writes it); the summary left that size out without
     a word. It now names the size and the reason under 'Not in the table'."""
-    from pipeline import summary
+    from pipeline.study import summary
     for key, size in (("a1", "1.6"), ("b2", "10")):
         _fake_results(tmp_path / "variants" / key, size, 66.0, "converged")
     (tmp_path / "variants" / "c3.failed.json").write_text(json.dumps(
@@ -358,7 +358,7 @@ def test_summary_skips_a_results_json_of_the_wrong_shape(tmp_path, capsys):
     """A results.json edited or cut short (a value of the wrong type, NaN, a list where a
     table belongs): that folder is skipped with its reason, the others are summarised;
     with none left, exit 2 and one line naming the reason, nothing written."""
-    from pipeline import summary
+    from pipeline.study import summary
     _fake_results(tmp_path / "res" / "05", "05", 66.0, "converged")
     bad = {"1": lambda r: r["fe"].update(peak_MPa=None), "1.6": lambda r: r["case"].update(load_N="10 kN"),
            "4": lambda r: r["fe"].update(critical_peak_MPa=float("nan")), "2.5": lambda r: r.update(case=[]),
@@ -385,8 +385,8 @@ _SOLVES: dict = {}
 
 def solved(key: str, factor: float = FACTOR):
     """Coarse solve of a table row, or of "05x2" (No. 05 with every length ×2, load ×4)."""
-    from pipeline.features import known_raisers
-    from pipeline.level import solve_level
+    from pipeline.post.features import known_raisers
+    from pipeline.analysis.level import solve_level
     if (key, factor) not in _SOLVES:
         if key == "05x2":
             over = {f"dims.{k}": 2 * v for k, v in asdict(BASE.dims).items()}
@@ -429,7 +429,7 @@ def test_coarse_solve_of_smallest_and_largest_rows(size):
 
 def test_exact_similarity_copy_gives_the_same_stresses():
     """No. 05 with every length ×2 and the load ×4 on the same mesh factor: the mesh is
-    No. 05's scaled (pipeline.meshing meshes at No. 05's size), so peaks agree to round-off."""
+    No. 05's scaled (pipeline.fe.meshing meshes at No. 05's size), so peaks agree to round-off."""
     _, a = solved("05")
     _, b = solved("05x2")
     assert b.cells == a.cells
@@ -503,7 +503,7 @@ def test_summary_plot_ends_above_what_it_draws_and_clips_only_an_outlier(tmp_pat
     2.5× the median."""
     import matplotlib.figure
 
-    from pipeline import summary
+    from pipeline.study import summary
     seen = []
     monkeypatch.setattr(matplotlib.figure.Figure, "savefig", lambda fig, *a, **k: seen.append(fig.axes[0].get_ylim()))
     assert summary.plot([_plot_row(s, p) for s, p in zip(("05", "1", "2"), peaks)], tmp_path / "s.png")

@@ -1,4 +1,4 @@
-"""Design studies (pipeline/sweep.py): the grid, the CSV/JSON contract, invalid variants
+"""Design studies (pipeline/study/sweep.py): the grid, the CSV/JSON contract, invalid variants
 skipped, resuming, 1 against 2 ranks, and the crossing of the allowable."""
 from __future__ import annotations
 
@@ -13,17 +13,17 @@ from pathlib import Path
 import pytest
 
 from pipeline.errors import InputError
-from pipeline.study import read_study
-from pipeline.sweep import time_left_s
-from pipeline.valuelist import parse_loads, parse_values
-from pipeline.sweepresults import COLUMNS, _passing_lines, band_reach, passing_count, with_verdicts, crossing_text, crossings, parameters_text, series, sides, unanalysed, varying_names
+from pipeline.study.plan import read_study
+from pipeline.study.sweep import time_left_s
+from pipeline.inputs.valuelist import parse_loads, parse_values
+from pipeline.study.table import COLUMNS, _passing_lines, band_reach, passing_count, with_verdicts, crossing_text, crossings, parameters_text, series, sides, unanalysed, varying_names
 
 ROOT = Path(__file__).resolve().parents[1]
 GRID = ["--size", "05", "--dim", "rf=1.0,1.5,2.5", "--mesh-factor", "3", "--levels", "1"]
 
 
 def sweep(out: Path, *args: str, ranks: int = 1) -> subprocess.CompletedProcess:
-    cmd = [sys.executable, "-m", "pipeline"] if ranks == 1 else [sys.executable, "-m", "pipeline.launch", str(ranks)]
+    cmd = [sys.executable, "-m", "pipeline"] if ranks == 1 else [sys.executable, "-m", "pipeline.runtime.launch", str(ranks)]
     # env=dict(os.environ): this process's mpi4py put OMPI_* variables into the C environment,
     # and a child mpirun that inherits them exits 1 (see tests/test_invariance.py).
     p = subprocess.run(cmd + ["sweep", *args, "--out", str(out)], cwd=ROOT, capture_output=True, text=True,
@@ -240,9 +240,10 @@ def test_a_plot_marks_the_variants_without_a_peak():
 def test_a_failed_variant_writes_why_with_its_size_and_inputs(tmp_path, monkeypatch):
     """A variant whose analysis fails is reported, not fatal: its <key>.failed.json says
     why, and which size and inputs it was (the size summary names it from there)."""
-    from pipeline import commands, sweep as sweep_module
+    from pipeline import commands
+    from pipeline.study import sweep as sweep_module
     from pipeline.errors import NumericalError
-    from pipeline.study import failure_file, plan
+    from pipeline.study.plan import failure_file, plan
 
     def fails(*a, **k):
         raise NumericalError("solver pmg did not converge (PETSc reason -3, 1000 iterations)")
@@ -259,9 +260,9 @@ def test_only_results_of_other_variants_are_removed(tmp_path):
     """What a finished study removes from its variants/: the folders (with the results
     marker) and failure notes of keys it does not have; its own, and anything the tool did
     not write, stay."""
-    from pipeline.folders import MARKER
-    from pipeline.sweep import remove_earlier_variants
-    from pipeline.study import Task
+    from pipeline.runtime.folders import MARKER
+    from pipeline.study.sweep import remove_earlier_variants
+    from pipeline.study.plan import Task
     v = tmp_path / "variants"
     for key in ("aaa", "bbb"):
         (v / key).mkdir(parents=True)
@@ -335,11 +336,11 @@ def test_a_study_leaves_out_the_peak_it_was_not_asked_for(tmp_path):
 
 def test_a_study_too_large_for_memory_is_refused_on_two_ranks(tmp_path):
     """Two variants at once on this machine, each estimated at about 2.6 GiB (mesh factor
-    0.6, pipeline/resources.py), against --memory-limit 3: one fits, two at once do not.
+    0.6, pipeline/runtime/resources.py), against --memory-limit 3: one fits, two at once do not.
     Refused with one line and exit 2, nothing written. (Rank 0's probe loaded DOLFINx alone,
     whose PETSc start-up is collective, and rank 1 aborted with 'stack smashing detected'.)"""
     out = tmp_path / "big"
-    p = subprocess.run([sys.executable, "-m", "pipeline.launch", "2", "sweep", "--size", "05", "--dim", "rf=1,2",
+    p = subprocess.run([sys.executable, "-m", "pipeline.runtime.launch", "2", "sweep", "--size", "05", "--dim", "rf=1,2",
                         "--mesh-factor", "0.6", "--memory-limit", "3", "--out", str(out)], cwd=ROOT,
                        capture_output=True, text=True, timeout=600, env=dict(os.environ))
     assert p.returncode == 2, p.stderr
@@ -393,7 +394,7 @@ def test_an_input_every_variant_shares_is_named_as_it_is():
     """E = -5 MPa makes every variant invalid for one reason, which is not the variants':
     the line is the one a run gives ("E_MPa: must be > 0, got -5"), not "every variant is
     invalid; the first: ...". Variants invalid for reasons of their own keep that line."""
-    from pipeline.study import plan
+    from pipeline.study.plan import plan
     with pytest.raises(InputError) as shared:
         plan("05", None, {"E_MPa": -5.0}, {"dims.rf": [1.0, 2.0]}, [], 3, 1.3)
     assert str(shared.value) == "E_MPa: must be > 0, got -5"
@@ -403,9 +404,9 @@ def test_an_input_every_variant_shares_is_named_as_it_is():
 
 
 def test_a_variant_s_key_follows_the_code_that_analyses_it(monkeypatch):
-    """A variant's key holds the code key (pipeline.codekey): a study re-run under other
+    """A variant's key holds the code key (pipeline.cache.codekey): a study re-run under other
     code analyses its variants again instead of taking the older code's results."""
-    from pipeline import study
+    from pipeline.study import plan as study
     keys = {}
     for code in ("old", "new"):
         monkeypatch.setattr(study, "code_key", lambda code=code: code)

@@ -1,13 +1,13 @@
 """Verification of the solver against closed-form solutions (mm, N, MPa).
 
-Every problem goes through the product's own code: pipeline.solve.solve for the
-displacement, pipeline.solve.stress for stress components and pipeline.peaks.von_mises /
-pipeline.peaks.peak for von Mises peaks. The meshes come from gmsh/OpenCASCADE
+Every problem goes through the product's own code: pipeline.fe.solve.solve for the
+displacement, pipeline.fe.solve.stress for stress components and pipeline.post.peaks.von_mises /
+pipeline.post.peaks.peak for von Mises peaks. The meshes come from gmsh/OpenCASCADE
 (tests/verification_problems.py). Every expected number below is a closed form written
 out here; none is a stored output of the code.
 
 The pipeline modules are used through their module objects (``pe.stress``, not
-``from pipeline.solve import stress``), so a test sees exactly what the product runs,
+``from pipeline.fe.solve import stress``), so a test sees exactly what the product runs,
 monkeypatches included.
 
 Physics note: in a traction-loaded homogeneous body the plane stress/strain field does
@@ -27,10 +27,10 @@ from dolfinx import fem
 from mpi4py import MPI
 from petsc4py import PETSc
 
-import pipeline.peaks as pp
-import pipeline.elasticity as pe
-import pipeline.solve as ps
-from pipeline.pmultigrid import p1_interpolation
+import pipeline.post.peaks as pp
+import pipeline.fe.elasticity as pe
+import pipeline.fe.solve as ps
+from pipeline.fe.pmultigrid import p1_interpolation
 import verification_problems as vp
 
 MAT = pe.Material(E=210_000.0, nu=0.3)
@@ -268,7 +268,7 @@ def hooke(eps: np.ndarray) -> np.ndarray:
 
 
 def stress_tensor_values(u, degree):
-    """All nine stress components (pipeline.solve.stress) in DG(degree): (n, 9) array."""
+    """All nine stress components (pipeline.fe.solve.stress) in DG(degree): (n, 9) array."""
     mesh = u.function_space.mesh
     T = fem.TensorFunctionSpace(mesh, ("DG", degree))
     f = fem.Function(T)

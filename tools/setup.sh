@@ -28,7 +28,7 @@ if [ ! -x .venv/bin/python ] || [ "$(cat "$stamp" 2>/dev/null)" != "$want" ]; th
   .venv/bin/python -c "import dolfinx, gmsh, petsc4py, pyvista, numpy; assert numpy.__version__.startswith('1.'), numpy.__version__" \
     || { echo "setup: the venv cannot import dolfinx/pyvista with Debian's numpy" >&2; exit 1; }
   # The forms of the default path compile here, once, not one by one before the first
-  # answer (the cache is .venv/cache/fenics, see pipeline/environment.py).
+  # answer (the cache is .venv/cache/fenics, see pipeline/runtime/environment.py).
   echo "setup: compiling the finite-element forms (once, about a minute)"
   warm=$(mktemp -d)
   .venv/bin/python -m pipeline run --size 05 --mesh-factor 4 --levels 3 --quiet --out "$warm/run" >/dev/null

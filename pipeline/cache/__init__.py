@@ -1,0 +1,1 @@
+"""Work reused between runs, keyed by the code that made it (codekey)."""

@@ -1,0 +1,1 @@
+"""The finite-element model: mesh, loads and supports, elasticity, assembly, preconditioner, solve."""

@@ -1,0 +1,1 @@
+"""What a run writes: results.json, ParaView fields, the report, the picture and plots."""

@@ -1,0 +1,175 @@
+"""Matplotlib plots (convergence, sections, peaks against DOFs); headless backend (units:
+MPa, mm).
+
+``python -m pipeline.output.plots FOLDER`` draws a run's plots in their own process, beside the
+error-bar solves and the picture (pipeline/output/picture.py), from the files the run writes.
+"""
+from __future__ import annotations
+
+import json
+import sys
+import time
+from pathlib import Path
+
+
+NOT_ASKED = "not asked for (--want): not resolved"  # a peak's title when the run skipped its refinement
+
+
+def convergence_plot(path: Path, conv: dict, case) -> bool:
+    """Each peak (MPa) against the representative mesh size N^(-1/3) of the study's meshes:
+    both nodal readings, the value reported, the finest mesh's error bar and, where the
+    estimator extrapolated, the limit at h = 0."""
+    try:
+        import matplotlib
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+    except ImportError:
+        return False
+    fig = convergence_figure(conv, case.size)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return True
+
+
+def convergence_figure(conv: dict, size: str):
+    """The figure of :func:`convergence_plot` (matplotlib must be importable)."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    levels = conv["levels"]  # finest first, as est["h"] and est["values"]
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4.2))
+    for ax, key, label in ((axes[0], "peak", "global peak"), (axes[1], "critical", "critical-region peak")):
+        est = conv[key]
+        asked = key not in conv.get("not_wanted", {})
+        h = est["h"]
+        ax.plot(h, [lv[f"{key}_unaveraged_MPa"] for lv in levels], "v:", color="C3",
+                label="unaveraged (largest element-node value)")
+        ax.plot(h, [lv[f"{key}_averaged_MPa"] for lv in levels], "^:", color="C0",
+                label="averaged (nodal-averaged stress)")
+        ax.plot(h, est["values"], "o-", color="k", label="reported value" if asked else "value (meshes not refined for it)")
+        if est.get("band") is not None and asked:
+            ax.errorbar([h[0]], [est["values"][0]], yerr=[est["band"]], fmt="none", ecolor="C1",
+                        elinewidth=3, capsize=6, label=f"error bar ±{est['band']:.3g} MPa")
+        # Only these two statuses extrapolate (pipeline/output/report.py words them alike); the
+        # others' "extrapolated" is the finest value itself or absent.
+        if est.get("extrapolated") is not None and est["status"] in ("converged", "scattered") and asked:
+            name = "Richardson limit" if est["status"] == "converged" else "least-squares limit"
+            ax.plot([0], [est["extrapolated"]], "*", color="C2", ms=12,
+                    label=f"{name} {est['extrapolated']:.2f} MPa")
+        ax.set_xlim(left=-0.03 * max(h))  # h = 0 (the limit) just inside the frame
+        ax.set_xlabel("representative mesh size h = DOFs^(-1/3)")
+        ax.set_ylabel("von Mises (MPa)")
+        ax.set_title(f"No. {size}: {label} [{est['status'] if asked else NOT_ASKED}]")
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=8)
+    fig.tight_layout()
+    return fig
+
+
+def sections_plot(path: Path, sections: dict, analytic: dict, h_mm: float) -> bool:
+    """σ_xx through the height at x = 0 (bore edge and mid-ligament): the FE profile, its
+    linearisation, and the approximate formula's linear distribution (±σ at the faces)."""
+    try:
+        import matplotlib
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+    except ImportError:
+        return False
+    import numpy as np
+    fig, ax = plt.subplots(figsize=(7, 4.5))
+    for key, label, colour in (("bore_edge_height", "bore edge", "tab:red"),
+                               ("mid_ligament_height", "mid-ligament", "tab:blue")):
+        line = sections["lines"][key]
+        z = np.array(line["position_mm"])
+        ax.plot(line["sigma_xx_MPa"], z, "-", color=colour, label=f"FE σ_xx, {label}")
+        m, b = line["membrane_MPa"], line["bending_MPa"]
+        ax.plot(m + b * (1 - 2 * z / z[-1]), z, "--", color=colour, label=f"linearised, {label}")
+    s = analytic["approximate_MPa"]
+    ax.plot([s, -s], [0, h_mm], ":", color="black", label=f"approximate formula (±{s:.1f} MPa)")
+    cs = sections.get("critical_section")
+    if cs:
+        ax.plot([cs["nominal_MPa"], -cs["nominal_MPa"]], [0, h_mm], "-.", color="grey",
+                label=f"FE nominal from N, M (±{cs['nominal_MPa']:.1f} MPa)")
+    ax.axvline(0, color="lightgrey", lw=0.8)
+    ax.set_xlabel("normal stress σ_xx on the section x = 0 (MPa)")
+    ax.set_ylabel("height z (mm)")
+    ax.set_title("Ligament beside the bore: FE against the beam formula")
+    ax.legend(fontsize=8, loc="upper right")
+    # Fixed margins, not tight_layout: its trial drawing was a third of the plots' time.
+    # They leave room for four-digit ticks (tight_layout chose 0.088 for No. 05's).
+    fig.subplots_adjust(left=0.11, right=0.965, bottom=0.13, top=0.915)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return True
+
+
+def peaks_plot(path: Path, res: dict) -> bool:
+    """Each peak (MPa) against the DOFs of the run's meshes: both nodal readings, the value
+    reported, and the error bar of the requested (finest) mesh."""
+    levels = res["fe"]["levels"]
+    if len(levels) < 2:
+        return False
+    try:
+        import matplotlib
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+    except ImportError:
+        return False
+    dofs = [lv["dofs"] for lv in levels]
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4.2))
+    for ax, key, prefix, value_key, label in ((axes[0], "peak", "peak", "peak_MPa", "global peak"),
+                                              (axes[1], "critical", "critical", "critical_peak_MPa",
+                                               "critical-region peak")):
+        block = res["fe"][key]
+        asked = not block.get("not_wanted")
+        ax.plot(dofs, [lv[f"{prefix}_unaveraged_MPa"] for lv in levels], "v:", color="C3",
+                label="unaveraged (largest element-node value)")
+        ax.plot(dofs, [lv[f"{prefix}_averaged_MPa"] for lv in levels], "^:", color="C0",
+                label="averaged (nodal-averaged stress)")
+        ax.plot(dofs, [lv[value_key] for lv in levels], "o-",
+                color="k", label="reported value" if asked else "value (meshes not refined for it)")
+        est = block.get("error_estimate") or {}
+        if est.get("band") is not None and asked:
+            ax.errorbar([dofs[0]], [block["value_MPa"]], yerr=[est["band"]], fmt="none", ecolor="C1",
+                        elinewidth=3, capsize=6, label=f"error bar ±{est['band']:.3g} MPa")
+        ax.set_xscale("log")
+        ax.set_xlabel("degrees of freedom")
+        ax.set_ylabel("von Mises (MPa)")
+        ax.set_title(f"No. {res['case']['size']}: {label} [{est.get('status', 'no estimate') if asked else NOT_ASKED}]")
+        ax.grid(alpha=0.3, which="both")
+        ax.legend(fontsize=8)
+    # Fixed margins for the reason given in sections_plot (tight_layout chose 0.064 here).
+    fig.subplots_adjust(left=0.075, right=0.985, bottom=0.15, top=0.91, wspace=0.22)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return True
+
+
+def draw_plots(folder: Path, wait_s: float = 3600.0) -> None:
+    """A run's plots from folder/results.json: sections.png when the results carry section
+    stresses, and peaks.png once the run has written the results of every mesh (at most
+    ``wait_s`` s later). The run stops this process if it fails, so the wait ends either way."""
+    folder = Path(folder)
+    res = json.loads((folder / "results.json").read_text(encoding="utf-8"))
+    sections = res["fe"].get("sections")
+    if sections:
+        sections_plot(folder / "sections.png", sections, res["analytic"], float(res["case"]["dims"]["h3"]))
+    final = _all_levels(folder, wait_s)
+    if final is not None:
+        peaks_plot(folder / "peaks.png", final)
+
+
+def _all_levels(folder: Path, wait_s: float) -> dict | None:
+    """results.json once it holds every mesh's results (its timings have the error-bar
+    meshes' total), polled every 20 ms; None after ``wait_s`` s."""
+    end = time.monotonic() + wait_s
+    while time.monotonic() < end:
+        res = json.loads((folder / "results.json").read_text(encoding="utf-8"))
+        if "error_bar_meshes" in res.get("timings_s", {}):
+            return res
+        time.sleep(0.02)
+    return None
+
+
+if __name__ == "__main__":
+    draw_plots(Path(sys.argv[1]))

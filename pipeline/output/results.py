@@ -1,0 +1,240 @@
+"""results.json: the content of a run's results file, built from the solved levels."""
+from __future__ import annotations
+
+from mpi4py import MPI
+
+from geometry.table import published
+
+from pipeline.post import formulas
+from pipeline.analysis.analyse import estimate_levels
+from pipeline.inputs.case import Case
+from pipeline.post.errorbar import Estimate, verdict_against
+from pipeline.post.features import describe_location, singular_feature
+from pipeline.analysis.level import Level
+from pipeline.post.peaks import MIDPOINT, UNAVERAGED, NodalPeak
+from pipeline.analysis.pilot import PILOT_FRACTION, Pilot
+
+
+DEFINITION = {
+    MIDPOINT: "a peak at the shoulder fillet: the midpoint of two nodal readings over the fillet, the largest "
+              "element-node von Mises value without averaging (unaveraged_MPa; above the true peak there, measured) and "
+              "the largest von Mises value of the nodal-averaged stress (averaged_MPa; mostly below it). The global "
+              "peak is the larger of this and the largest unaveraged value elsewhere",
+    UNAVERAGED: "the largest element-node von Mises value without averaging (unaveraged_MPa); the largest "
+                "value of the nodal-averaged stress over the same region is shown beside it (averaged_MPa)",
+}
+ERROR_BAR_METHOD = {
+    MIDPOINT: "the larger of the trend of the values over the requested mesh and the coarser ones "
+              "(Richardson/GCI, docs/design.md §5; with four or more meshes, as in make converge, a "
+              "least-squares fit of both readings to one common limit) and half the gap between the "
+              "unaveraged and averaged readings on the requested mesh",
+    UNAVERAGED: "the trend of the values over the requested mesh and the coarser ones "
+                "(Richardson/GCI, docs/design.md §5)",
+}
+
+
+def pct(a: float, b: float) -> float:
+    """Percentage difference of a relative to b."""
+    return 100.0 * (a - b) / b
+
+
+def build_results(case: Case, levels: list[Level], timings: dict[str, float],
+                  comm: MPI.Comm = MPI.COMM_WORLD, pl: Pilot | None = None) -> dict:
+    """The results.json content of docs/design.md §7 from the solved levels (finest first)."""
+    fine = levels[0]
+    hand = formulas.hand_results(case.dims, case.load_N, case.approximate_span_mm,
+                                 case.exact_span_mm)
+    est_peak = estimate_levels(levels, case, "peak") if len(levels) >= 3 else None
+    est_crit = estimate_levels(levels, case, "critical") if len(levels) >= 3 else None
+    asked = {"global": case.want != "critical", "critical": case.want != "global"}
+    peak_b = peak_block(case, fine.peak, est_peak, refined=asked["global"])
+    crit_b = peak_block(case, fine.critical, est_crit, refined=asked["critical"])
+    for name, block in (("global", peak_b), ("critical", crit_b)):
+        if not asked[name]:
+            block["not_wanted"] = (f"want = {case.want}: the run did not refine for the {name} peak; "
+                                   "shown for orientation only")
+    return {
+        "units": {"length": "mm", "force": "N", "stress": "MPa"},
+        "case": case.as_dict(),
+        "analytic": _analytic_block(case, hand),
+        "fe": _fe_block(case, levels, peak_b, crit_b, comm, pl),
+        "comparison_pct": {
+            "critical_vs_exact": pct(fine.critical.value_MPa, hand.exact.sigma_MPa),
+            "critical_vs_approximate": pct(fine.critical.value_MPa, hand.approximate.sigma_MPa),
+            "peak_vs_exact": pct(fine.peak.value_MPa, hand.exact.sigma_MPa),
+            "peak_vs_approximate": pct(fine.peak.value_MPa, hand.approximate.sigma_MPa),
+        },
+        "timings_s": timings,
+    }
+
+
+def peak_block(case: Case, p: NodalPeak, est: Estimate | None, refined: bool = True) -> dict:
+    """One peak's results.json block (MPa, mm): value, place, how it is read, its error
+    estimate, and the singular feature it sits at, if any (then no converged value).
+    ``refined``: the meshes were refined for this peak; if not (a peak the run was not asked
+    for), its growth over the meshes is that of unrefined meshes and does not make it
+    singular."""
+    block = {"value_MPa": p.value_MPa, "location_mm": list(p.location_mm),
+             "feature": describe_location(case, p.location_mm),
+             "definition": DEFINITION[p.rule], "error_bar_method": ERROR_BAR_METHOD[p.rule],
+             "unaveraged_MPa": p.unaveraged.value_MPa, "averaged_MPa": p.averaged.value_MPa,
+             "averaged_location_mm": list(p.averaged.location_mm)}
+    singular = singular_feature(case, p.location_mm)
+    if est is not None:
+        block["error_estimate"] = est.as_dict()
+        if est.status == "singular" and singular is None and refined:
+            singular = f"{block['feature']} (values do not converge under refinement)"
+    if singular is not None:
+        block["singular_feature"] = singular
+        if est is not None:
+            # Not a converged number, whatever the fit of a few meshes says.
+            block["error_estimate"].update(status="singular", extrapolated=None, band=None,
+                                           gci_fine=None, error_fine=None)
+    return block
+
+
+def _fe_block(case: Case, levels: list[Level], peak_b: dict, crit_b: dict, comm, pl: Pilot | None) -> dict:
+    """results.json's "fe": the requested mesh's peaks, solver and equilibrium figures,
+    safety factors, sections, verdicts and every mesh's row (N, MPa, mm)."""
+    fine = levels[0]
+    return {
+        "peak_MPa": fine.peak.value_MPa,
+        "peak_location_mm": list(fine.peak.location_mm),
+        "critical_peak_MPa": fine.critical.value_MPa,
+        "critical_location_mm": list(fine.critical.location_mm),
+        "peak": peak_b,
+        "critical": crit_b,
+        "dofs": fine.dofs, "cells": fine.cells, "order": case.order,
+        "model": case.model, "support": case.support, "solver": case.solver,
+        "iterations": fine.iterations, "residual_rel": fine.residual_rel,
+        "scaled_from": fine.scaled_from,
+        "equilibrium_error_N": fine.equilibrium_error_N,
+        "constraint_reaction_N": fine.constraint_reaction_N,
+        "seat_force_N": fine.seat_force_N, "support_force_N": fine.support_force_N,
+        "model_load_share": 0.25 if case.model == "quarter" else 1.0,
+        "mesh_min_jacobian_ratio": fine.jacobian_ratio,
+        **safety_factors(case.allowable_MPa, {"safety_factor": (fine.peak.value_MPa, peak_b),
+                                               "critical_safety_factor": (fine.critical.value_MPa, crit_b)}),
+        "mpi_ranks": comm.size,
+        "refined_at_mm": [] if pl is None else [list(p) for p in pl.hotspots],
+        "refined_places_from": None if pl is None else pl.source,
+        "refined_bridging_places": None if pl is None else pl.bridging,
+        "pilot_mesh_factor": None if pl is None else pl.factor,
+        "pilot_fraction": PILOT_FRACTION,
+        "sections": fine.sections,
+        "verdict": verdict(case.allowable_MPa, case.load_N, _checked_stresses(fine, peak_b, crit_b)),
+        "levels": [_level_row(lv) for lv in levels],
+    }
+
+
+def _checked_stresses(fine: Level, peak_b: dict, crit_b: dict) -> dict[str, tuple[float, dict | None]]:
+    """What the verdict checks: both peaks with their blocks, and the nominal stresses of
+    the sections the run has (MPa, no block: they carry no error bar)."""
+    checks: dict[str, tuple[float, dict | None]] = {
+        "global_peak": (fine.peak.value_MPa, peak_b), "critical_peak": (fine.critical.value_MPa, crit_b)}
+    if fine.sections and "critical_section" in fine.sections:
+        checks["critical_section_nominal"] = (fine.sections["critical_section"]["nominal_MPa"], None)
+    if fine.sections:
+        checks["journal_root_nominal"] = (fine.sections["journal_root"]["nominal_MPa"], None)
+    return checks
+
+
+def _level_row(lv: Level) -> dict:
+    """One mesh's row of results.json's "levels" (MPa, s)."""
+    return {"mesh_factor": lv.factor, "dofs": lv.dofs, "cells": lv.cells,
+            "peak_MPa": lv.peak.value_MPa, "critical_peak_MPa": lv.critical.value_MPa,
+            "peak_unaveraged_MPa": lv.peak.unaveraged.value_MPa,
+            "peak_averaged_MPa": lv.peak.averaged.value_MPa,
+            "critical_unaveraged_MPa": lv.critical.unaveraged.value_MPa,
+            "critical_averaged_MPa": lv.critical.averaged.value_MPa,
+            "iterations": lv.iterations, "scaled_from": lv.scaled_from,
+            "time_s": sum(lv.timings.values())}
+
+
+def _analytic_block(case: Case, hand: formulas.HandResults) -> dict:
+    """results.json's "analytic": the paper's two hand formulas worked for the case (MPa,
+    mm, N), with the published values where the case's row has them."""
+    ex, ap = hand.exact, hand.approximate
+    return {
+        "approximate_MPa": ap.sigma_MPa, "exact_MPa": ex.sigma_MPa,
+        "approximate_span_mm": ap.span_mm, "exact_span_mm": ex.span_mm,
+        "approximate_terms": {"lever_mm": ap.lever_mm, "Me_Nmm": ap.Me_Nmm},
+        "exact_terms": {"N1_N": ex.N1_N, "M1_Nmm": ex.M1_Nmm, "N2_N": ex.N2_N,
+                        "M2_Nmm": ex.M2_Nmm, "R_mm": ex.R_mm, "F_mm2": ex.F_mm2,
+                        "W_mm3": ex.W_mm3},
+        "consistent_span": {
+            "approximate_at_exact_span_MPa": hand.approximate_at_exact_span.sigma_MPa,
+            "exact_at_approximate_span_MPa": hand.exact_at_approximate_span.sigma_MPa},
+        "published": published(case.size, case.load_N, ap.span_mm, ex.span_mm),
+    }
+
+
+def safety_factors(allowable_MPa: float, peaks: dict[str, tuple[float, dict]]) -> dict:
+    """{key: allowable / peak} for each (peak MPa, peak block); a peak at a singular feature
+    has no finite value, so its key is None and ``<key>_note`` says why (docs/design.md §5)."""
+    out: dict = {}
+    for key, (value, block) in peaks.items():
+        where = block.get("singular_feature")
+        out[key] = None if where or block.get("not_wanted") else allowable_MPa / value
+        # A peak the run did not refine for says so first: its trend over the meshes, singular
+        # or not, is that of an unrefined mesh.
+        if block.get("not_wanted"):
+            out[f"{key}_note"] = block["not_wanted"]
+        elif where:
+            out[f"{key}_note"] = f"the peak sits at a singular feature ({where}) and has no finite value"
+    return out
+
+
+def verdict(allowable_MPa: float, load_N: float, checks: dict[str, tuple[float, dict | None]]) -> dict:
+    """Pass or fail of each checked stress against the allowable (MPa), with its margin and
+    error bar, and the hook load (N) that would bring it to the allowable (linear scaling:
+    the part's capacity at that allowable). ``checks``: name -> (value MPa, peak block or
+    None for a nominal stress). A peak at a singular feature gets no verdict; a band that
+    straddles the allowable gives "undecided"."""
+    out = {}
+    for name, (value, block) in checks.items():
+        if block is not None and (block.get("singular_feature") or block.get("not_wanted")):
+            why = (block["not_wanted"] if block.get("not_wanted") else
+                   f"the peak sits at a singular feature ({block['singular_feature']}): no finite value")
+            out[name] = {"value_MPa": value, "verdict": "none", "why": why}
+            continue
+        # No band (a nominal stress, or a peak read on one mesh): null, not a band of zero.
+        band = ((block or {}).get("error_estimate") or {}).get("band")
+        lo, hi = value - (band or 0.0), value + (band or 0.0)
+        status = verdict_against(value, band, allowable_MPa)
+        out[name] = {"value_MPa": value, "band_MPa": band, "verdict": status,
+                     "margin_pct": 100 * (allowable_MPa / value - 1),
+                     "capacity_N": load_N * allowable_MPa / value,
+                     "capacity_range_N": [load_N * allowable_MPa / hi, load_N * allowable_MPa / lo]
+                     if band is not None and lo > 0 else None}
+    return out
+
+
+def sum_timings(levels: list[Level], pl: Pilot | None = None) -> dict[str, float]:
+    """Per-stage times (s): the requested mesh's stages, the pilot's and the error-bar meshes' totals."""
+    stages = ("geometry", "mesh", "import", "assemble", "solve", "post")
+    out = {k: levels[0].timings.get(k, 0.0) for k in stages}
+    if pl is not None:
+        out["pilot"] = pl.time_s
+    out["error_bar_meshes"] = sum(sum(lv.timings.values()) for lv in levels[1:])
+    return out
+
+
+def load_sweep(res: dict, case: Case, loads: list[float]) -> list[dict]:
+    """Peaks, formula stresses and safety factors (MPa) at each load (N), scaled linearly."""
+    fe, an = res["fe"], res["analytic"]
+    rows = []
+    # A peak the run was not asked for (want) has no value or band at any load.
+    asked = {key: not fe[key].get("not_wanted") for key in ("peak", "critical")}
+    for q in loads:
+        k = q / case.load_N
+        row = {"load_N": q, "peak_MPa": k * fe["peak_MPa"] if asked["peak"] else None,
+               "critical_peak_MPa": k * fe["critical_peak_MPa"] if asked["critical"] else None,
+               "approximate_MPa": k * an["approximate_MPa"], "exact_MPa": k * an["exact_MPa"]}
+        for key, name in (("peak", "peak_band_MPa"), ("critical", "critical_band_MPa")):
+            band = (fe[key].get("error_estimate") or {}).get("band")
+            row[name] = None if band is None or not asked[key] else k * band
+        for key, peak in (("safety_factor", "peak_MPa"), ("critical_safety_factor", "critical_peak_MPa")):
+            row[key] = None if fe[key] is None else case.allowable_MPa / row[peak]
+        rows.append(row)
+    return rows

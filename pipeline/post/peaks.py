@@ -1,0 +1,184 @@
+"""Post-processing: von Mises in a discontinuous space and its peaks (mm, MPa).
+
+A peak is read two ways at the nodes (docs/design.md §5): the largest element-node value
+without averaging (for P2 displacements the stress in discontinuous P1, for Pk in
+DG(k−1)), and the largest von Mises of the nodal-averaged stress.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Callable
+
+import numpy as np
+from dolfinx import fem, la
+
+from pipeline.fe.elasticity import Material, stress, von_mises_expr
+
+
+@dataclass(frozen=True)
+class Peak:
+    """A peak von Mises stress (MPa) and where it sits ([x, y, z], mm)."""
+
+    value_MPa: float
+    location_mm: tuple[float, float, float]
+
+
+MIDPOINT, UNAVERAGED = "midpoint", "unaveraged"  # rules for a NodalPeak's value
+
+
+@dataclass(frozen=True)
+class NodalPeak:
+    """A peak von Mises stress (MPa) read two ways at the nodes, and the value reported.
+
+    ``unaveraged``: the largest element-node value. ``averaged``: the largest von Mises of
+    the nodal-averaged stress over the same region. At a steep surface maximum resolved by
+    few elements (No. 05's fillet) the first lies above the true peak (each element
+    extrapolates its own linear stress to the node, and the largest of those scattered
+    values is taken) and the second below (averaging smooths a maximum); ``rule``
+    MIDPOINT reports the middle of the two, UNAVERAGED the first (docs/design.md §5).
+    """
+
+    unaveraged: Peak
+    averaged: Peak
+    rule: str = MIDPOINT
+
+    @property
+    def value_MPa(self) -> float:
+        if self.rule == UNAVERAGED:
+            return self.unaveraged.value_MPa
+        return 0.5 * (self.unaveraged.value_MPa + self.averaged.value_MPa)
+
+    @property
+    def half_width_MPa(self) -> float:
+        """Half the gap between the two readings (MPa): the midpoint's own error bound."""
+        return 0.5 * abs(self.unaveraged.value_MPa - self.averaged.value_MPa)
+
+    @property
+    def location_mm(self) -> tuple[float, float, float]:
+        return self.unaveraged.location_mm
+
+
+def von_mises(u: fem.Function, mat: Material) -> fem.Function:
+    """Von Mises stress (MPa) interpolated into DG(order−1) (DG0 for P1)."""
+    mesh = u.function_space.mesh
+    order = u.function_space.ufl_element().degree()
+    W = fem.FunctionSpace(mesh, ("DG", max(order - 1, 0)))
+    vm = fem.Function(W, name="von_mises_MPa")
+    vm.interpolate(fem.Expression(von_mises_expr(u, mat), W.element.interpolation_points()))
+    if not np.all(np.isfinite(vm.x.array)):
+        from pipeline.errors import NumericalError
+        raise NumericalError("the von Mises stress contains NaN or Inf")
+    return vm
+
+
+def _owned(vm: fem.Function, region: Callable[[np.ndarray], np.ndarray] | None
+           ) -> tuple[np.ndarray, np.ndarray]:
+    """This rank's owned values of vm (MPa) and their coordinates (mm) inside ``region``."""
+    W = vm.function_space
+    n_owned = W.dofmap.index_map.size_local * W.dofmap.index_map_bs
+    xyz = W.tabulate_dof_coordinates()[:n_owned]
+    vals = vm.x.array[:n_owned]
+    if region is None:
+        return vals, xyz
+    mask = region(xyz)
+    return vals[mask], xyz[mask]
+
+
+def peak(vm: fem.Function, region: Callable[[np.ndarray], np.ndarray] | None = None) -> Peak:
+    """Largest nodal value of vm over the DOFs whose coordinates satisfy ``region``.
+
+    region takes an (n, 3) array of points (mm) and returns a boolean mask. Collective
+    over MPI; every rank gets the same answer.
+    """
+    vals, xyz = _owned(vm, region)
+    return _gathered_max(vals, xyz, vm.function_space.mesh.comm)
+
+
+def largest(*peaks: NodalPeak) -> NodalPeak:
+    """The peak with the largest reported value (the peak of a part read feature by feature)."""
+    return max(peaks, key=lambda p: p.value_MPa)
+
+
+def _gathered_max(vals: np.ndarray, xyz: np.ndarray, comm) -> Peak:
+    """The largest of every rank's values (MPa) and where it sits (mm). Collective."""
+    if len(vals):
+        i = int(np.argmax(vals))
+        local = (float(vals[i]), tuple(float(c) for c in xyz[i]))
+    else:
+        local = (-np.inf, (np.nan, np.nan, np.nan))
+    # Ties broken by coordinates so the answer does not depend on the partition.
+    best = max(comm.allgather(local), key=lambda p: (p[0], p[1]))
+    return Peak(value_MPa=best[0], location_mm=best[1])
+
+
+def hot_spots(vm: fem.Function, threshold_MPa: float,
+              separation_mm: float | Callable[[np.ndarray], np.ndarray], limit: int,
+              region: Callable[[np.ndarray], np.ndarray] | None = None) -> list[tuple[float, float, float]]:
+    """Points (mm) over ``region`` where vm is at least threshold_MPa: the highest first, each
+    at least separation_mm from those before, at most ``limit`` of them. ``separation_mm``
+    may depend on the place: a function of the points (n × 3, mm) giving one length each.
+
+    On a coarse mesh the peak of one feature can swap with a nearly equal one elsewhere
+    (the bore's top and bottom edges differ by ~1 %), so every near-peak place is kept.
+    Collective over MPI; every rank gets the same list.
+    """
+    vals, xyz = _owned(vm, region)
+    keep = vals >= threshold_MPa
+    cand = vm.function_space.mesh.comm.allgather((vals[keep], xyz[keep]))
+    v = np.concatenate([c[0] for c in cand])
+    p = np.concatenate([c[1] for c in cand]).reshape(-1, 3)
+    # Values rounded to 1e-6 of the threshold before ordering: 1 and 2 MPI ranks differ by
+    # ~1e-9 (solver tolerance), and the greedy choice must not depend on that.
+    vq = np.round(v / threshold_MPa, 6) if threshold_MPa > 0 else v
+    sep = np.broadcast_to(separation_mm(p) if callable(separation_mm) else separation_mm, len(p))
+    chosen: list[np.ndarray] = []
+    for i in np.lexsort((p[:, 2], p[:, 1], p[:, 0], -vq)):
+        if len(chosen) == limit:
+            break
+        if all(np.linalg.norm(p[i] - q) >= sep[i] for q in chosen):
+            chosen.append(p[i])
+    return [tuple(float(c) for c in q) for q in chosen]
+
+
+def averaged_von_mises(u: fem.Function, mat: Material) -> tuple[np.ndarray, np.ndarray]:
+    """Von Mises stress (MPa) of the nodal-averaged stress tensor at this rank's owned nodes
+    of CG(q), q = max(order − 1, 1), and the nodes' coordinates (mm).
+
+    Each cell's stress at the nodes counts once (the plain average of the elements meeting
+    at a node, as commercial codes' "averaged nodal stress"). Collective over MPI.
+    """
+    mesh = u.function_space.mesh
+    q = max(u.function_space.ufl_element().degree() - 1, 1)
+    T = fem.TensorFunctionSpace(mesh, ("DG", q))
+    C = fem.FunctionSpace(mesh, ("CG", q))
+    sigma = fem.Function(T)
+    sigma.interpolate(fem.Expression(stress(u, mat), T.element.interpolation_points()))
+    owned_cells = mesh.topology.index_map(mesh.topology.dim).size_local
+    # DG(q) and CG(q) number a cell's nodes alike, so row k of both dofmaps is one node.
+    dg = T.dofmap.list.array.reshape(-1, T.dofmap.dof_layout.num_dofs)[:owned_cells].ravel()
+    cg = C.dofmap.list.array.reshape(-1, C.dofmap.dof_layout.num_dofs)[:owned_cells].ravel()
+    imap = C.dofmap.index_map
+    n_local, n_owned = imap.size_local + imap.num_ghosts, imap.size_local
+    # Per node: the 9 stress components summed over its cells, and the number of cells.
+    sums = la.vector(imap, bs=10)
+    values = sigma.x.array.reshape(-1, 9)[dg]
+    sums.array[:] = np.column_stack([np.bincount(cg, values[:, j], n_local) for j in range(9)]
+                                    + [np.bincount(cg, minlength=n_local)]).ravel()
+    sums.scatter_reverse(la.ScatterMode.add)   # cells of other ranks that share this rank's nodes
+    node = sums.array.reshape(-1, 10)[:n_owned]
+    s = node[:, :9].reshape(-1, 3, 3) / node[:, 9, None, None]
+    dev = s - np.trace(s, axis1=1, axis2=2)[:, None, None] / 3.0 * np.eye(3)
+    vm = np.sqrt(1.5 * np.einsum("nij,nij->n", dev, dev))
+    return vm, C.tabulate_dof_coordinates()[:n_owned]
+
+
+def nodal_peak(vm: fem.Function, averaged: tuple[np.ndarray, np.ndarray], rule: str,
+               region: Callable[[np.ndarray], np.ndarray] | None = None) -> NodalPeak:
+    """The unaveraged peak of vm and the averaged one (values and nodes from
+    :func:`averaged_von_mises`) over ``region`` (None: everywhere). Collective over MPI."""
+    vals, xyz = averaged
+    if region is not None:
+        inside = region(xyz)
+        vals, xyz = vals[inside], xyz[inside]
+    return NodalPeak(unaveraged=peak(vm, region), averaged=_gathered_max(vals, xyz, vm.function_space.mesh.comm),
+                     rule=rule)

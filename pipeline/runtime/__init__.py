@@ -1,0 +1,1 @@
+"""Running safely: the output folder, files written whole, stops, rank failures, memory, mpirun."""

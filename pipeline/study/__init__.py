@@ -1,0 +1,1 @@
+"""Design studies: the plan of variants, running them over MPI ranks, their table, the size summary."""

@@ -1,0 +1,140 @@
+"""A design study's inputs (mm, N): the axes of the grid (``START:STOP:COUNT`` or lists),
+study files (TOML, one ``[sweep]`` table), and the plan: one task per geometry and
+material, each at every load, keyed by a hash of all its resolved inputs and of the code
+that analyses it, so that a re-run recognises a finished task and re-runs one whose inputs
+or code changed. Invalid variants
+(rules of docs/design.md §2) are planned with the rule they break, never analysed.
+"""
+from __future__ import annotations
+
+import hashlib
+import itertools
+import json
+from dataclasses import dataclass
+from pathlib import Path
+
+from pipeline.inputs.case import Case, check_error_bar_meshes, resolve
+from pipeline.cache.codekey import code_key
+from pipeline.errors import InputError
+
+# A study file's [sweep] keys and their TOML types.
+TOML_NAMES = {str: "a string", int: "an integer", float: "a number", dict: "a table", list: "an array of numbers"}
+STUDY_KEYS = {"size": (str,), "case": (str,), "dims": (dict,), "load": (str, int, float, list), "levels": (int,),
+              "ratio": (int, float), "mesh_factor": (int, float), "out": (str,)}
+
+
+@dataclass(frozen=True)
+class Task:
+    """One geometry and material of the grid, with every load it is asked at."""
+
+    key: str
+    params: dict  # the swept non-load parameters, name -> value
+    case: Case | None  # None: invalid (see note)
+    loads: tuple[float, ...]
+    note: str = ""
+
+
+def plan(size: str | None, case_file: Path | None, base: dict, axes: dict[str, list[float]],
+         loads: list[float], levels: int, ratio: float, sizes: list[str] | None = None) -> list[Task]:
+    """The grid's tasks: the product of ``axes`` (``dims.<name>`` or case fields, values),
+    each at every load of ``loads`` (or the case's own load); with ``sizes``, that grid for
+    every hook number (each at its own rated load unless loads are given)."""
+    names = list(axes)
+    tasks = []
+    for hook, combo in itertools.product(sizes or [size], itertools.product(*(axes[n] for n in names))):
+        params = dict(zip(names, combo), **({"size": hook} if sizes else {}))
+        over = dict(base, **{k: v for k, v in params.items() if k != "size"})
+        try:
+            case = resolve(hook, case_file, over)
+            qs = tuple(loads) or (case.load_N,)
+            for q in qs:
+                resolve(hook, case_file, dict(over, load_N=q))
+            note = ""
+        except InputError as exc:
+            case, qs, note = None, tuple(loads), " ".join(str(exc).split())
+        ident = {"case": None if case is None else case.as_dict(), "loads": qs, "levels": levels,
+                 "ratio": ratio, "params": params, "code": code_key()}
+        key = hashlib.sha1(json.dumps(ident, sort_keys=True, default=str).encode()).hexdigest()[:12]
+        tasks.append(Task(key=key, params=params, case=case, loads=qs, note=note))
+    valid = [t.case for t in tasks if t.case is not None]
+    if not valid:  # refused before the output folder is touched: nothing to analyse
+        if len({t.note for t in tasks}) == 1:  # not the variants: an input they all share is wrong
+            raise InputError(tasks[0].note)
+        raise InputError(f"sweep: every variant is invalid; the first: {tasks[0].note}")
+    check_error_bar_meshes(valid[0], levels, ratio)
+    return tasks
+
+
+def read_study(path: Path) -> dict:
+    """A study file (TOML, e.g. cases/sweep-rf.toml): its [sweep] table with ``size`` or
+    ``case``, ``dims`` (NAME = "START:STOP:COUNT" or "a,b,c"), ``load``, ``levels``,
+    ``ratio``, ``mesh_factor``, ``out``."""
+    import tomllib
+
+    from geometry.table import Dimensions
+    try:
+        data = tomllib.loads(Path(path).read_text(encoding="utf-8").removeprefix("\ufeff"))
+    except (OSError, UnicodeDecodeError, ValueError) as exc:
+        raise InputError(f"study: cannot read {path}: {exc}") from None
+    s = data.get("sweep")
+    if not isinstance(s, dict) or set(data) != {"sweep"}:
+        extra = ", ".join(sorted(set(data) - {"sweep"}))
+        raise InputError(f"study: {path} holds one [sweep] table and nothing else"
+                         + (f" (found {extra}; material and mesh options go in a case file, case = ...)"
+                            if extra else ""))
+    for key, value in s.items():
+        types = STUDY_KEYS.get(key)
+        if types is None:
+            raise InputError(f"sweep.{key}: unknown key in {path}; known: {', '.join(STUDY_KEYS)}")
+        if isinstance(value, bool) or not isinstance(value, types):
+            raise InputError(f"sweep.{key}: expected {' or '.join(TOML_NAMES[t] for t in types)} in {path}, "
+                             f"got {value!r}")
+    names = list(Dimensions.__dataclass_fields__)
+    if "load" in s:  # loads, like a dimension's values, may be a TOML array of numbers
+        s = dict(s, load=_array_as_list(s["load"], "sweep.load", path))
+    dims = {}
+    for name, values in s.get("dims", {}).items():
+        if name not in names:
+            raise InputError(f"sweep.dims.{name}: unknown dimension in {path}; known: {', '.join(names)}")
+        values = _array_as_list(values, f"sweep.dims.{name}", path)
+        if isinstance(values, bool) or not isinstance(values, (str, int, float)):
+            raise InputError(f"sweep.dims.{name}: expected \"START:STOP:COUNT\", \"v1,v2,...\", an array of "
+                             f"numbers or a number in {path}, got {values!r}")
+        dims[name] = values
+    return dict(s, **({"dims": dims} if "dims" in s else {}))
+
+
+def _array_as_list(values, name: str, path: Path):
+    """A TOML array of numbers as the list text "a,b,c" (pipeline.inputs.valuelist reads it);
+    anything else as it is, except an array holding something other than numbers."""
+    if not isinstance(values, list):
+        return values
+    if values and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in values):
+        return ",".join(repr(v) for v in values)
+    raise InputError(f"{name}: expected an array of numbers in {path}, got {values!r}")
+
+
+def variant_folder(out: Path, key: str) -> Path:
+    """Where task ``key`` of the study in ``out`` writes its run (its results.json inside)."""
+    return out / "variants" / key
+
+
+def failure_file(out: Path, key: str) -> Path:
+    """Where task ``key`` of the study in ``out`` writes why it failed, instead of a run."""
+    return out / "variants" / f"{key}.failed.json"
+
+
+def earlier_variants(out: Path, keys: set[str]) -> list[Path]:
+    """The results in the study folder ``out`` of variants that are not among ``keys``:
+    what a run of the study with other inputs or older code left (a variant's key hashes
+    both). Only what a variant writes is named: a folder with the results marker, or a
+    ``<key>.failed.json``."""
+    from pipeline.runtime.folders import MARKER
+    found = []
+    folder = out / "variants"
+    for p in sorted(folder.iterdir()) if folder.is_dir() else []:
+        if p.is_dir() and not p.is_symlink() and p.name not in keys and (p / MARKER).is_file():
+            found.append(p)
+        elif p.is_file() and p.name.endswith(".failed.json") and p.name.removesuffix(".failed.json") not in keys:
+            found.append(p)
+    return found

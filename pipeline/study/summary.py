@@ -1,0 +1,564 @@
+"""Batch summary across hook sizes: Markdown and CSV tables and a plot (mm, N, MPa, s).
+
+    python -m pipeline.study.summary results --out results/summary
+
+reads every ``results/<size>/results.json`` written by ``python -m pipeline run`` (one
+folder per hook number of geometry/sizes.csv; ``--all`` takes every folder that holds a
+results.json) and writes ``summary.md``, ``summary.csv`` and ``summary.png`` into the
+output folder. ``make sizes`` runs it after every size target.
+"""
+from __future__ import annotations
+
+import argparse
+import csv
+import functools
+import io
+import json
+import math
+import re
+import signal
+import sys
+import tempfile
+from dataclasses import asdict
+from pathlib import Path
+
+from geometry.table import is_scaled_row
+
+from pipeline.errors import OneLineParser
+from pipeline.runtime.interrupts import EXIT_FOR, NOTHING_WRITTEN, STOPPED
+
+_S_RE = re.compile(r"s = sqrt\(Q/1000 kg\) = ([0-9.]+)")
+
+CSV_COLUMNS = (
+    "size", "dimensions", "scale_s", "load_N", "approximate_MPa", "exact_MPa",
+    "fe_peak_MPa", "fe_peak_band_MPa", "fe_peak_status", "fe_peak_extrapolated_MPa",
+    "fe_peak_last_change_MPa", "fe_peak_feature",
+    "fe_critical_MPa", "fe_critical_band_MPa", "fe_critical_status", "fe_critical_extrapolated_MPa",
+    "fe_critical_last_change_MPa", "fe_critical_feature", "allowable_MPa", "safety_factor", "critical_safety_factor",
+    "mesh_min_jacobian_ratio", "mesh_factor", "meshes", "dofs", "time_s", "warnings", "source", "changed_dims")
+
+SUMMARY_FILES = frozenset({"summary.md", "summary.csv", "summary.png"})
+TITLE = "# Crosshead stresses across hook sizes"  # summary.md's first line
+JACOBIAN_SUSPECT = 0.01   # worst det J ratio of a curved tet below this: nearly inverted
+BAND_TOO_WIDE = 0.25      # error bar above this fraction of the value: not usable
+NOT_ASKED = "not asked"   # the status of a peak the run did not resolve (--want): no value
+STATUS_OF = {"fe_peak_MPa": "fe_peak_status", "fe_critical_MPa": "fe_critical_status"}  # a peak's status column
+
+
+def hook_value(size: str) -> float:
+    """Numeric hook number for sorting: "025" → 0.25, "04" → 0.4, "1.6" → 1.6, "10" → 10."""
+    try:
+        if size.startswith("0") and "." not in size and len(size) > 1:
+            return float("0." + size[1:])
+        return float(size)
+    except ValueError:
+        return math.inf
+
+
+def _estimate(block: dict) -> tuple[float | None, str, float | None, float | None]:
+    """(band MPa or None, status, extrapolated MPa or None, change finest − next mesh MPa
+    or None) of one peak block."""
+    if block.get("not_wanted"):
+        return None, NOT_ASKED, None, None
+    est = block.get("error_estimate")
+    if est is None:
+        return None, "single mesh", None, None
+    band = est.get("band") if est["status"] != "singular" else None  # singular: no finite value
+    ext = est.get("extrapolated") if est["status"] in ("converged", "scattered") else None
+    vals = est.get("values") or []
+    change = vals[0] - vals[1] if len(vals) >= 2 else None
+    return band, est["status"], ext, change
+
+
+@functools.cache
+def _table() -> dict:
+    """The size table (geometry/sizes.csv), read once per process."""
+    from geometry.table import load_table
+    return load_table()
+
+
+def changed_dims(case: dict) -> str:
+    """The dimensions (mm) in which a run's case differs from its size's row of the table,
+    as "rf = 2 mm (table 1.5)", comma-separated; '' when none does or the size is not in
+    the table (a design study's variants are rows with changed dimensions)."""
+    row = _table().get(str(case.get("size")))
+    dims = case.get("dims")
+    if row is None or not isinstance(dims, dict):
+        return ""
+    table = asdict(row.dims)
+    return ", ".join(f"{k} = {v:g} mm (table {table[k]:g})" for k, v in dims.items()
+                     if k in table and not math.isclose(v, table[k], rel_tol=1e-12, abs_tol=1e-12))
+
+
+def row_of(folder: Path, res: dict) -> dict:
+    """One summary row (flat dict, CSV_COLUMNS) from one results.json."""
+    case, fe, an = res["case"], res["fe"], res["analytic"]
+    src = case.get("source", "")
+    m = _S_RE.search(src)
+    scaled = is_scaled_row(src)
+    pb, ps, pe, pd = _estimate(fe["peak"])
+    cb, cs, ce, cd = _estimate(fe["critical"])
+    return {
+        "size": case.get("size", folder.name), "folder": folder.name,
+        "dimensions": "scaled (not DIN)" if scaled else "table row (see source)",
+        "scale_s": float(m.group(1)) if (scaled and m) else (1.0 if case.get("size") == "05" else None),
+        "load_N": case["load_N"],
+        "approximate_MPa": an["approximate_MPa"], "exact_MPa": an["exact_MPa"],
+        "fe_peak_MPa": None if ps == NOT_ASKED else fe["peak_MPa"], "fe_peak_band_MPa": pb, "fe_peak_status": ps,
+        "fe_peak_extrapolated_MPa": pe, "fe_peak_last_change_MPa": pd, "fe_peak_feature": fe["peak"].get("feature", ""),
+        "fe_critical_MPa": None if cs == NOT_ASKED else fe["critical_peak_MPa"], "fe_critical_band_MPa": cb,
+        "fe_critical_status": cs, "fe_critical_extrapolated_MPa": ce, "fe_critical_last_change_MPa": cd,
+        "fe_critical_feature": fe["critical"].get("feature", ""),
+        "allowable_MPa": case.get("allowable_MPa"),
+        "safety_factor": fe["safety_factor"], "critical_safety_factor": fe["critical_safety_factor"],
+        "mesh_min_jacobian_ratio": fe.get("mesh_min_jacobian_ratio"),
+        "mesh_factor": case.get("mesh_factor"), "meshes": len(fe.get("levels", [])) or None,
+        "dofs": fe.get("dofs"), "time_s": res.get("timings_s", {}).get("total"),
+        "source": src, "changed_dims": changed_dims(case),
+    }
+
+
+TEXT_COLUMNS = frozenset({"size", "folder", "dimensions", "fe_peak_status", "fe_peak_feature", "fe_critical_status",
+                          "fe_critical_feature", "source", "changed_dims"})
+NEEDED_COLUMNS = frozenset({"load_N", "approximate_MPa", "exact_MPa", "fe_peak_MPa", "fe_critical_MPa"})
+
+
+def checked(row: dict) -> dict:
+    """``row`` if every value has the type its column needs (text, or a finite number or
+    nothing), else ValueError naming the first that does not: a results.json edited or
+    cut short by hand must not stop the summary half-way."""
+    for k, v in row.items():
+        if k in TEXT_COLUMNS:
+            ok = isinstance(v, str)
+        else:
+            not_asked = k in STATUS_OF and row.get(STATUS_OF[k]) == NOT_ASKED
+            ok = (v is None and (k not in NEEDED_COLUMNS or not_asked)) or (
+                isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v))
+        if not ok:
+            raise ValueError(f"{k} = {v!r}")
+    return row
+
+
+def warnings_of(r: dict) -> list[str]:
+    """Short reasons a person should not trust a row's FE numbers as they stand."""
+    out = []
+    jac = r.get("mesh_min_jacobian_ratio")
+    if jac is not None and jac < JACOBIAN_SUSPECT:
+        out.append(f"nearly inverted curved element on the finest mesh (det J ratio {jac:.2g})")
+    for key, name in (("peak", "global"), ("critical", "critical")):
+        band, value = r[f"fe_{key}_band_MPa"], r[f"fe_{key}_MPa"]
+        if band is not None and value and band > BAND_TOO_WIDE * abs(value):
+            out.append(f"{name} error bar {100 * band / abs(value):.0f} % of the value")
+    return out
+
+
+def collect(results_dir: Path, take_all: bool = False) -> tuple[list[dict], list[str]]:
+    """Rows for every size folder with a results.json, sorted by hook number; and notes
+    on folders that were skipped."""
+    sizes = None if take_all else set(_table())
+    rows, skipped, unnamed = [], [], []
+    for sub in sorted(p for p in results_dir.iterdir() if p.is_dir()):
+        f = sub / "results.json"
+        if not f.is_file():
+            continue
+        if sizes is not None and sub.name not in sizes:
+            unnamed.append(sub.name)
+            continue
+        try:
+            row = checked(row_of(sub, json.loads(f.read_text(encoding="utf-8"))))
+            row["warnings"] = "; ".join(warnings_of(row))
+            rows.append(row)
+        except (OSError, KeyError, TypeError, ValueError, AttributeError) as exc:
+            skipped.append(f"{sub.name} (unreadable results.json: {type(exc).__name__}: {exc})")
+    for f in sorted(results_dir.glob("*.failed.json")):  # a study's variant that failed (pipeline.study.sweep)
+        try:
+            failed = json.loads(f.read_text(encoding="utf-8"))
+            skipped.append(f"No. {failed['size']} (its analysis failed: {failed['error']})")
+        except (OSError, ValueError, KeyError, TypeError):
+            skipped.append(f"{f.name} (a failed variant; its note cannot be read)")
+    if unnamed:  # said once: a study's variants/ folder has one per variant
+        skipped.append(f"{', '.join(unnamed[:3])}{f' and {len(unnamed) - 3} more' if len(unnamed) > 3 else ''} "
+                       "(not named for a hook number of the size table; use --all, as for a study's variants/)")
+    rows.sort(key=lambda r: (hook_value(r["size"]), r["folder"]))
+    return rows, skipped
+
+
+def _n(v: float | None, digits: int = 2) -> str:
+    return "–" if v is None else f"{v:.{digits}f}"
+
+
+def _fe_cell(r: dict, key: str) -> str:
+    """FE peak with its error bar, or why it has none (MPa)."""
+    value, band, status = r[f"fe_{key}_MPa"], r[f"fe_{key}_band_MPa"], r[f"fe_{key}_status"]
+    if status == NOT_ASKED:
+        return "–"
+    change = r[f"fe_{key}_last_change_MPa"]
+    last = "" if change is None else f"; last refinement {change:+.2f}"
+    if status == "singular":
+        return f"{value:.2f} (NOT CONVERGED: grows{last})"
+    if band is None:
+        return f"{value:.2f} (no error bar)"
+    return f"{value:.2f} ± {band:.2f}"
+
+
+def csv_text(rows: list[dict]) -> str:
+    """summary.csv: one line per row, CSV_COLUMNS (N, MPa, s; empty where there is no value)."""
+    fh = io.StringIO(newline="")
+    w = csv.DictWriter(fh, fieldnames=CSV_COLUMNS, extrasaction="ignore")
+    w.writeheader()
+    for r in rows:
+        w.writerow({k: ("" if r[k] is None else r[k]) for k in CSV_COLUMNS})
+    return fh.getvalue()
+
+
+def markdown(rows: list[dict], skipped: list[str], png_name: str | None) -> str:
+    """summary.md: the table of every row (N, MPa, s), the rows to check before using their
+    FE numbers, notes on what the rows share or lack, and the plot ``png_name`` if drawn."""
+    lines = _table_lines(rows)
+    lines.append("")
+    lines += _warning_lines(rows)
+    if not rows:
+        lines.append("No results found.")
+    notes = _source_notes(rows)
+    places = []
+    for name, key in (("Global", "fe_peak"), ("Critical", "fe_critical")):
+        asked = [r for r in rows if r[f"{key}_status"] != NOT_ASKED]
+        if asked:
+            places.append(f"{name} peak at: {_peak_places(asked, key)}.")
+    if places:
+        notes.append(" ".join(places))
+    notes += _status_notes(rows)
+    notes += _run_notes(rows, skipped)
+    lines += [f"- {n}" for n in notes]
+    if png_name:
+        lines += ["", f"![stresses against hook number]({png_name})"]
+    return "\n".join(lines) + "\n"
+
+
+def _table_lines(rows: list[dict]) -> list[str]:
+    """The title, what the columns mean, and the table: one line per row, ⚠ on the rows
+    with warnings (N, MPa, s)."""
+    lines = [
+        TITLE,
+        "",
+        "Units: N, MPa, s. Formulas: the paper's approximate (span b1 + b2) and exact "
+        "(curved bar, span b6) hand formulas. FE: peak von Mises on the finest mesh, over the "
+        "whole part (global) and over the ligaments beside the bore (critical, |x| ≤ d2/2); at the "
+        "fillet the midpoint of the unaveraged and averaged nodal readings, elsewhere the "
+        "unaveraged element-node value. ± the peak's error bar: the band of the mesh-refinement "
+        "study (its status in the next column, explained below) or, for a fillet peak, half the "
+        "gap between its two readings when that is larger. Safety factor = allowable / FE peak.",
+        "",
+        "| No. | dimensions | load (N) | approx. (MPa) | exact (MPa) | FE global peak (MPa) | status "
+        "| FE critical peak (MPa) | status | SF global | SF critical | DOFs | time (s) |",
+        "|---|---|--:|--:|--:|--:|---|--:|---|--:|--:|--:|--:|",
+    ]
+    for r in rows:
+        dims = r["dimensions"] if r["scale_s"] in (None, 1.0) or r["dimensions"].startswith("table row") \
+            else f"scaled ×{r['scale_s']:.3f} (not DIN)"
+        if r["changed_dims"]:
+            dims += f"; changed: {r['changed_dims']}"
+        flag = " ⚠" if r.get("warnings") else ""
+        lines.append(
+            f"| {r['size']}{flag} | {dims} | {r['load_N']:.0f} | {_n(r['approximate_MPa'])} | "
+            f"{_n(r['exact_MPa'])} | {_fe_cell(r, 'peak')} | "
+            f"{r['fe_peak_status']} | "
+            f"{_fe_cell(r, 'critical')} | "
+            f"{r['fe_critical_status']} | {_n(r['safety_factor'])} | {_n(r['critical_safety_factor'])} | "
+            f"{r['dofs'] if r['dofs'] is not None else '–'} | {_n(r['time_s'], 1)} |")
+    return lines
+
+
+def _warning_lines(rows: list[dict]) -> list[str]:
+    """The rows whose FE numbers need a look first (see :func:`warnings_of`), each with
+    its reasons, after what the thresholds mean; nothing when no row has warnings."""
+    warned = [r for r in rows if r.get("warnings")]
+    if not warned:
+        return []
+    lines = [f"**⚠ Check these rows before using their FE numbers** (a curved tet with det J "
+             f"ratio below {JACOBIAN_SUSPECT:g} can carry a spurious peak; an error bar above "
+             f"{100 * BAND_TOO_WIDE:.0f} % of the value means one of the meshes disagrees wildly: "
+             "look at its levels in results.json, rerun finer or with another --mesh-factor):", ""]
+    lines += [f"- No. {r['size']}: {r['warnings']}." for r in warned]
+    lines.append("")
+    return lines
+
+
+def _source_notes(rows: list[dict]) -> list[str]:
+    """Where the rows' dimensions come from: the rows taken from the table as given, with
+    their sources, and what the scaled (not DIN) rows are."""
+    notes = []
+    own = {r["size"]: r["source"] for r in rows if r["dimensions"].startswith("table row")}
+    if own:  # each size once: a study's variants are several rows of one size
+        notes.append("Rows from the table (not scaled): " + "; ".join(
+            f"No. {size}: {source}" for size, source in own.items()) + ".")
+    if any(r["changed_dims"] for r in rows):
+        notes.append("Rows with *changed* dimensions differ from their size's table row in the "
+                     "dimensions named (mm); the formulas and the FE are of the changed part.")
+    if any(not r["dimensions"].startswith("table row") for r in rows):
+        notes.append(
+            "Rows marked *scaled* are NOT DIN 15412 dimensions: every length of No. 05 times "
+            "s = sqrt(Q/1000 kg), rounded to 0.5 mm (geometry/sizes.csv, tools/scale_sizes.py). "
+            "Under exact similarity with load ∝ s² the stresses would equal No. 05's × 0.981 "
+            "(No. 05 carries the paper's rounded 10 000 N, the scaled rows kg × 9.81 N); the "
+            "remaining differences come from the 0.5 mm rounding (notably the fillet radius rf, "
+            "which drives the global peak at the journal shoulder) and the mesh.")
+    return notes
+
+
+def _peak_places(rows: list[dict], key: str) -> str:
+    """The features a peak sits at (``key``: the peak's column prefix, fe_peak or
+    fe_critical) with the hook numbers at each, the most common first; one feature is said
+    once for every row."""
+    by: dict[str, list[str]] = {}
+    for r in rows:
+        by.setdefault(r[f"{key}_feature"] or "?", []).append(r["size"])
+    if len(by) == 1:
+        return f"{next(iter(by))} (every row)"
+    return "; ".join(f"{f} (No. {', '.join(s)})" for f, s in sorted(by.items(), key=lambda kv: -len(kv[1])))
+
+
+def _status_notes(rows: list[dict]) -> list[str]:
+    """What each error-bar status that occurs in the rows means for its bar."""
+    notes = []
+    statuses = {s for r in rows for s in (r["fe_peak_status"], r["fe_critical_status"])}
+    if "oscillatory" in statuses:
+        notes.append("*oscillatory*: the peak moved up and down between the meshes; the "
+                     "bar is the largest change, not a Richardson estimate.")
+    if "scattered" in statuses:
+        notes.append("*scattered*: the peak scatters between meshes (unstructured meshes move nodal "
+                     "peaks by ~1 %); the bar is from a least-squares fit over the meshes with safety "
+                     "factor 3.")
+    if "singular" in statuses:
+        notes.append("*singular*: the peak grows under refinement by 0.5 % or more at every step (observed "
+                     "order < 0.5); it sits "
+                     "at a singular feature, has no finite value and is not a number to design with.")
+    if "settled" in statuses:
+        notes.append("*settled*: the peak is the same on every mesh to within 0.1 %, the noise of a "
+                     "nodal peak; the bar is that 0.1 %, no order is fitted.")
+    if NOT_ASKED in statuses:
+        notes.append(f"*{NOT_ASKED}*: the run was asked for the other peak only (--want) and did not refine "
+                     "for this one; it has no value here.")
+    if "unsettled" in statuses:
+        notes.append("*unsettled*: the peak still falls between the meshes without a steady rate "
+                     "(not in the asymptotic range); the bar is the largest change, no extrapolation.")
+    return notes
+
+
+def _run_notes(rows: list[dict], skipped: list[str]) -> list[str]:
+    """How the rows were run: whether alike (mesh factor, meshes per error bar), the
+    allowable stress (MPa) when one for all, their total run time (s), and the folders
+    skipped."""
+    notes = []
+    factors = {r["mesh_factor"] for r in rows}
+    meshes = {r["meshes"] for r in rows}
+    if len(factors) > 1 or len(meshes) > 1:
+        notes.append(f"The rows were not all run alike: mesh factors {sorted(factors, key=str)}, "
+                     f"meshes per error bar {sorted(meshes, key=str)}.")
+    elif rows:
+        notes.append(f"Every row: mesh factor {factors.pop()}, {meshes.pop()} meshes for the error bar.")
+    allow = {r["allowable_MPa"] for r in rows}
+    if len(allow) == 1 and rows:
+        notes.append(f"Allowable stress {allow.pop():g} MPa (St 50, paper: 80–120 MPa).")
+    if rows:
+        total = sum(r["time_s"] or 0.0 for r in rows)
+        notes.append(f"Total run time of the rows: {total:.0f} s.")
+    if skipped:
+        notes.append("Not in the table: " + "; ".join(skipped) + ".")
+    return notes
+
+
+def plot(rows: list[dict], path: Path) -> bool:
+    """FE peaks with error bars and the formula stresses against hook number (categorical)."""
+    try:
+        import matplotlib
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+    except ImportError:
+        return False
+    x = list(range(len(rows)))
+    # A mesh artefact can be 20× the rest (see warnings_of): clip the axis and label it.
+    glob = sorted(r["fe_peak_MPa"] for r in rows if r["fe_peak_MPa"] is not None) or [0.0]
+    cap = max(2.5 * glob[len(glob) // 2], *(1.3 * (r["allowable_MPa"] or 0) for r in rows),
+              *(1.2 * (r["fe_critical_MPa"] or 0.0) for r in rows))
+    # The axis ends just above what is drawn; at the cap only when something is clipped.
+    tops = [r[k] + (r[b] or 0.0) for r in rows for k, b in (("fe_peak_MPa", "fe_peak_band_MPa"),
+                                                             ("fe_critical_MPa", "fe_critical_band_MPa"))
+            if r[k] is not None]
+    tops += [r["exact_MPa"] for r in rows] + [r["allowable_MPa"] or 0.0 for r in rows]
+    ylim_top = 1.05 * cap if max(tops) > cap else 1.08 * max(tops)
+    fig, ax = plt.subplots(figsize=(min(16.0, max(7.0, 0.42 * len(rows) + 3) + 3.0), 6.0))
+
+    def series(key: str, band_key: str, status_key: str, fmt: str, color: str, label: str):
+        have = [(xi, r) for xi, r in zip(x, rows) if r[key] is not None]  # not asked (--want): none
+        if not have:
+            return
+        xs = [xi for xi, _ in have]
+        vals = [min(r[key], cap) for _, r in have]
+        for xi, r in have:
+            if r[key] > cap:
+                ax.plot([xi], [cap], "^", color=color, ms=10)
+                ax.annotate(f"{r[key]:.0f} MPa\n(off scale)", (xi, cap), textcoords="offset points",
+                            xytext=(6, -22), fontsize=7, color=color)
+        bars = [r[band_key] if r[band_key] is not None else 0.0 for _, r in have]
+        ax.errorbar(xs, vals, yerr=bars, fmt=fmt, color=color, capsize=3, lw=1.2, ms=5, label=label)
+        bad = [i for i, (_, r) in enumerate(have) if r[status_key] == "singular"]
+        if bad:
+            ax.plot([xs[i] for i in bad], [vals[i] for i in bad], "x", color="k", ms=9,
+                    label=f"{label.split(' (')[0].split(' ±')[0]}: no error bar (not converged)")
+
+    series("fe_critical_MPa", "fe_critical_band_MPa", "fe_critical_status", "o-", "C3",
+           "FE critical peak (bore ligament) ± error bar")
+    series("fe_peak_MPa", "fe_peak_band_MPa", "fe_peak_status", "s--", "C0",
+           "FE global peak ± error bar")
+    ax.plot(x, [r["exact_MPa"] for r in rows], "^-", color="C2", label="exact formula (curved bar)")
+    ax.plot(x, [r["approximate_MPa"] for r in rows], "v-", color="C1", label="approximate formula")
+    allow = {r["allowable_MPa"] for r in rows}
+    if len(allow) == 1 and rows:
+        a = allow.pop()
+        ax.axhline(a, color="0.4", ls=":", label=f"allowable {a:g} MPa")
+    ax.set_xticks(x)
+    ax.set_xticklabels([("! " if r.get("warnings") else "") + f"{r['size']}\n{r['load_N'] / 1000:.3g}"
+                        + ("" if r["dimensions"].startswith("table row") else "*") for r in rows], fontsize=8)
+    ax.set_xlabel("hook No. (categorical axis) and load in kN\n* = dimensions scaled from No. 05, not DIN; "
+                  "! = see the warnings in summary.md")
+    ax.set_ylabel("von Mises / nominal stress (MPa)")
+    ax.set_ylim(0, ylim_top)
+    ax.set_title("DIN 15412 crosshead: stress against hook number")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return True
+
+
+def default_out(results: Path) -> Path:
+    """Where the summary of ``results`` goes without --out: ``<results>/summary``, except
+    for a design study's ``variants/`` folder, whose sub-folders are the study's variants
+    only: there it is ``summary/`` in the study's folder, beside ``variants/``."""
+    from pipeline.runtime.folders import marked_kind
+    study = results.parent
+    if results.name == "variants" and marked_kind(study) == "sweep":
+        return study / "summary"
+    return results / "summary"
+
+
+def refusal(out: Path) -> str | None:
+    """Why the summary may not write into ``out``, or None. It writes into a new or empty
+    folder, or one that holds a summary it wrote (its marker says "summary"; an earlier
+    version's: nothing but its files, summary.md under its title), never into another
+    kind of results folder, a user's folder or a protected one (pipeline.runtime.folders)."""
+    from pipeline.runtime.folders import MARKER, refusal as folder_refusal
+    return folder_refusal(out, SUMMARY_FILES | {MARKER}, _not_a_summary)
+
+
+def _not_a_summary(out: Path) -> str | None:
+    """Why ``out``, holding only a summary's file names, is still not a summary's folder."""
+    from pipeline.runtime.folders import MARKER
+    if (out / MARKER).exists():
+        try:
+            mine = json.loads((out / MARKER).read_text(encoding="utf-8")).get("summary") is True
+        except (OSError, ValueError, AttributeError):
+            mine = False
+        return None if mine else "its marker is a run's or a sweep's, not a summary's"
+    if not _earlier_summary(out / "summary.md"):
+        return f"it holds files crosshead did not write (no {MARKER} marker); choose a new or empty folder"
+    return None
+
+
+def _earlier_summary(md: Path) -> bool:
+    """Whether ``md`` is a summary.md this tool wrote (its first line)."""
+    try:
+        with md.open(encoding="utf-8") as fh:
+            return fh.readline().rstrip("\n") == TITLE
+    except (OSError, ValueError):
+        return False
+
+
+class _Stopped(BaseException):
+    """A stop (Ctrl-C or SIGTERM), raised in the main thread. Code that swallows it (a
+    library's broad except while matplotlib loads, say) does not lose it: the signal is
+    also recorded, and nothing is written once one has come."""
+
+
+def main(argv: list[str] | None = None) -> int:
+    """The command line: exit 0 written, 2 bad input or an output folder it may not use,
+    130 / 143 stopped (one line each time). The three files are made in memory, then
+    written with Ctrl-C and SIGTERM held off, so a stop leaves the earlier summary whole."""
+    p = OneLineParser(prog="python -m pipeline.study.summary", description=__doc__.split("\n\n")[0])
+    p.add_argument("results", type=Path, nargs="?", default=Path("results"),
+                   help="folder holding one sub-folder per size (default results)")
+    p.add_argument("--out", type=Path, help="output folder (default <results>/summary; for a study's "
+                   "variants/ folder, summary/ beside it in the study's folder)")
+    p.add_argument("--all", action="store_true", help="every sub-folder with a results.json, not only table sizes")
+    args = p.parse_args(argv)
+    received: list[int] = []
+
+    def stop(signum: int, frame) -> None:
+        received.append(signum)
+        raise _Stopped
+
+    previous = {s: signal.signal(s, stop) for s in EXIT_FOR}
+    try:
+        return _summarise(args, received)
+    except _Stopped:
+        signum = received[0]
+        sys.stderr.write(f"{STOPPED[signal.Signals(signum)]}: {NOTHING_WRITTEN}\n")  # not stop_line: no run's outcome applies
+        return EXIT_FOR[signum]
+    finally:
+        for s, handler in previous.items():
+            signal.signal(s, handler)
+
+
+def _summarise(args: argparse.Namespace, received: list[int]) -> int:
+    """Check, read, make the files in memory, write them; ``received``: the stop signals
+    that have come (none may have come when the writing starts)."""
+    from pipeline.runtime.atomicfile import replacing, write_text
+    from pipeline.runtime.folders import MARKER
+    if not args.results.is_dir():
+        sys.stderr.write(f"error: results: no such folder {args.results}\n")
+        return 2
+    out = args.out or default_out(args.results)
+    why = refusal(out)
+    if why is not None:
+        sys.stderr.write(why + "\n")
+        return 2
+    rows, skipped = collect(args.results, args.all)
+    if not rows:
+        sys.stderr.write(f"error: results: no usable results/<size>/results.json under {args.results}"
+                         + (f" ({'; '.join(skipped)})" if skipped else "") + "\n")
+        return 2
+    with tempfile.TemporaryDirectory(prefix="crosshead-summary-") as tmp:
+        png = Path(tmp) / "summary.png"
+        have_png = plot(rows, png)
+        files = {"summary.csv": csv_text(rows).encode("utf-8"),
+                 "summary.md": markdown(rows, skipped, "summary.png" if have_png else None).encode("utf-8")}
+        if have_png:
+            files["summary.png"] = png.read_bytes()
+    if received:  # a stop that something above swallowed
+        raise _Stopped
+    held = signal.pthread_sigmask(signal.SIG_BLOCK, set(EXIT_FOR))  # a stop waits until all is written
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+        write_text(out / MARKER, '{"tool": "crosshead", "summary": true}\n')
+        for name, data in files.items():
+            with replacing(out / name, "wb") as fh:
+                fh.write(data)
+    except OSError as exc:
+        sys.stderr.write(f"error: out: cannot write {out}: {exc.strerror or exc}\n")
+        return 2
+    finally:
+        came = signal.sigtimedwait(set(EXIT_FOR), 0)  # taken here, so it cannot strike after the unblocking
+        signal.pthread_sigmask(signal.SIG_SETMASK, held)
+    if came is not None:
+        signum = signal.Signals(came.si_signo)
+        sys.stderr.write(f"{STOPPED[signum]}: the summary was already written to {out}\n")
+        return EXIT_FOR[signum]
+    print(files["summary.md"].decode("utf-8"), end="")
+    print(f"written to {out}/ ({', '.join(files)})")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

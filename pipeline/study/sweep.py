@@ -1,0 +1,188 @@
+"""Running a design study: one analysis per variant of a grid of dimensions and loads
+(planned by pipeline.study.plan), spread over MPI ranks, resumable; its table, crossings of the
+allowable, plots and report come from pipeline.study.table (mm, N, MPa).
+
+Scheduling is dynamic without a master: every rank walks the same task list and claims the
+next task that is neither finished nor claimed by creating ``.claims/<key>`` exclusively
+(atomic on a local or shared file system), so a slow variant holds only its own rank. A
+task is one geometry and material; the loads of the grid are solved once for it and
+scaled (linear elasticity, traction loads only). A task's key hashes every resolved input
+and the analysing code (codekey.code_key), so a re-run skips finished tasks and re-runs
+any whose inputs or code changed. Invalid variants
+(rules of docs/design.md §2) are reported and skipped; a failed variant is reported, not
+fatal. Results: ``sweep.csv``, ``sweep.json``, one plot per peak and swept parameter,
+``report.md``; each variant's own results in ``variants/<key>/``.
+"""
+from __future__ import annotations
+
+import contextlib
+import json
+import os
+import shutil
+import time
+from dataclasses import replace
+from pathlib import Path
+from typing import Callable
+
+from mpi4py import MPI
+
+from pipeline.runtime.atomicfile import write_text
+from pipeline.errors import InputError, NumericalError
+from pipeline.runtime.interrupts import on_stop, stop_outcome
+# pipeline.fe.meshing loads DOLFINx, whose import starts PETSc collectively over COMM_WORLD:
+# importing it here, on every rank as the command starts, keeps rank 0's later memory probe
+# from being the only rank to do so (it met the others' broadcast and aborted them).
+from pipeline.fe.meshing import heartbeat
+from pipeline.study.plan import Task, earlier_variants, failure_file, plan, variant_folder
+from pipeline.study.table import inputs_text, write_outputs
+
+Progress = Callable[[str], None]
+
+
+def _claim(out: Path, key: str) -> bool:
+    """Claim task ``key`` for this rank: True if no rank had (an exclusive create)."""
+    try:
+        os.close(os.open(out / ".claims" / key, os.O_CREAT | os.O_EXCL | os.O_WRONLY))
+        return True
+    except FileExistsError:
+        return False
+
+
+def _done(out: Path, key: str) -> bool:
+    """Has task ``key`` ended, with results or with its failure written?"""
+    return (variant_folder(out, key) / "results.json").is_file() or failure_file(out, key).is_file()
+
+
+def run_task(task: Task, out: Path, levels: int, ratio: float) -> None:
+    """Analyse one task on this rank alone; a failure is written beside, never raised."""
+    from geometry.part import GeometryError
+
+    from pipeline.commands import execute_run
+    case = replace(task.case, load_N=task.loads[0])
+    try:
+        execute_run(case, variant_folder(out, task.key), levels=levels, ratio=ratio, write_fields=False,
+                    write_mesh=False, loads=list(task.loads) if len(task.loads) > 1 else None, comm=MPI.COMM_SELF)
+    except (NumericalError, GeometryError, InputError) as exc:
+        write_text(failure_file(out, task.key),
+                   json.dumps({"error": " ".join(str(exc).split()), "size": case.size,
+                               "parameters": task.params}) + "\n")
+
+
+def work(tasks: list[Task], out: Path, levels: int, ratio: float, say: Progress, before: int) -> None:
+    """Every rank takes the next unclaimed, unfinished task until none is left; ``before``
+    tasks had finished when the study started (the pace counts only this run's)."""
+    todo = [t for t in tasks if t.case is not None]
+    t0 = time.perf_counter()
+    for task in todo:
+        if _done(out, task.key) or not _claim(out, task.key):
+            continue
+        # A variant says nothing until it ends: a large one (a fine mesh, a small fillet)
+        # is heard from every HEARTBEAT_S while it runs.
+        with heartbeat(say, f"sweep: variant {inputs_text(task.params)}"):
+            run_task(task, out, levels, ratio)
+        finished = sum(_done(out, t.key) for t in todo)
+        say(f"sweep: {finished}/{len(todo)} variants done; "
+            f"about {time_left_s(time.perf_counter() - t0, finished - before, len(todo) - finished):.0f} s left")
+
+
+def _count(n: int, noun: str) -> str:
+    """'1 variant', '3 variants'."""
+    return f"{n} {noun}{'' if n == 1 else 's'}"
+
+
+def time_left_s(elapsed_s: float, finished_here: int, left: int) -> float:
+    """The study's remaining wall time (s): the tasks left at the pace of this run so far,
+    ``finished_here`` tasks (by every rank, read from the output folder) in ``elapsed_s``.
+    Counting every rank's finished tasks, not one rank's, keeps the estimate right when the
+    ranks move at different paces (a slow variant, a busier node)."""
+    return elapsed_s / max(finished_here, 1) * left
+
+
+def check_variants_fit(tasks: list[Task], limit_gb: float | None, copies: int, say: Progress) -> None:
+    """Refuse (InputError, exit 2) a study a variant of which would not fit in memory
+    (pipeline.runtime.resources) when ``copies`` variants run at once on this machine (one per
+    rank that shares its memory). A variant's meshes are solved one after another on its
+    own rank, so its requested (finest) mesh sets what it needs. Only variants that could
+    be large are probed (a finer mesh factor, sizes by hand, a small fillet)."""
+    from pipeline.runtime.resources import check_fits, needs_probe
+    large = [t for t in tasks if t.case is not None and needs_probe(t.case, [t.case.mesh_factor])]
+    if large:
+        say(f"sweep: estimating the memory of {_count(len(large), 'variant')} that could be large (a mesh each)")
+    for t in large:
+        check_fits(t.case, [t.case.mesh_factor], limit_gb, copies, what=f"variant {inputs_text(t.params)}: ")
+
+
+def remove_earlier_variants(out: Path, tasks: list[Task], say: Progress) -> None:
+    """Remove the results of variants that this study does not have, once it has finished:
+    left by a run of it with other inputs or older code, they would be read beside its own
+    (a summary of ``variants/`` would list a size twice) and only take room. Until the
+    study finishes they stay, so an interrupted re-run loses nothing."""
+    gone = earlier_variants(out, {t.key for t in tasks})
+    for p in gone:
+        if p.is_dir():
+            shutil.rmtree(p)
+        else:
+            p.unlink()
+    if gone:
+        say(f"sweep: removed the results of {_count(len(gone), 'variant')} that this study does not have "
+            f"(earlier inputs or code)")
+
+
+def execute_sweep(size: str | None, case_file: Path | None, base: dict, axes: dict[str, list[float]],
+                  loads: list[float], out: Path, levels: int, ratio: float, say: Progress,
+                  comm: MPI.Comm = MPI.COMM_WORLD, sizes: list[str] | None = None,
+                  memory_limit_gb: float | None = None) -> dict | None:
+    """Plan, check memory and the output folder, work on every rank, summarise on rank 0.
+    Only rank 0 calls ``say``."""
+    from pipeline.runtime.outdir import MARKER, acquire_lock, check_out
+    if comm.rank != 0:
+        say = lambda s: None  # noqa: E731
+    tasks = plan(size, case_file, base, axes, loads, levels, ratio, sizes)
+    node = comm.Split_type(MPI.COMM_TYPE_SHARED)
+    copies = node.size  # the ranks that share this machine's memory, each with a variant
+    node.Free()
+    lock = None
+    error = None
+    if comm.rank == 0:
+        try:
+            out = check_out(out, kind="sweep")  # the cheap check first
+            check_variants_fit(tasks, memory_limit_gb, copies, say)
+            out.mkdir(parents=True, exist_ok=True)
+            lock = acquire_lock(out)
+            shutil.rmtree(out / ".claims", ignore_errors=True)  # the lock: no other sweep is running
+            (out / ".claims").mkdir()
+            (out / "variants").mkdir(exist_ok=True)
+            (out / MARKER).write_text(json.dumps({"tool": "crosshead", "sweep": True}) + "\n")
+            stop_outcome(f"the study in {out} keeps the variants finished so far; the same command resumes it")
+        except (InputError, OSError) as exc:
+            if lock is not None:
+                lock.release()
+                lock = None
+            error = exc if isinstance(exc, InputError) else InputError(f"out: cannot write {out}: {exc}")
+    error = comm.bcast(error, root=0)
+    if error is not None:
+        raise error
+    out = Path(out).expanduser().resolve()
+    valid = sum(t.case is not None for t in tasks)
+    before = sum(_done(out, t.key) for t in tasks if t.case is not None)
+    each = f" at {len(loads)} loads each" if len(loads) > 1 else ""
+    say(f"sweep: {_count(len(tasks), 'variant')}{each} ({valid} valid, {len(tasks) - valid} invalid), "
+        f"{before} already done, {comm.size} rank(s)")
+    with contextlib.ExitStack() as stack:
+        if lock is not None:  # a stop ends the process with os._exit: the finally below never runs
+            stack.enter_context(on_stop(lock.release))
+        try:
+            work(tasks, out, levels, ratio, say, before)
+            request = comm.Ibarrier()
+            while not request.Test():
+                time.sleep(0.05)
+            if comm.rank == 0:
+                remove_earlier_variants(out, tasks, say)
+                allowable = next((t.case.allowable_MPa for t in tasks if t.case is not None), 80.0)
+                axes_out = dict(axes, **({"load_N": loads} if len(loads) > 1 else {}))
+                return write_outputs(tasks, out, axes_out, allowable)
+            return None
+        finally:
+            if lock is not None:
+                shutil.rmtree(out / ".claims", ignore_errors=True)
+                lock.release()

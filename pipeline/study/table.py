@@ -1,0 +1,434 @@
+"""A design study's results (mm, N, MPa), built only from the files its variants wrote:
+one row per variant and load (sweep.csv, sweep.json), where each peak crosses the
+allowable along each swept parameter, one plot per peak and parameter, and report.md.
+"""
+from __future__ import annotations
+
+import csv
+import json
+from collections.abc import Iterable
+from pathlib import Path
+
+from pipeline.runtime.atomicfile import replacing, write_text
+from pipeline.post.errorbar import verdict_against
+from pipeline.output.report import pm
+from pipeline.study.plan import Task, failure_file, variant_folder
+
+COLUMNS = ("variant", "status", "size", "load_N", "parameters", "peak_MPa", "peak_band_MPa", "critical_peak_MPa",
+           "critical_band_MPa", "critical_section_nominal_MPa", "safety_factor", "critical_safety_factor",
+           "verdict", "critical_verdict", "time_s", "note")
+# Each peak of results.json's fe block: its name and its row fields (value, band, safety
+# factor) and verdict field (pass, fail or undecided against the allowable).
+PEAK_FIELDS = {"peak": ("global peak", ("peak_MPa", "peak_band_MPa", "safety_factor"), "verdict"),
+               "critical": ("critical peak", ("critical_peak_MPa", "critical_band_MPa", "critical_safety_factor"),
+                            "critical_verdict")}
+# The same, per peak: (value, band, name) and (value, band, verdict) fields of a row.
+PEAKS = tuple((fields[0], fields[1], name) for name, fields, _ in PEAK_FIELDS.values())
+VERDICT_KEYS = tuple((fields[0], fields[1], verdict) for _, fields, verdict in PEAK_FIELDS.values())
+# The statuses of variants with no peak, as a study's plots name them.
+UNANALYSED = {"invalid": "invalid geometry, not analysed", "failed": "analysis failed"}
+
+
+def rows_of(tasks: list[Task], out: Path) -> list[dict]:
+    """One row per variant and load: inputs, peaks with bands, safety factors, status."""
+    rows = []
+    for t in tasks:
+        base = {"variant": t.key, "parameters": json.dumps(t.params, sort_keys=True),
+                **{k: v for k, v in t.params.items()},
+                "size": t.params.get("size") or (None if t.case is None else t.case.size)}
+        if t.case is None:
+            rows += [dict(base, status="invalid", load_N=q, note=t.note) for q in (t.loads or (None,))]
+            continue
+        failed = failure_file(out, t.key)
+        res_path = variant_folder(out, t.key) / "results.json"
+        if failed.is_file():
+            note = json.loads(failed.read_text())["error"]
+            rows += [dict(base, status="failed", load_N=q, note=note) for q in t.loads]
+            continue
+        if not res_path.is_file():
+            rows += [dict(base, status="not run", load_N=q) for q in t.loads]
+            continue
+        res = json.loads(res_path.read_text())
+        fe = res["fe"]
+        nominal = ((fe.get("sections") or {}).get("critical_section") or {}).get("nominal_MPa")
+        per_load = res.get("load_sweep") or [{
+            "load_N": res["case"]["load_N"], "peak_MPa": fe["peak_MPa"], "critical_peak_MPa": fe["critical_peak_MPa"],
+            "peak_band_MPa": (fe["peak"].get("error_estimate") or {}).get("band"),
+            "critical_band_MPa": (fe["critical"].get("error_estimate") or {}).get("band"),
+            "safety_factor": fe["safety_factor"], "critical_safety_factor": fe["critical_safety_factor"]}]
+        q0 = res["case"]["load_N"]
+        # A peak with no value to design with is left out of the study (no value, verdict,
+        # side, crossing or plot), and the row says why, as the run's report does: one the
+        # run was not asked for (--want: not resolved), or one at a singular feature (it
+        # grows without bound under refinement: the rigid support's edges).
+        unusable = [(fields, verdict_key, *_unusable(fe[block], name))
+                    for block, (name, fields, verdict_key) in PEAK_FIELDS.items()]
+        unusable = [u for u in unusable if u[2] is not None]
+        for r in per_load:
+            row = dict(base, status="done", time_s=res["timings_s"]["total"],
+                       critical_section_nominal_MPa=None if nominal is None else nominal * r["load_N"] / q0,
+                       **{k: r.get(k) for k in ("load_N", "peak_MPa", "peak_band_MPa", "critical_peak_MPa",
+                                                "critical_band_MPa", "safety_factor", "critical_safety_factor")})
+            for fields, verdict_key, _, verdict in unusable:
+                row.update(dict.fromkeys(fields), **{verdict_key: verdict})
+            if unusable:
+                row["note"] = "; ".join(why for _, _, why, _ in unusable)
+            rows.append(row)
+    return rows
+
+
+def _unusable(block: dict, name: str) -> tuple[str | None, str | None]:
+    """(why a peak block of results.json has no value a study can use, or None; its
+    verdict then): not asked for has none (the case is judged on the peaks it asked for);
+    a singular peak's is "none", as in the run's verdict table (the case cannot pass)."""
+    if block.get("not_wanted"):
+        return block["not_wanted"].replace("; shown for orientation only", ""), None
+    if block.get("singular_feature"):
+        return f"{name} at a singular feature ({block['singular_feature']}): no finite value", "none"
+    return None, None
+
+
+def series(rows: list[dict], axis: str, status: str = "done") -> dict[tuple, list[dict]]:
+    """The rows of ``status`` (the finished ones by default) as lines along ``axis``: one
+    list per combination of the size, the other swept parameters and the load, keyed by
+    those (name, value) pairs, sorted by ``axis``."""
+    others = [k for k in rows[0] if k not in COLUMNS and k != axis] if rows else []
+    fixed_keys = ["size"] + others + (["load_N"] if axis != "load_N" else [])
+    groups: dict[tuple, list[dict]] = {}
+    for r in rows:
+        if r["status"] == status and r.get(axis) is not None:
+            groups.setdefault(tuple((k, r.get(k)) for k in fixed_keys), []).append(r)
+    return {fixed: sorted(g, key=lambda r: r[axis]) for fixed, g in groups.items()}
+
+
+def crossings(rows: list[dict], axis: str, allowable: float) -> list[dict]:
+    """Where each peak crosses the allowable along ``axis`` (the other parameters fixed):
+    linear interpolation between neighbouring variants; the range, when both neighbours
+    have a band, is where the allowable lies within value ± band between them
+    (:func:`band_reach`), and ``range_reaches`` names the neighbours it reaches (their own
+    bands hold the allowable: the crossing may lie beyond them). ``only_crossing``:
+    every variant of the line before it lies on one side and every one after it on the
+    other, so the peak stays on its new side up to ``last``, the line's last value."""
+    found = []
+    for fixed, line in series(rows, axis).items():
+        for key, band_key, label in PEAKS:
+            group = [r for r in line if r.get(key) is not None]  # a peak not asked for has none
+            for i, (a, b) in enumerate(zip(group, group[1:])):
+                ya, yb = a[key] - allowable, b[key] - allowable
+                if ya == 0 or ya * yb < 0:
+                    x = a[axis] + ya / (ya - yb) * (b[axis] - a[axis])
+                    lo_hi, reaches = None, []
+                    if a.get(band_key) is not None and b.get(band_key) is not None:
+                        t0, t1 = band_reach(ya, yb, a[band_key], b[band_key])
+                        lo_hi = [a[axis] + t * (b[axis] - a[axis]) for t in (t0, t1)]
+                        reaches = [r[axis] for r, t in ((a, t0), (b, t1)) if t in (0.0, 1.0)]
+                    falls = yb < ya
+                    before, after = group[:i + 1], group[i + 1:]
+                    only = (all((r[key] >= allowable) == falls for r in before)
+                            and all((r[key] < allowable) == falls for r in after))
+                    found.append({"peak": label, "axis": axis, "at": x, "range": lo_hi, "range_reaches": reaches,
+                                  "falls_below": falls, "fixed": dict(fixed),
+                                  "only_crossing": only, "last": group[-1][axis]})
+    return found
+
+
+def band_reach(ya: float, yb: float, wa: float, wb: float) -> tuple[float, float]:
+    """Where between two neighbouring variants (t = 0 at the first, 1 at the second) the
+    allowable lies within the error bar: |y(t)| <= w(t), with y = peak − allowable (MPa)
+    going from ya to yb across zero and the band w from wa to wb, both linear in t. Two
+    linear conditions, y − w <= 0 and −y − w <= 0, each hold on a part of [0, 1] that ends
+    where it changes sign; the crossing y = 0 satisfies both, so the interval holds it.
+    (Crossing the band's edges with the allowable instead can put both ends on one side of
+    the crossing, or outside the step, when the bands differ much.)"""
+    lo, hi = 0.0, 1.0
+    for f0, f1 in ((ya - wa, yb - wb), (-ya - wa, -yb - wb)):
+        if f0 > 0:
+            lo = max(lo, f0 / (f0 - f1))
+        elif f1 > 0:
+            hi = min(hi, f0 / (f0 - f1))
+    return lo, hi
+
+
+def with_verdicts(rows: list[dict], allowable: float) -> list[dict]:
+    """``rows`` with each finished row's verdict per peak against the allowable (MPa), its
+    error bar included, as a run's verdict table says it (errorbar.verdict_against); none
+    for a peak the row has no value of."""
+    for r in rows:
+        if r["status"] == "done":
+            for key, band_key, name in VERDICT_KEYS:
+                if r.get(key) is not None:
+                    r[name] = verdict_against(r[key], r.get(band_key), allowable)
+                else:
+                    r.setdefault(name, None)  # rows_of's "none" of a singular peak stays
+    return rows
+
+
+def write_outputs(tasks: list[Task], out: Path, axes: dict[str, list[float]], allowable: float) -> dict:
+    """sweep.csv, sweep.json, plots and report.md from the variants' results (rank 0)."""
+    rows = with_verdicts(rows_of(tasks, out), allowable)
+    names = [n for n in axes]
+    cols = list(COLUMNS) + [n for n in names if n not in COLUMNS]
+    with replacing(out / "sweep.csv", "w", newline="", encoding="utf-8") as f:
+        w = csv.DictWriter(f, fieldnames=cols, extrasaction="ignore")
+        w.writeheader()
+        w.writerows(rows)
+    swept = [n for n in names if len(axes[n]) > 1 and n != "size"]  # numeric axes only
+    cross = [c for n in swept for c in crossings(rows, n, allowable)]
+    first = next((t.case for t in tasks if t.case is not None), None)
+    summary = {"units": {"length": "mm", "force": "N", "stress": "MPa"}, "allowable_MPa": allowable,
+               "mesh_factor": None if first is None else first.mesh_factor,
+               "axes": axes, "rows": rows, "crossings": cross,
+               "counts": {s: sum(r["status"] == s for r in rows) for s in ("done", "invalid", "failed", "not run")}}
+    write_text(out / "sweep.json", json.dumps(summary, indent=2, default=str) + "\n")
+    plots = [p for n in swept for p in _plots(rows, n, allowable, out)]
+    # A re-run into the same folder must not leave a plot this run no longer draws (another
+    # axis, a peak now left out) beside the report: only the study's own plot names.
+    for old in [*out.glob("peak_vs_*.png"), *out.glob("critical_peak_vs_*.png")]:
+        if old.name not in plots:
+            old.unlink(missing_ok=True)
+    write_text(out / "report.md", _report(summary, swept, plots))
+    return summary
+
+
+def _plots(rows: list[dict], axis: str, allowable: float, out: Path) -> list[str]:
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    lines = series(rows, axis)
+    if not lines:
+        return []
+    # One line per combination of the other parameters, named by those that differ; the
+    # values every line shares go into the title.
+    varying = varying_names(rows, {k for fixed in lines for k, _ in fixed})
+    common = _fixed_text([(k, v) for k, v in next(iter(lines)) if k not in varying], None)
+    names = []
+    for key, band_key, label in PEAKS:
+        if not any(r.get(key) is not None for g in lines.values() for r in g):
+            continue  # a peak no variant was asked for (--want): no plot
+        fig, ax = plt.subplots(figsize=(6.5, 4))
+        colors = {}
+        for fixed, g in lines.items():
+            g = [r for r in g if r.get(key) is not None]
+            text = _fixed_text(fixed, varying)
+            drawn = ax.errorbar([r[axis] for r in g], [r[key] for r in g], yerr=[r.get(band_key) or 0 for r in g],
+                                marker="o", capsize=3, lw=1, label=text or None)
+            colors[text] = drawn[0].get_color()
+        ax.axhline(allowable, color="red", ls="--", label=f"allowable {allowable:g} MPa")
+        # Variants with no peak still belong on the axis, on its line: where the geometry
+        # rules end the design space, or where an analysis failed.
+        for (status, text), xs in unanalysed(rows, axis, varying).items():
+            what = UNANALYSED[status]
+            ax.plot(xs, [0.0] * len(xs), ls="none", marker="x" if status == "invalid" else "X",
+                    color=colors.get(text, "0.45"), ms=9, mew=2, transform=ax.get_xaxis_transform(),
+                    clip_on=False, zorder=5, label=f"{text}: {what}" if text else what)
+        if common:
+            ax.set_title(common, fontsize=10)
+        ax.set_xlabel("load (N)" if axis == "load_N" else f"{axis.replace('dims.', '')} (mm)")
+        ax.set_ylabel(f"{label} von Mises (MPa)")
+        ax.legend(fontsize=8)
+        fig.tight_layout()
+        name = f"{key.replace('_MPa', '')}_vs_{axis.replace('dims.', '')}.png"
+        fig.savefig(out / name, dpi=100)
+        plt.close(fig)
+        names.append(name)
+    return names
+
+
+def unanalysed(rows: list[dict], axis: str, varying: set[str]) -> dict[tuple[str, str], list[float]]:
+    """The values along ``axis`` of the variants that have no peak, each once, sorted, keyed
+    by (status, their line's ``varying`` values as text: '' for a study of one line).
+    Statuses: those of UNANALYSED. An invalid geometry is invalid at every load, so its
+    text leaves the load out (one mark, not one per load)."""
+    out: dict[tuple[str, str], set[float]] = {}
+    for status in UNANALYSED:
+        for fixed, g in series(rows, axis, status).items():
+            named = [(k, v) for k, v in fixed if not (status == "invalid" and k == "load_N")]
+            out.setdefault((status, _fixed_text(named, varying)), set()).update(r[axis] for r in g)
+    return {k: sorted(v) for k, v in out.items()}
+
+
+def sides(rows: list[dict], allowable: float) -> list[dict]:
+    """For each peak: how many finished rows lie above the allowable (MPa), how many below,
+    how many within their error bar of it, and the rows with the lowest and highest value.
+    A peak that no finished row has is left out."""
+    out = []
+    for key, band_key, label in PEAKS:
+        have = [r for r in rows if r["status"] == "done" and r.get(key) is not None]
+        if not have:
+            continue
+        near = [r for r in have if abs(r[key] - allowable) <= (r.get(band_key) or 0.0)]
+        out.append({"peak": label, "key": key, "rows": len(have),
+                    "above": sum(r[key] > allowable for r in have), "within_band": len(near),
+                    "lowest": min(have, key=lambda r: r[key]), "highest": max(have, key=lambda r: r[key])})
+    return out
+
+
+def value_text(name: str, value: float | str) -> str:
+    """One input for a person, with its unit: 'rf = 0.5 mm', 'load = 12000 N', 'No. 2.5'."""
+    if name == "size":
+        return f"No. {value}"
+    if name == "load_N":
+        return f"load = {value:g} N"
+    return f"{name.replace('dims.', '')} = {value:g} mm"
+
+
+def inputs_text(params: dict, load_N: float | None = None) -> str:
+    """A variant's swept inputs for a person: 'No. 2.5, dj = 16 mm, rf = 0.5 mm' (the size
+    first), then the load (N) when given; 'the base case' when none."""
+    parts = [value_text(k, v) for k, v in sorted(params.items(), key=lambda kv: (kv[0] != "size", kv[0]))]
+    if load_N is not None:
+        parts.append(value_text("load_N", load_N))
+    return ", ".join(parts) or "the base case"
+
+
+def parameters_text(row: dict, with_load: bool = False) -> str:
+    """A row's swept inputs for a person (:func:`inputs_text`), and its load when
+    ``with_load`` (a study over loads)."""
+    return inputs_text(json.loads(row["parameters"]), row.get("load_N") if with_load else None)
+
+
+def _side_lines(summary: dict) -> list[str]:
+    """One line per peak: above or below the allowable in every variant, or how many on
+    each side, with its lowest and highest value and where."""
+    a = summary["allowable_MPa"]
+    loads = "load_N" in varying_names(summary["rows"], {"load_N"})  # then a row is named with its load
+    lines = []
+    for sd in sides(summary["rows"], a):
+        key, lo, hi = sd["key"], sd["lowest"], sd["highest"]
+        span = (f"{lo[key]:.2f} MPa ({parameters_text(lo, loads)}) to {hi[key]:.2f} MPa ({parameters_text(hi, loads)})"
+                if lo is not hi else f"{lo[key]:.2f} MPa")
+        if sd["above"] == sd["rows"]:
+            where = f"above {a:g} MPa in every analysed case"
+        elif sd["above"] == 0:
+            where = f"below {a:g} MPa in every analysed case"
+        else:
+            where = f"above {a:g} MPa in {sd['above']} of {sd['rows']} analysed cases"
+        near = (f"; {sd['within_band']} within their error bar of it" if sd["within_band"] else "")
+        lines.append(f"- The {sd['peak']} is {where}: {span}{near}.")
+    return lines
+
+
+MOST_NAMED = 12  # cases named in a line of the report; more are counted
+
+
+def _verdicts(row: dict) -> set[str]:
+    """The verdicts of the peaks a row has (with_verdicts)."""
+    return {row[k] for _, _, k in VERDICT_KEYS if row.get(k) is not None}
+
+
+def passing_count(rows: list[dict]) -> int:
+    """How many analysed cases pass with every peak they have, error bars included."""
+    return sum(r["status"] == "done" and _verdicts(r) <= {"pass"} for r in rows)
+
+
+def _passing_lines(summary: dict) -> list[str]:
+    """Which analysed cases pass with every peak they have (value + error bar at or below
+    the allowable), named when some do and some do not, and which are undecided (an error
+    bar holds the allowable, no peak fails): the study's answer to 'which variants pass at
+    this allowable?'."""
+    done = [r for r in summary["rows"] if r["status"] == "done"]
+    if not done:
+        return []
+    loads = "load_N" in varying_names(summary["rows"], {"load_N"})
+    a = f"{summary['allowable_MPa']:g} MPa"
+
+    def named(rows: list[dict]) -> str:
+        more = len(rows) - MOST_NAMED
+        return "; ".join(parameters_text(r, loads) for r in rows[:MOST_NAMED]) + (f"; and {more} more" if more > 0 else "")
+    passing = [r for r in done if _verdicts(r) <= {"pass"}]
+    undecided = [r for r in done if "undecided" in _verdicts(r) and not _verdicts(r) & {"fail", "none"}]
+    if len(passing) == len(done):
+        lines = [f"- Every analysed case passes {a} with every peak, error bars included."]
+    elif not passing:
+        lines = [f"- No analysed case passes {a} with every peak, error bars included."]
+    else:
+        lines = [f"- {len(passing)} of {len(done)} analysed cases pass {a} with every peak, error bars "
+                 f"included: {named(passing)}."]
+    if undecided:
+        lines.append(f"- Undecided in {len(undecided)} of {len(done)} (an error bar holds {a}, no peak fails): "
+                     f"{named(undecided)}.")
+    judged_none = [r for r in done if "none" in _verdicts(r)]
+    if judged_none:
+        lines.append(f"- No verdict in {len(judged_none)} of {len(done)} (a peak at a singular feature has no "
+                     f"finite value): {named(judged_none)}.")
+    return lines
+
+
+def crossing_text(x: dict, allowable: float, varying: set[str] | None = None) -> str:
+    """A crossing of :func:`crossings` as a line of the report: where (mm or N), its range
+    from the error bars, and the values of the other parameters, of those in ``varying``
+    (the ones that differ across the study; all when None)."""
+    axis = x["axis"]
+    unit, name = ("N", "load") if axis == "load_N" else ("mm", axis.replace("dims.", ""))
+    num = (lambda v: f"{v:.0f}") if axis == "load_N" else (lambda v: f"{v:.4g}")
+    fixed = _fixed_text(x["fixed"].items(), varying)
+    rng = ""
+    if x["range"]:
+        reach = x.get("range_reaches") or []
+        beyond = ("" if not reach else f", which reach the variant{'s' if len(reach) > 1 else ''} at "
+                  + " and ".join(f"{num(v)} {unit}" for v in reach) + ": it may lie beyond")
+        rng = f" (between {num(x['range'][0])} and {num(x['range'][1])} {unit} within the error bars{beyond})"
+    word = "falls below" if x["falls_below"] else "rises above"
+    stays = (f" and stays {'below' if x['falls_below'] else 'above'} it in every variant up to "
+             f"{name} = {num(x['last'])} {unit}" if x.get("only_crossing") else "")
+    return (f"- The {x['peak']} {word} {allowable:g} MPa at {name} ≈ {num(x['at'])} {unit}{rng}{stays}"
+            + (f", for {fixed}" if fixed else "") + ".")
+
+
+def _report(summary: dict, swept: list[str], plots: list[str]) -> str:
+    c = summary["counts"]
+    L = ["# Design study\n", "Units: mm, N, MPa.\n",
+         f"{c['done']} cases analysed, {c['invalid']} invalid (skipped), {c['failed']} failed, "
+         f"{c['not run']} not run (a case is a variant at one load). "
+         f"Allowable {summary['allowable_MPa']:g} MPa.\n"]
+    mf = summary.get("mesh_factor")
+    if mf is not None:
+        has_global = any(r.get("peak_MPa") is not None for r in summary["rows"])
+        L.append(f"Every variant at mesh factor {mf:g}"
+                 + (": coarser than 1.3, so the global (fillet) peak is not resolved (README, Known limits); "
+                    "its values, crossings and verdicts are rough.\n" if mf > 1.3 and has_global else ".\n"))
+    L.append(f"## Against the allowable ({summary['allowable_MPa']:g} MPa)\n")
+    L += _side_lines(summary)
+    L += _passing_lines(summary)
+    L.append("")
+    # A study over sizes alone has no numeric axis to cross the allowable along: no line.
+    if swept and not summary["crossings"]:
+        L.append("No peak crosses the allowable between neighbouring variants of a swept parameter.\n")
+    elif summary["crossings"]:
+        L.append("Where a peak crosses the allowable between neighbouring variants (linear "
+                 "interpolation; the range from their error bars):\n")
+    varying = varying_names(summary["rows"], {k for x in summary["crossings"] for k in x["fixed"]})
+    L += [crossing_text(x, summary["allowable_MPa"], varying) for x in summary["crossings"]]
+    L.append("")
+    L.append("## Variants\n")
+    L.append("| variant | status | parameters | load (N) | global peak (MPa) | critical peak (MPa) "
+             "| verdict (global / critical) | note |")
+    L.append("|---|---|---|---|---|---|---|---|")
+    for r in summary["rows"]:
+        def f(v, band=None):
+            return "" if v is None else pm(v, band)
+        verdicts = " / ".join(r.get(k) or "–" for k in ("verdict", "critical_verdict")) if r["status"] == "done" else ""
+        L.append(f"| {r['variant']} | {r['status']} | {parameters_text(r)} | {_n0(r.get('load_N'))} | "
+                 f"{f(r.get('peak_MPa'), r.get('peak_band_MPa'))} | {f(r.get('critical_peak_MPa'), r.get('critical_band_MPa'))} | "
+                 f"{verdicts} | {r.get('note') or ''} |")
+    L.append("")
+    for p in plots:
+        L.append(f"![{p}]({p})\n")
+    return "\n".join(L) + "\n"
+
+
+def _n0(v: float | None) -> str:
+    """A load (N) for the table: whole newtons, empty when there is none."""
+    return "" if v is None else f"{v:.0f}"
+
+
+def varying_names(rows: list[dict], names: set[str]) -> set[str]:
+    """Of ``names``, those whose value differs between the study's finished rows."""
+    done = [r for r in rows if r["status"] == "done"]
+    return {k for k in names if len({r.get(k) for r in done}) > 1}
+
+
+def _fixed_text(fixed: Iterable[tuple[str, float | str | None]], varying: set[str] | None) -> str:
+    """The values of a line's other parameters for a person ('dj = 16 mm, load = 10000 N'),
+    of those in ``varying`` (all when None); empty when none is left."""
+    return ", ".join(value_text(k, v) for k, v in fixed if v is not None and (varying is None or k in varying))
