@@ -2,7 +2,7 @@
 
 Every bad case must give exit status 2, exactly one line on stderr naming the field and
 the rule, no traceback, and nothing written: no --out folder and no hidden staging
-folder beside it. Most cases run in-process through ``pipeline.__main__.main`` with the
+folder beside it. Most cases run in-process through ``pipeline.cli.main`` with the
 mesher/solver replaced by a tripwire (so a check that lets a bad case through fails the
 test instead of starting a solve); a handful run as real subprocesses. Then property
 tests: random case files into ``resolve()``, random argument lists into ``main()``.
@@ -238,7 +238,7 @@ CORPUS = [
     ("size-conflicts-case-file", ["run", "--size", "10", "--case", "{case}"], 'size = "05"\n', ("size", "conflicts")),
     ("case-not-regular", ["run", "--case", "/dev/zero"], None, ("case", "not a regular file")),
     ("case-too-large", ["run", "--case", "{case}"], "#" * (2 << 20) + "\n", ("case", "larger than")),
-    # found by a robustness audit (2026-11-25): each of these ran, or failed with exit 3
+    # each of these would otherwise run, or fail with exit 3
     ("memory-limit-nan", RUN + ["--memory-limit", "nan"], None, ("memory_limit", "> 0")),
     ("memory-limit-negative", RUN + ["--memory-limit", "-1"], None, ("memory_limit", "> 0")),
     ("error-bar-mesh-too-coarse", RUN + ["--mesh-factor", "3", "--levels", "8", "--ratio", "3"], None,
@@ -246,12 +246,11 @@ CORPUS = [
     ("converge-two-loads", ["converge", "--size", "05", "--load", "1000,2000"], None, ("load_N", "one load")),
     ("load-twice", RUN + ["--load", "5000,5000"], None, ("load_N", "5000 given twice")),
     ("load-empty-item", RUN + ["--load", "5000,,6000"], None, ("load_N", "empty item")),
-    # found 2026-11-25: a range with equal ends ran the same load three times, and a
-    # range's count was refused with the generic line instead of what is wrong with it
+    # a range with equal ends is one value given twice, and a range's count error names the count
     ("load-range-of-one-value", RUN + ["--load", "5000:5000:3"], None, ("load_N", "5000 given twice")),
     ("sweep-range-of-one-count", ["sweep", "--size", "05", "--dim", "rf=0.5:3:1"], None,
      ("dims.rf", "2..200 values, got 1")),
-    # found 2026-11-25: a study ignored --memory-limit and never estimated its variants
+    # a study is estimated for memory before its variants run, under --memory-limit
     ("sweep-too-large", ["sweep", "--size", "05", "--dim", "rf=1,2", "--mesh-factor", "0.6", "--memory-limit", "0.5"],
      None, ("mesh_factor", "variant rf = 1 mm", "0.5 GiB allowed")),
     ("study-negative-load", ["sweep", "--study", "{case}"], '[sweep]\nsize = "05"\nload = "-5,10000"\n',
@@ -262,7 +261,7 @@ CORPUS = [
     ("sweep-empty-item", ["sweep", "--size", "05", "--dim", "rf=1,,2"], None, ("dims.rf", "empty item")),
     ("sweep-dim-twice", ["sweep", "--size", "05", "--dim", "rf=1,2", "--dim", "rf=3,4"], None, ("dim", "rf given twice")),
     ("sweep-all-invalid", ["sweep", "--size", "05", "--dim", "rf=-1,-2"], None, ("every variant is invalid", "rf")),
-    # found 2026-11-26: an input every variant shares was blamed on the variants
+    # an input every variant shares is refused in the run's own line, not blamed on the variants
     ("sweep-shared-input-invalid", ["sweep", "--size", "05", "--dim", "rf=1,2", "--nu", "0.7"], None,
      ("nu", "Poisson's ratio must lie in (-1, 0.5), got 0.7")),
     ("sweep-size-and-sizes", ["sweep", "--sizes", "05,1", "--size", "1.6"], None, ("--size", "--sizes", "not both")),

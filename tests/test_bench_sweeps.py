@@ -45,7 +45,7 @@ def test_only_a_sweep_folder_is_removed_between_repeats(tmp_path):
 @pytest.mark.parametrize("module", ["bench.run", "bench.sweeps", "bench.fillet_reference"])
 def test_a_bench_tool_refuses_a_folder_it_did_not_write(tmp_path, module, capsys):
     """--out holding a user's file: exit 2 and one line before any work, the file as it
-    was (the bench tools wrote their files into any folder before)."""
+    was (a bench tool writes only into a new, empty or its own folder)."""
     import importlib
     user = tmp_path / "mine"
     user.mkdir()

@@ -105,8 +105,8 @@ def test_near_limit_row(name):
     assert lv.jacobian_ratio > 0          # solve_level refuses inverted meshes; belt and braces
     # Second-order geometry on a part with a bore and round journals has curved tets, whose
     # det J varies inside the element: a ratio of exactly 1 means every tet is straight,
-    # i.e. the mesh silently fell back to first order (seen with gmsh's high-order
-    # optimiser, which the builder no longer uses; it now refuses a mesh without curved tets).
+    # i.e. the mesh silently fell back to first order (gmsh's high-order optimiser can do
+    # that; the mesher refuses a mesh without curved tets).
     assert lv.jacobian_ratio < 1 - 1e-9, f"{name}: no curved element, the mesh is first order"
     assert lv.iterations < MAX_ITERATIONS, f"{name}: {lv.iterations} CG iterations"
     assert lv.residual_rel <= 1e-6

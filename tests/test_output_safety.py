@@ -191,8 +191,8 @@ def test_signal_mid_run_cleans_up_and_keeps_the_earlier_result(tmp_path, earlier
 @pytest.mark.parametrize("sig,code,word", [("SIGINT", 130, "interrupted"), ("SIGTERM", 143, "terminated")])
 @pytest.mark.parametrize("module,args", [("pipeline", []), ("pipeline.runtime.launch", ["2"])])
 def test_a_stop_while_the_program_loads_says_so_in_one_line(tmp_path, sig, code, word, module, args):
-    """Ctrl-C before the run's own stop was set up printed Python's traceback (SIGTERM
-    ended the process without a line); now either ends it with its status and one line."""
+    """Ctrl-C or SIGTERM before the run's own stop is set up ends the process with its
+    status and one line, not Python's traceback or silence."""
     out = tmp_path / "res"
     p = subprocess.run([PY, str(ROOT / "tests" / "stop_while_loading.py"), sig, module, *args,
                         *map(str, FAST), "--out", str(out)],
@@ -252,9 +252,9 @@ def stopped_at_the_end(out: Path, when: str, load_N: float) -> subprocess.Comple
 def test_a_stop_while_the_run_still_writes_keeps_the_earlier_result(tmp_path, earlier):
     """Ctrl-C when every file is staged, the main thread still writing into the staging
     folder: the stop removes the staging folder whole (none of the late files revives it)
-    and the earlier result stays as it was. Before the fix the stop's clean-up raced the
-    writes: a staging folder without its mark was left for good, or the main thread's
-    failure spoke (exit 2 or 3) instead of the stop."""
+    and the earlier result stays as it was. A clean-up racing the writes would leave a
+    staging folder without its mark for good, or let the main thread's failure speak
+    (exit 2 or 3) instead of the stop."""
     out = fresh_copy(earlier, tmp_path / "res")
     before = snapshot(out)
     proc = stopped_at_the_end(out, "writing", 12_000.0)
@@ -266,9 +266,9 @@ def test_a_stop_while_the_run_still_writes_keeps_the_earlier_result(tmp_path, ea
 def test_a_stop_during_a_solve_acts_before_the_solve_ends(tmp_path, earlier):
     """Ctrl-C as the first Krylov solve starts (tests/stop_while_solving.py): the stop's
     clean-ups run while that solve is still iterating (PETSc's reason 0), the solve never
-    ends, and the earlier result stays. Before the fix PETSc's solve held the interpreter
-    lock to its end, so the stop waited for every solve it fell into (docs/decisions.md):
-    its clean-ups found the solver already destroyed."""
+    ends, and the earlier result stays. PETSc's solve holds the interpreter lock to its
+    end unless a monitor lets the stop in at every iteration (docs/decisions/0016-stops.md);
+    without it the clean-ups would find the solver already destroyed."""
     out = fresh_copy(earlier, tmp_path / "res")
     before = snapshot(out)
     where = tmp_path / "where.txt"
@@ -377,9 +377,9 @@ def one_rank_fails(out: Path, how: str) -> tuple[subprocess.CompletedProcess, fl
 @pytest.mark.parametrize("failing_rank", [0, 1])
 def test_a_failure_on_one_rank_ends_every_rank_with_one_line(tmp_path, earlier, failing_rank):
     """One rank raises before a solve that the other has entered (tests/one_rank_fails.py).
-    Before pipeline.runtime.rankfailure the other rank waited in the solve's collectives for ever;
-    now the run ends within seconds, exit 3, one line naming the failure, the earlier
-    result as it was and nothing left beside it."""
+    Without pipeline.runtime.rankfailure the other rank would wait in the solve's
+    collectives for ever; the run ends within seconds, exit 3, one line naming the
+    failure, the earlier result as it was and nothing left beside it."""
     out = fresh_copy(earlier, tmp_path / "res")
     before = snapshot(out)
     proc, seconds = one_rank_fails(out, str(failing_rank))

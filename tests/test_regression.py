@@ -3,34 +3,30 @@
 Formula baselines: the paper (Imrak et al. 2007 §5) and docs/design.md §6.
 
 FE baselines: an independent solution of the same model with P3 elements and MUMPS
-(another element order and solver than the P2/GAMG default), on its own pilot-refined
-mesh, made with
+(another element order and solver than the P2 + p-multigrid default), on its own
+pilot-refined mesh (357 645 DOFs), made with
 
     python -m pipeline run --size 05 --order 3 --mesh-factor 1.3 --levels 1 --solver mumps --no-fields
 
-on 2026-11-21 (2-core development machine, Debian 12, gmsh 4.8.0, DOLFINx 0.5.2):
-global peak 113.79 MPa (journal shoulder fillet), critical peak 66.27 MPa (bore edge).
-The same command at --mesh-factor 1.69 gave 114.10 and 66.27 MPa.
-
-Re-made on 2026-11-21 after the mesher changed (Ball-field hotspots, optimiser layers,
-MUMPS Cholesky; commit 4d02768): the same command gave 113.79 and 66.27 MPa again
-(357 645 DOFs).
+on the 2-core development machine (Debian 12, gmsh 4.8.0, DOLFINx 0.5.2): global peak
+113.79 MPa (journal shoulder fillet), critical peak 66.27 MPa (bore edge). The same
+command at --mesh-factor 1.69 gives 114.10 and 66.27 MPa.
 
 The global peak's baseline is the fillet reference of `make reference`
-(bench/fillet_reference.py, docs/fillet-reference.md; 2026-11-24): 113.82 ± 0.10 MPa, from
-P3 and P4 on meshes refined only at the fillet, the peak sampled on the exact torus.
+(bench/fillet_reference.py, docs/fillet-reference.md): 113.82 ± 0.10 MPa, from P3 and P4
+on meshes refined only at the fillet, the peak sampled on the exact torus.
 
 Tolerances come from measured errors and the project's target, no tighter:
 - global: 1 % of the reference (the project's accuracy target, docs/design.md §6). The
-  default mesh reads 113.77 MPa (−0.04 %; `make run`, 2026-11-25); at mesh factors 0.8 … 1.3 `make run` reads
-  within −0.04 … +0.60 % (docs/accuracy.md, 2026-11-25, with the fillet's crest bridged;
-  before: 114.08 MPa, −0.27 … +0.68 %). The run's error bar must cover the reference.
-- critical: 0.2 MPa (0.3 %). The four levels of `make converge` lie within 66.22 … 66.25 MPa
+  default mesh reads 113.77 MPa (−0.05 %, `make run`); at mesh factors 0.8 … 1.3 `make
+  run` reads within −0.34 … +0.55 % (docs/accuracy.md). The run's error bar must cover
+  the reference.
+- critical: 0.2 MPa (0.3 %). The levels of `make converge` lie within 66.22 … 66.25 MPa
   and both P3 solutions at 66.27; the tolerance is ten times that spread so that gmsh's
   run-to-run mesh changes pass while a change to loads, supports, solver or stress
   evaluation of more than 0.3 % fails.
 Regenerate with the command above (and `make run`, `make converge`) and update these
-numbers with the date.
+numbers and docs/accuracy.md together.
 """
 import pytest
 
@@ -86,8 +82,8 @@ def test_default_run_error_bar_covers_the_reference():
     assert abs(levels[0].critical.value_MPa - CRITICAL_LIMIT) <= crit.band, (levels[0].critical.value_MPa, crit)
 
 
-# Independent references of other parts (bench/fillet_reference.py, docs/fillet-reference.md,
-# 2026-11-25): P3 on balls refined along the fillet's crest, the peak sampled on the exact
+# Independent references of other parts (bench/fillet_reference.py, docs/fillet-reference.md):
+# P3 on balls refined along the fillet's crest, the peak sampled on the exact
 # torus. Each is (size, dimension overrides in mm, reference MPa).
 OTHER_PARTS = [
     ("1.6", {}, 114.30),                                   # --size 1.6 --orders 3

@@ -1,13 +1,13 @@
 """Verification of the solver against closed-form solutions (mm, N, MPa).
 
 Every problem goes through the product's own code: pipeline.fe.solve.solve for the
-displacement, pipeline.fe.solve.stress for stress components and pipeline.post.peaks.von_mises /
-pipeline.post.peaks.peak for von Mises peaks. The meshes come from gmsh/OpenCASCADE
+displacement, pipeline.fe.elasticity.stress for stress components and
+pipeline.post.peaks.von_mises / pipeline.post.peaks.peak for von Mises peaks. The meshes come from gmsh/OpenCASCADE
 (tests/verification_problems.py). Every expected number below is a closed form written
 out here; none is a stored output of the code.
 
 The pipeline modules are used through their module objects (``pe.stress``, not
-``from pipeline.fe.solve import stress``), so a test sees exactly what the product runs,
+``from pipeline.fe.elasticity import stress``), so a test sees exactly what the product runs,
 monkeypatches included.
 
 Physics note: in a traction-loaded homogeneous body the plane stress/strain field does
@@ -268,7 +268,7 @@ def hooke(eps: np.ndarray) -> np.ndarray:
 
 
 def stress_tensor_values(u, degree):
-    """All nine stress components (pipeline.fe.solve.stress) in DG(degree): (n, 9) array."""
+    """All nine stress components (pipeline.fe.elasticity.stress) in DG(degree): (n, 9) array."""
     mesh = u.function_space.mesh
     T = fem.TensorFunctionSpace(mesh, ("DG", degree))
     f = fem.Function(T)
@@ -368,7 +368,7 @@ def _two_p2_tets(bow: float):
 
 
 def test_quadrature_split_is_exact_on_straight_cells():
-    """solve.volume_measures integrate straight cells with degree 2(k-1) and curved ones
+    """elasticity.volume_measures integrate straight cells with degree 2(k-1) and curved ones
     with UFL's own degree: the P2 stiffness matrix equals the one of UFL's degree on every
     cell (round-off), while treating the curved cell as straight would change it."""
     from dolfinx.fem.petsc import assemble_matrix
