@@ -16,6 +16,7 @@ from pipeline.fe.meshing import Mesher
 from pipeline.runtime.interrupts import on_stop
 from pipeline.runtime.outdir import staged_dir
 from pipeline.output.jsonio import write_json
+from pipeline.fe.elasticity import Material
 from pipeline.output.fields import write_fields as write_field_files
 from pipeline.output.report import write_report
 from pipeline.analysis.level import Level, Progress
@@ -89,7 +90,7 @@ class _RequestedOutput:
         if not self.write_fields:
             return
         t0 = time.perf_counter()
-        self.files.update(write_field_files(self.stage, *fine.fields,
+        self.files.update(write_field_files(self.stage, *fine.fields, Material(E=self.case.E_MPa, nu=self.case.nu),
                                             whole_part=self.case.model == "quarter" and not self.quarter_fields))
         # The picture process reads results.json: the requested mesh's peaks for now,
         # the full results (same peaks) replace it below.

@@ -49,7 +49,7 @@ def test_contract_keys(coarse_run):
     assert fe["critical"]["error_estimate"]["status"] in ("converged", "oscillatory", "settled")
     for k in ("geometry", "mesh", "import", "assemble", "solve", "post", "output", "total"):
         assert res["timings_s"][k] >= 0
-    for name in ("results.json", "report.md", "mesh.msh", "displacement.vtu", "von_mises.vtu", "von_mises.png"):
+    for name in ("results.json", "report.md", "mesh.msh", "fields.vtu", "von_mises.png"):
         assert (out / name).stat().st_size > 0, name
 
 
@@ -92,7 +92,7 @@ def test_bad_input_exit_2_one_line(tmp_path, args, field):
 
 
 def _tet_cube(n: int) -> tuple[np.ndarray, np.ndarray]:
-    """A cube [0, n]³ of 5·n³ disconnected tets (each tet its own nodes, like von_mises.vtu):
+    """A cube [0, n]³ of 5·n³ disconnected tets (each tet its own nodes, as the picture reads fields.vtu):
     the 5-tet split of a unit cube, mirrored cube to cube so that faces match."""
     import itertools
     base = [(0, 1, 2, 4), (1, 3, 2, 7), (1, 4, 5, 7), (2, 4, 7, 6), (1, 2, 4, 7)]

@@ -21,12 +21,28 @@ def test_mirror_makes_four_positive_tets_with_mirrored_displacement():
     pts = np.array([[1.0, 1.0, 0.0], [2.0, 1.0, 0.0], [1.0, 2.0, 0.0], [1.0, 1.0, 1.0]])
     cells = np.array([[0, 1, 2, 3]])
     disp = np.array([[0.1, 0.2, 0.3]] * 4)
-    P, C, V, D = mirror_quarter(pts, cells, np.arange(4.0), disp)
+    P, C, data, _ = mirror_quarter(pts, cells, {"v": np.arange(4.0), "displacement_mm": disp})
+    V, D = data["v"], data["displacement_mm"]
     assert P.shape == (16, 3) and C.shape == (4, 4) and len(V) == 16
     vols = [np.linalg.det(np.array([P[c[1]] - P[c[0]], P[c[2]] - P[c[0]], P[c[3]] - P[c[0]]])) for c in C]
     assert all(v > 0 for v in vols)  # orientation kept: the same sign as the original tet
     assert np.allclose(D[4], [-0.1, 0.2, 0.3]) and np.allclose(D[8], [0.1, -0.2, 0.3])
     assert np.allclose(P[12], [-1.0, -1.0, 0.0])
+
+
+def test_mirror_shares_the_plane_nodes_and_reflects_a_tensor():
+    """A tet with a face on x = 0 (its nodes ~1e-13 off the plane, as gmsh places them) and an
+    edge on y = 0: the copies share those nodes, placed on the planes exactly; a stress
+    tensor's shear components change sign with the reflection (σ' = R σ R, R = diag(±1))."""
+    pts = np.array([[1e-13, 0.0, 0.0], [1.0, -2e-13, 0.0], [-1e-13, 1.0, 0.0], [0.0, 0.5, 1.0]])
+    sigma = np.array([[1.0, 2.0, 3.0], [2.0, 4.0, 5.0], [3.0, 5.0, 6.0]])
+    P, C, data, ids = mirror_quarter(pts, np.array([[0, 1, 2, 3]]), {"stress_MPa": np.tile(sigma.ravel(), (4, 1))})
+    # Node 0 is on both planes (one node), 2 and 3 on x = 0, 1 on y = 0: 16 − 3 − 2·2 − 2·1 = 7 nodes.
+    assert len(P) == 7 and len(np.unique(P, axis=0)) == 7
+    assert P[ids[0][0]].tolist() == [0.0, 0.0, 0.0] and P[ids[0][2], 0] == 0.0
+    assert ids[1][2] == ids[0][2] and ids[2][1] == ids[0][1] and ids[3][0] == ids[0][0]
+    R = np.diag([-1.0, 1.0, 1.0])
+    np.testing.assert_allclose(data["stress_MPa"][ids[1][1]].reshape(3, 3), R @ sigma @ R)
 
 
 def _tet10(pts4: np.ndarray) -> np.ndarray:
@@ -37,8 +53,8 @@ def _tet10(pts4: np.ndarray) -> np.ndarray:
 
 def test_mirror_keeps_ten_node_tets_positive_with_their_mid_edge_nodes():
     pts = _tet10(np.array([[1.0, 1.0, 0.0], [2.0, 1.0, 0.0], [1.0, 2.0, 0.0], [1.0, 1.0, 1.0]]))
-    P, C, V, D = mirror_quarter(pts, np.arange(10)[None, :], None, np.zeros((10, 3)))
-    assert V is None and C.shape == (4, 10)
+    P, C, _, _ = mirror_quarter(pts, np.arange(10)[None, :], {"displacement_mm": np.zeros((10, 3))})
+    assert C.shape == (4, 10)
     for c in C:
         x = P[c]
         assert np.linalg.det(np.array([x[1] - x[0], x[2] - x[0], x[3] - x[0]])) > 0
@@ -87,9 +103,9 @@ def test_html_report_has_every_section_and_embeds_every_picture(run_folder):
 
 
 def test_fields_show_the_whole_part(run_folder):
-    """von_mises.vtu covers x and y of both signs: the quarter mirrored (bounds ± b6/2, ± b1/2)."""
+    """fields.vtu covers x and y of both signs: the quarter mirrored (bounds ± b6/2, ± b1/2)."""
     import meshio
-    m = meshio.read(run_folder / "von_mises.vtu")
+    m = meshio.read(run_folder / "fields.vtu")
     d = json.loads((run_folder / "results.json").read_text())["case"]["dims"]
     assert m.points[:, 0].min() == pytest.approx(-d["b6"] / 2, rel=1e-6)
     assert m.points[:, 1].min() == pytest.approx(-d["b1"] / 2, rel=1e-6)

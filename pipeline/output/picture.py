@@ -1,8 +1,8 @@
 """Off-screen picture of von Mises stress on the deformed part, peaks marked (mm, MPa).
 
 Runs in its own process (``python -m pipeline.output.picture FOLDER``) and reads only files the
-run wrote: von_mises.vtu (element-node von Mises and displacement: the unaveraged
-reading of the peaks) and results.json (the peaks as reported). A separate process because VTK's
+run wrote: fields.vtu (the displacement, and the element-node von Mises values: the
+unaveraged reading of the peaks) and results.json (the peaks as reported). A separate process because VTK's
 wheel crashes (std::regex, bad_alloc) when DOLFINx's libraries are loaded first.
 
 Drawn with VTK's own classes, not pyvista's plotter: pyvista.plotting imports
@@ -137,8 +137,9 @@ def mark_places(points0: np.ndarray, points: np.ndarray, tri: np.ndarray, loc, m
     return [next((p for p in drawn if seen_from(points, tri, p, eye, tol_mm)), None) for eye in eyes]
 
 
-def read_vtu(path: Path) -> tuple[np.ndarray, np.ndarray, dict[str, np.ndarray]]:
-    """(points mm, tets, point arrays by name) of a VTK XML unstructured grid of tets."""
+def read_vtu(path: Path) -> tuple[np.ndarray, np.ndarray, dict[str, np.ndarray], dict[str, np.ndarray]]:
+    """(points mm, cells (m, nodes per cell), point arrays, cell arrays by name) of a VTK XML
+    unstructured grid of one kind of cell."""
     from vtkmodules.util.numpy_support import vtk_to_numpy
     from vtkmodules.vtkIOXML import vtkXMLUnstructuredGridReader
     reader = vtkXMLUnstructuredGridReader()
@@ -146,11 +147,22 @@ def read_vtu(path: Path) -> tuple[np.ndarray, np.ndarray, dict[str, np.ndarray]]
     reader.Update()
     grid = reader.GetOutput()
     xyz = vtk_to_numpy(grid.GetPoints().GetData()).astype(float)
-    tets = vtk_to_numpy(grid.GetCells().GetConnectivityArray()).astype(np.int64).reshape(-1, 4)
-    pd = grid.GetPointData()
-    arrays = {pd.GetArrayName(i): vtk_to_numpy(pd.GetArray(i)).astype(float)
-              for i in range(pd.GetNumberOfArrays())}
-    return xyz, tets, arrays
+    offsets = vtk_to_numpy(grid.GetCells().GetOffsetsArray())
+    cells = vtk_to_numpy(grid.GetCells().GetConnectivityArray()).astype(np.int64).reshape(len(offsets) - 1, -1)
+    arrays = [{data.GetArrayName(i): vtk_to_numpy(data.GetArray(i)).astype(float) for i in range(data.GetNumberOfArrays())}
+              for data in (grid.GetPointData(), grid.GetCellData())]
+    return xyz, cells, arrays[0], arrays[1]
+
+
+def element_nodes(path: Path) -> tuple[np.ndarray, np.ndarray, dict[str, np.ndarray]]:
+    """fields.vtu as the unaveraged reading sees it: every tet with its own four vertices
+    (points mm, tets), their von Mises values (von_mises_MPa, the element-node values) and
+    displacements (displacement_mm)."""
+    xyz, cells, point_data, cell_data = read_vtu(path)
+    vertices = cells[:, :4].ravel()
+    return (xyz[vertices], np.arange(len(vertices), dtype=np.int64).reshape(-1, 4),
+            {"von_mises_MPa": cell_data["von_mises_unaveraged_MPa"].ravel(),
+             "displacement_mm": point_data["displacement_mm"][vertices]})
 
 
 def _surface_actor(points: np.ndarray, tri: np.ndarray, values: np.ndarray, lut):
@@ -300,11 +312,11 @@ class _Scene:
 
 
 def _scene(folder: Path) -> _Scene:
-    """Read folder/results.json and folder/von_mises.vtu into what the panels draw: the
+    """Read folder/results.json and fields.vtu into what the panels draw: the
     outer surface displaced so its largest move is 4 % of b6 (mm), its colours, the load
     arrows and where each panel marks the peaks."""
     res = json.loads((folder / "results.json").read_text(encoding="utf-8"))
-    xyz, tets, arrays = read_vtu(folder / "von_mises.vtu")
+    xyz, tets, arrays = element_nodes(folder / "fields.vtu")
     used, tri = boundary_surface(xyz, tets)
     points0, vm, disp = xyz[used], arrays["von_mises_MPa"][used], arrays["displacement_mm"][used]
     length = float(res["case"]["dims"]["b6"])
@@ -473,7 +485,7 @@ def _write_png(window: vtkRenderWindow, out: Path) -> None:
 
 
 def render_folder(folder: Path, out_name: str = "von_mises.png") -> Path:
-    """Draw folder/von_mises.vtu with the peaks of folder/results.json into a PNG."""
+    """Draw folder's fields with the peaks of folder/results.json into a PNG."""
     import vtkmodules.vtkRenderingFreeType  # noqa: F401  (text)
     import vtkmodules.vtkRenderingOpenGL2  # noqa: F401  (the render window's backend)
     from vtkmodules.vtkRenderingCore import vtkRenderWindow

@@ -140,13 +140,10 @@ def hot_spots(vm: fem.Function, threshold_MPa: float,
     return [tuple(float(c) for c in q) for q in chosen]
 
 
-def averaged_von_mises(u: fem.Function, mat: Material) -> tuple[np.ndarray, np.ndarray]:
-    """Von Mises stress (MPa) of the nodal-averaged stress tensor at this rank's owned nodes
-    of CG(q), q = max(order − 1, 1), and the nodes' coordinates (mm).
-
-    Each cell's stress at the nodes counts once (the plain average of the elements meeting
-    at a node, as commercial codes' "averaged nodal stress"). Collective over MPI.
-    """
+def averaged_stress(u: fem.Function, mat: Material) -> fem.Function:
+    """The nodal-averaged stress tensor (MPa) in CG(q), q = max(order − 1, 1): at each node
+    the plain average of the stresses of the elements meeting there (each cell counts once,
+    as commercial codes' "averaged nodal stress"). Owned and ghost values set. Collective."""
     mesh = u.function_space.mesh
     q = max(u.function_space.ufl_element().degree() - 1, 1)
     T = fem.TensorFunctionSpace(mesh, ("DG", q))
@@ -166,10 +163,26 @@ def averaged_von_mises(u: fem.Function, mat: Material) -> tuple[np.ndarray, np.n
                                     + [np.bincount(cg, minlength=n_local)]).ravel()
     sums.scatter_reverse(la.ScatterMode.add)   # cells of other ranks that share this rank's nodes
     node = sums.array.reshape(-1, 10)[:n_owned]
-    s = node[:, :9].reshape(-1, 3, 3) / node[:, 9, None, None]
+    averaged = fem.Function(fem.TensorFunctionSpace(mesh, ("CG", q)), name="stress_MPa")
+    averaged.x.array.reshape(-1, 9)[:n_owned] = node[:, :9] / node[:, 9, None]
+    averaged.x.scatter_forward()
+    return averaged
+
+
+def von_mises_of(s: np.ndarray) -> np.ndarray:
+    """Von Mises stress (MPa) of stress tensors s (n, 3, 3), MPa."""
     dev = s - np.trace(s, axis1=1, axis2=2)[:, None, None] / 3.0 * np.eye(3)
-    vm = np.sqrt(1.5 * np.einsum("nij,nij->n", dev, dev))
-    return vm, C.tabulate_dof_coordinates()[:n_owned]
+    return np.sqrt(1.5 * np.einsum("nij,nij->n", dev, dev))
+
+
+def averaged_von_mises(u: fem.Function, mat: Material) -> tuple[np.ndarray, np.ndarray]:
+    """Von Mises stress (MPa) of the nodal-averaged stress tensor (:func:`averaged_stress`) at
+    this rank's owned nodes of CG(q), and the nodes' coordinates (mm). Collective over MPI."""
+    averaged = averaged_stress(u, mat)
+    C = averaged.function_space
+    n_owned = C.dofmap.index_map.size_local
+    s = averaged.x.array.reshape(-1, 3, 3)[:n_owned]
+    return von_mises_of(s), C.tabulate_dof_coordinates()[:n_owned]
 
 
 def nodal_peak(vm: fem.Function, averaged: tuple[np.ndarray, np.ndarray], rule: str,

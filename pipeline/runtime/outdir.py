@@ -31,7 +31,7 @@ from pipeline.runtime.interrupts import on_stop, signals_wait, stop_outcome
 # Files a run writes; a folder holding nothing else (and a results.json) is a results folder
 # of a version of the tool that wrote no marker yet.
 RUN_FILES = frozenset({"results.json", "report.md", "report.html", "mesh.msh", "displacement.pvd",
-                       "displacement.vtu", "von_mises.vtu", "von_mises.png", "convergence.png",
+                       "displacement.vtu", "von_mises.vtu", "fields.vtu", "von_mises.png", "convergence.png",
                        "sections.png", "peaks.png", MARKER})
 
 
