@@ -1,22 +1,31 @@
 # crosshead: two commands do everything on a fresh Debian 12 machine, set-up included.
 #   make run    hook No. 05, default mesh, all outputs in results/05/
-#   make test   the test suite (coarse meshes; a few minutes)
+#   make test   the linter and the test suite (coarse meshes; a few minutes); make test-fast: under a minute
 # Longer studies: make converge, make bench, make sizes (one target per size: make 05, make 1.6, ...)
 SHELL := /bin/bash
 PY := .venv/bin/python
 SETUP := .venv/.setup-done
 # run and converge use every core (MPI ranks through pipeline.runtime.launch); RANKS=1 runs without MPI.
 RANKS ?= $(shell nproc 2>/dev/null || echo 1)
-RUN := $(if $(filter 1,$(RANKS)),$(PY) -m pipeline,$(PY) -m pipeline.runtime.launch $(RANKS))
+CROSSHEAD := .venv/bin/crosshead
+RUN := $(if $(filter 1,$(RANKS)),$(CROSSHEAD),$(PY) -m pipeline.runtime.launch $(RANKS))
 SIZES := $(shell awk -F, '!/^\#/ && $$1 != "size" && NF > 1 {print $$1}' geometry/sizes.csv)
 
-.PHONY: run test converge bench bench-sweeps reference sizes setup clean clean-cache $(SIZES)
+.PHONY: run test test-fast lint converge bench bench-sweeps reference sizes setup clean clean-cache $(SIZES)
 
 run: $(SETUP)
 	$(RUN) run --size 05 --out results/05
 
+# The whole suite (CI runs this, with the linter first); test-fast: the edit-test loop, the
+# tests not marked slow (under a minute).
 test: $(SETUP)
 	$(PY) -m pytest -q tests
+
+test-fast: $(SETUP)
+	$(PY) -m pytest -q -m "not slow" tests
+
+lint: $(SETUP)
+	$(PY) -m ruff check .
 
 converge: $(SETUP)
 	$(RUN) converge --size 05 --out results/05-converge
@@ -49,11 +58,11 @@ reference: $(SETUP)
 
 setup: $(SETUP)
 
-$(SETUP): tools/setup.sh requirements.txt constraints.txt
+$(SETUP): tools/setup.sh requirements.txt constraints.txt pyproject.toml
 	bash tools/setup.sh
 
 $(SIZES): $(SETUP)
-	$(PY) -m pipeline run --size $@ --out results/$@
+	$(CROSSHEAD) run --size $@ --out results/$@
 
 # Every size as one sweep over the MPI ranks (dynamic: a slow size holds one rank; a re-run
 # skips finished sizes), then the batch summary in results/summary/.

@@ -1,18 +1,17 @@
-"""python -m pipeline: the command line (pipeline.cli)."""
+"""The command line, as ``crosshead`` or ``python -m pipeline`` (pipeline.cli)."""
 import signal
 import sys
 
 from pipeline.runtime.interrupts import stop_before_start
 
-if __name__ == "__main__":
+
+def console() -> None:
+    """Run the command line and exit with its status (the ``crosshead`` command)."""
     # Until the run's own stop is set up (pipeline.cli.main), Ctrl-C or SIGTERM ends the
     # loading program with its one line: nothing has been written yet.
     for s in (signal.SIGINT, signal.SIGTERM):
         signal.signal(s, stop_before_start)
-
-from pipeline.cli import main  # noqa: E402
-
-if __name__ == "__main__":
+    from pipeline.cli import main
     code = main(handle_signals=True)
     # The command has ended and said so. A signal from here on would only cut the exit
     # short: Python's shutdown puts back the default action, which ends the process with
@@ -20,3 +19,7 @@ if __name__ == "__main__":
     for s in (signal.SIGINT, signal.SIGTERM):
         signal.signal(s, signal.SIG_IGN)
     sys.exit(code)
+
+
+if __name__ == "__main__":
+    console()

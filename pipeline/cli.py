@@ -1,4 +1,4 @@
-"""Command line: python -m pipeline {run,converge,sweep} ... (units: mm, N, MPa).
+"""Command line: crosshead {run,converge,sweep} ... (units: mm, N, MPa).
 
 Exit status (docs/design.md §8): 0 done; 2 bad input or an output folder that cannot be
 used; 3 the computation failed; 130 / 143 stopped by Ctrl-C / SIGTERM. One line on stderr,
@@ -16,6 +16,8 @@ import time
 from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING
+
+from pipeline import __version__
 
 if TYPE_CHECKING:  # for annotations only: the commands import what they use when they run
     from pipeline.inputs.case import Case
@@ -43,11 +45,11 @@ Units everywhere: mm, N, MPa.
 
 EPILOG = """\
 examples:
-  python -m pipeline run --size 05                      hook No. 05 under its 10 kN load
-  python -m pipeline run --case cases/05.toml --out results/my05
-  python -m pipeline run --size 05 --load 12500 --support rigid
-  python -m pipeline run --size 05 --dim rf=2.0 --mesh-factor 0.8
-  python -m pipeline converge --size 05                 mesh convergence study
+  crosshead run --size 05                        hook No. 05 under its 10 kN load
+  crosshead run --case cases/05.toml --out results/my05
+  crosshead run --size 05 --load 12500 --support rigid
+  crosshead run --size 05 --dim rf=2.0 --mesh-factor 0.8
+  crosshead converge --size 05                   mesh convergence study
 
 exit status: 0 done; 2 bad input or an output folder that cannot be used (nothing written);
 3 numerical failure (nothing written); 130 interrupted (Ctrl-C), 143 terminated (SIGTERM):
@@ -151,8 +153,9 @@ def add_case_options(p: argparse.ArgumentParser, dim_type=None) -> None:
 
 
 def make_parser() -> argparse.ArgumentParser:
-    parser = OneLineParser(prog="python -m pipeline", description=DESCRIPTION, epilog=EPILOG,
+    parser = OneLineParser(prog="crosshead", description=DESCRIPTION, epilog=EPILOG,
                            formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--version", action="version", version=f"crosshead {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="{run,converge,sweep}", parser_class=OneLineParser)
     run = sub.add_parser("run", help="analyse one case and write results, report, fields, picture",
                          description=DESCRIPTION, epilog=EPILOG,
@@ -185,9 +188,9 @@ def make_parser() -> argparse.ArgumentParser:
 
 SWEEP_EPILOG = """\
 examples:
-  python -m pipeline sweep --size 05 --dim rf=0.5:2.5:5            the fillet radius from 0.5 to 2.5 mm
-  python -m pipeline sweep --size 05 --dim rf=1,2 --dim dj=16,18,20 a grid of six variants
-  python -m pipeline sweep --study cases/sweep-rf.toml
+  crosshead sweep --size 05 --dim rf=0.5:2.5:5              the fillet radius from 0.5 to 2.5 mm
+  crosshead sweep --size 05 --dim rf=1,2 --dim dj=16,18,20   a grid of six variants
+  crosshead sweep --study cases/sweep-rf.toml
   python -m pipeline.runtime.launch 2 sweep --size 05 --dim rf=1:2:3         variants spread over 2 ranks
 A re-run with the same --out skips the variants already finished.
 """
@@ -198,7 +201,7 @@ CASE_KEYS = ("want", "support", "model", "E_MPa", "nu", "allowable_MPa", "approx
              "size_fillet_mm", "grading_mm", "solver", "rtol")
 
 
-NO_COMMAND = "error: command: choose run, converge or sweep (see python -m pipeline --help)"
+NO_COMMAND = "error: command: choose run, converge or sweep (see crosshead --help)"
 LOADS_SHOWN = 3  # loads shown at each end of a long load sweep's terminal line
 TWO_LEVELS = ("levels: 2 meshes give no error bar (the estimate needs 3) and cost a solve; give 1 for no "
               "error bar, or 3 to 8")

@@ -2,8 +2,9 @@
 # Install what crosshead needs on Debian 12, skipping whatever is already there.
 #   Debian: python3-dolfinx (0.5.2, PETSc with MUMPS/hypre), python3-gmsh, python3-meshio,
 #           an optimised BLAS (MUMPS is ~5x slower on the reference BLAS), calculix-ccx (bench).
-#   .venv:  made from /usr/bin/python3 with --system-site-packages; pyvista, pytest, ...
-#           from PyPI, constrained to Debian's numpy (numpy 2 breaks Debian's petsc4py).
+#   .venv:  made from /usr/bin/python3 with --system-site-packages; pyvista, pytest, ruff, ...
+#           from PyPI, constrained to Debian's numpy (numpy 2 breaks Debian's petsc4py);
+#           the crosshead command (pyproject.toml), installed editable.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -20,18 +21,20 @@ if [ -n "$missing" ]; then
 fi
 
 stamp=.venv/.setup-done
-want="$(cat requirements.txt constraints.txt | sha1sum | cut -c1-40)"
+want="$(cat requirements.txt constraints.txt pyproject.toml | sha1sum | cut -c1-40)"
 if [ ! -x .venv/bin/python ] || [ "$(cat "$stamp" 2>/dev/null)" != "$want" ]; then
   echo "setup: creating .venv (system site packages + PyPI requirements)"
   [ -x .venv/bin/python ] || /usr/bin/python3 -m venv --system-site-packages .venv
   .venv/bin/pip install -q --disable-pip-version-check -c constraints.txt -r requirements.txt
+  # The crosshead command (pyproject.toml), editable: it runs this checkout's code.
+  .venv/bin/pip install -q --disable-pip-version-check --no-deps --no-build-isolation -e .
   .venv/bin/python -c "import dolfinx, gmsh, petsc4py, pyvista, numpy; assert numpy.__version__.startswith('1.'), numpy.__version__" \
     || { echo "setup: the venv cannot import dolfinx/pyvista with Debian's numpy" >&2; exit 1; }
   # The forms of the default path compile here, once, not one by one before the first
   # answer (the cache is .venv/cache/fenics, see pipeline/runtime/environment.py).
   echo "setup: compiling the finite-element forms (once, about a minute)"
   warm=$(mktemp -d)
-  .venv/bin/python -m pipeline run --size 05 --mesh-factor 4 --levels 3 --quiet --out "$warm/run" >/dev/null
+  .venv/bin/crosshead run --size 05 --mesh-factor 4 --levels 3 --quiet --out "$warm/run" >/dev/null
   rm -rf "$warm"
   echo "$want" > "$stamp"
 fi
