@@ -106,7 +106,7 @@ def error_bar_level(case: Case, spec, load_mesh: Callable[[], ImportedMesh], pro
     same mesh and problem scaled to the case's load (pipeline/cache/levels.py), or else a
     new solve of the mesh ``load_mesh`` gives (``spec`` its MeshSpec), then kept."""
     name = levelcache.key(case, spec)
-    lv = levelcache.earlier(name, case)
+    lv = levelcache.earlier(name, case, spec.factor)
     if lv is not None:
         (progress or (lambda s: None))(
             f"mesh ×{spec.factor:.3g}: the results of an earlier run at Q = {lv.scaled_from['load_N']:g} N scaled "

@@ -115,7 +115,7 @@ def solve_or_scale(case: Case, prob: Problem, reuse: bool = True) -> Solution:
     if keep:
         name = solvecache.key(case, m, V)
         entry = solvecache.earlier(name, m.mesh.comm)
-        sol = None if entry is None else solvecache.scaled(entry, m, V, ids, lc, case)
+        sol = None if entry is None else solvecache.scaled(entry, m, V, ids, lc, case, prob.material, name)
         if sol is not None:
             sol.timings = {"assemble": 0.0, "solve": time.perf_counter() - t0}
             return sol

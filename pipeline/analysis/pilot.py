@@ -14,6 +14,7 @@ from mpi4py import MPI
 from geometry.meshspec import fillet_scale
 from geometry.places import at_journal_root
 
+from pipeline.cache import places as placecache
 from pipeline.cache import runs as runcache
 from pipeline.inputs.case import Case
 from pipeline.post.features import critical_region, known_raisers
@@ -113,7 +114,8 @@ def pilot(case: Case, comm: MPI.Comm = MPI.COMM_WORLD, progress: Progress | None
     # What shapes the stress field, not its size: load, E and the allowable do not move the places.
     cache_key = runcache.key("pilot", dims=case.dims, model=case.model, support=case.support, nu=case.nu, want=case.want,
                              order=case.order, solver=case.solver, spec=case.mesh_spec(pilot_factor(case)))
-    known = runcache.load(cache_key) if comm.rank == 0 else None
+    reach = max(case.dims.b1, case.dims.b6, case.dims.h3)  # mm: the part's largest dimension
+    known = placecache.earlier(cache_key, pilot_factor(case), reach) if comm.rank == 0 else None
     known = comm.bcast(known, root=0)
     if known is not None:
         say(f"pilot skipped: the places found by an earlier run of this part and model are reused "
@@ -160,7 +162,7 @@ def pilot(case: Case, comm: MPI.Comm = MPI.COMM_WORLD, progress: Progress | None
         f"crest: {', '.join(_fmt(q) for q in spots)} mm ({dt:.2f} s)")
     found = Pilot(factor=lv.factor, hotspots=tuple(spots), time_s=dt, bridging=len(spots) - found_here)
     if comm.rank == 0:
-        runcache.store(cache_key, found)
+        placecache.store(cache_key, placecache.StoredPlaces(found.factor, found.hotspots, found.bridging, dt))
     return found
 
 

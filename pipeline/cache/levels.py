@@ -14,25 +14,26 @@ The key is everything that makes those numbers apart from Q and E: the mesh spec
 factor, refined places), the part, model, support, ν, element order, solver and
 tolerance, and the source of the code that meshes, solves and reads the peaks. Entries
 live in the run cache (pipeline/cache/runs.py) and follow its switch and size bound.
+
+Besides the entry's sha256, a reused result is checked for consistency of its stored
+numbers: every one finite, the mesh factor the spec's, the seat force equal to the
+model's share of the stored load (−Q/4 or −Q, N, to 1e-9), the equilibrium error and the
+constraint reaction within the 1e-6·Q (N) a solve must meet, the residual within the
+solver's limit, DOFs a multiple of three, no peak below zero.
 """
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, replace
+from dataclasses import replace
 
 from pipeline.cache import runs as runcache
 from pipeline.inputs.case import Case
 from pipeline.analysis.level import Level
-from pipeline.post.peaks import NodalPeak, Peak
+from pipeline.post.peaks import MIDPOINT, UNAVERAGED, NodalPeak, Peak
 
-
-@dataclass
-class Stored:
-    """An error-bar mesh's Level (no fields) at load ``load_N`` (N) and modulus ``E_MPa`` (MPa)."""
-
-    load_N: float
-    E_MPa: float
-    level: Level
+REDO = "solved again"
+NUMBERS = ("factor", "dofs", "cells", "iterations", "residual_rel", "seat_force_N", "support_force_N",
+           "equilibrium_error_N", "constraint_reaction_N", "jacobian_ratio")
 
 
 def key(case: Case, spec) -> str:
@@ -43,24 +44,81 @@ def key(case: Case, spec) -> str:
 
 def store(name: str, lv: Level, case: Case) -> None:
     """Keep ``lv``, solved at the case's load and E (its fields, if any, are not kept)."""
-    runcache.store(name, Stored(case.load_N, case.E_MPa, replace(lv, fields=None, sections=None)))
+    meta = {k: getattr(lv, k) for k in NUMBERS}
+    if not runcache.finite(*meta.values()):
+        return  # not a result to reuse (the checks below would refuse it)
+    meta.update(load_N=case.load_N, E_MPa=case.E_MPa, peak=_plain(lv.peak), critical=_plain(lv.critical),
+                timings=dict(lv.timings), scaled_from=lv.scaled_from)
+    runcache.store(name, runcache.Entry(meta))
 
 
-def earlier(name: str, case: Case) -> Level | None:
-    """The stored results ``name`` scaled to the case's load, or None. The Level's timings
-    are the lookup's (s); its ``scaled_from`` names the stored load and E."""
+def earlier(name: str, case: Case, factor: float) -> Level | None:
+    """The stored results ``name`` of the mesh at ``factor`` scaled to the case's load, or
+    None (a failed entry is dropped, with one line). The Level's timings are the lookup's
+    (s); its ``scaled_from`` names the stored load and E."""
     t0 = time.perf_counter()
-    entry = runcache.load(name)
-    if not (isinstance(entry, Stored) and entry.load_N > 0.0 and case.load_N > 0.0):
+    entry = runcache.load(name, REDO)
+    if entry is None:
+        return None
+    why = problem(entry.meta, case, factor)
+    if why is not None:
+        runcache.reject(name, why, REDO)
+        return None
+    m = entry.meta
+    if not case.load_N > 0.0:
         return None  # von Mises scales with |Q|: a sign change would need the tensor
-    k = case.load_N / entry.load_N
-    lv = entry.level
+    k = case.load_N / m["load_N"]
+    lv = Level(**{n: m[n] for n in NUMBERS}, peak=_peak(m["peak"]), critical=_peak(m["critical"]),
+               timings={})
     return replace(lv, peak=_scaled(lv.peak, k), critical=_scaled(lv.critical, k),
                    seat_force_N=k * lv.seat_force_N, support_force_N=k * lv.support_force_N,
                    equilibrium_error_N=k * lv.equilibrium_error_N,
                    constraint_reaction_N=k * lv.constraint_reaction_N,
                    timings={"post": time.perf_counter() - t0},
-                   scaled_from={"load_N": entry.load_N, "E_MPa": entry.E_MPa})
+                   scaled_from={"load_N": m["load_N"], "E_MPa": m["E_MPa"]})
+
+
+def problem(m: dict, case: Case, factor: float) -> str | None:
+    """What is inconsistent in a stored result (a few words), or None."""
+    try:
+        peaks = [_peak(m["peak"]), _peak(m["critical"])]
+        numbers = [m[k] for k in NUMBERS] + [m["load_N"], m["E_MPa"]]
+    except (KeyError, TypeError, ValueError):
+        return "a number missing or of the wrong type"
+    if not (runcache.finite(*numbers) and all(runcache.finite(p.unaveraged.value_MPa, p.averaged.value_MPa,
+                                                               *p.unaveraged.location_mm, *p.averaged.location_mm)
+                                              for p in peaks)):
+        return "a number missing or not finite"
+    load, share = m["load_N"], 0.25 if case.model == "quarter" else 1.0
+    if m["factor"] != factor:
+        return f"mesh factor {m['factor']:g}, not {factor:g}"
+    if not (load > 0 and m["E_MPa"] > 0):
+        return "a stored load or E not above zero"
+    if abs(m["seat_force_N"] + share * load) > 1e-9 * share * load:
+        return f"seat force {m['seat_force_N']:.9g} N for a load of {load:.9g} N"
+    if max(m["equilibrium_error_N"], m["constraint_reaction_N"]) > 1e-6 * load:
+        return "out of balance"
+    if not (0 <= m["residual_rel"] <= max(1e3 * case.rtol, 1e-6)):
+        return f"residual {m['residual_rel']:.3g}"
+    if any(int(m[k]) != m[k] or m[k] < 0 for k in ("dofs", "cells", "iterations")) or m["dofs"] % 3 or not m["cells"]:
+        return "sizes not whole"
+    if not m["jacobian_ratio"] > 0 or any(min(p.unaveraged.value_MPa, p.averaged.value_MPa) < 0 for p in peaks):
+        return "a peak below zero or an inverted element"
+    return None
+
+
+def _plain(p: NodalPeak) -> dict:
+    """A peak as JSON: its two readings (MPa, mm) and its rule."""
+    return {"unaveraged": [p.unaveraged.value_MPa, list(p.unaveraged.location_mm)],
+            "averaged": [p.averaged.value_MPa, list(p.averaged.location_mm)], "rule": p.rule}
+
+
+def _peak(d: dict) -> NodalPeak:
+    """The peak that :func:`_plain` wrote; ValueError if it is not one."""
+    if d["rule"] not in (MIDPOINT, UNAVERAGED) or any(len(d[k][1]) != 3 for k in ("unaveraged", "averaged")):
+        raise ValueError("not a peak")
+    return NodalPeak(unaveraged=Peak(d["unaveraged"][0], tuple(d["unaveraged"][1])),
+                     averaged=Peak(d["averaged"][0], tuple(d["averaged"][1])), rule=d["rule"])
 
 
 def _scaled(p: NodalPeak, k: float) -> NodalPeak:

@@ -13,24 +13,42 @@ node numbers do not. Each DOF node is a node of the (P1 or P2) geometry, so this
 an element order up to the geometry's; a P3 solve is not kept. The key is everything else
 that shapes the field: the numbers of nodes, cells and tagged boundary facets per tag,
 the dimensions, model, support, ν, element order, solver and tolerance, and the source of
-the code that assembles and solves; every node's position is compared with the stored
-one (to 1e-6 mm) before an entry is used. Entries live in the run cache
-(pipeline/cache/runs.py) and follow its switch and size bound.
+the code that assembles and solves. Entries live in the run cache (pipeline/cache/runs.py)
+and follow its switch and size bound.
+
+Nothing stored is taken on trust. Besides the entry's sha256, a reused solution must
+match its mesh and loads: every DOF node's number and position (to 1e-6 mm) are the
+stored ones, and the scaled field solves this mesh's system: its relative residual
+‖b − A u‖/‖b‖, measured as the solver measures it (free rows K u − f, fixed rows the
+diagonal × (u − g)) from one assembly of K u − f, lies within RESIDUAL_MARGIN × the
+solver's tolerance (rtol; 1e-8 for MUMPS, whose own check is that). The same vector
+gives the reactions (N), so none is read from the entry. An entry that fails is dropped
+with one line on stderr and the mesh is solved again.
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
+import ufl
 from dolfinx import fem
 from mpi4py import MPI
+from petsc4py import PETSc
 
 from pipeline.cache import runs as runcache
 from pipeline.inputs.case import Case
+from pipeline.fe.assembly import constrained_diagonal
+from pipeline.fe.elasticity import Material, strain, stress, volume_integral, volume_measures
 from pipeline.fe.loads import LoadCase
 from pipeline.fe.meshing import ImportedMesh
 from pipeline.fe.solve import Solution, constrained
 
+REDO = "solved again"
+# × rtol: the residual a reused field may have. A converged solve stops below rtol (the
+# unpreconditioned residual); recomputing it from another assembly only adds round-off.
+RESIDUAL_MARGIN = 10.0
+RESIDUAL_FLOOR = 1e-10  # below this the round-off of the two assemblies decides, not the solve
 
 
 @dataclass
@@ -42,8 +60,6 @@ class Stored:
     node_ids: np.ndarray  # (n,) the DOF nodes' numbers in the mesh as made, sorted
     nodes_mm: np.ndarray  # (n, 3) their positions
     u_mm: np.ndarray  # (n, 3) displacement at those nodes
-    reaction_N: np.ndarray  # (n, 3) R = K u − f at those nodes
-    reactions: list[np.ndarray]  # per Constraint: its summed reaction force (N)
     iterations: int
     reason: int
     residual_rel: float
@@ -100,20 +116,44 @@ def store(name: str, sol: Solution, ids: np.ndarray, case: Case) -> None:
     own = _gather(comm, ids[:n_own])
     nodes = _gather(comm, V.tabulate_dof_coordinates()[:n_own])
     u = _gather(comm, sol.u.x.array.reshape(-1, 3)[:n_own])
-    r = _gather(comm, sol.reaction.reshape(-1, 3))
     if comm.rank == 0:
         order = np.argsort(own)
-        runcache.store(name, Stored(case.load_N, case.E_MPa, own[order], nodes[order], u[order], r[order],
-                                    sol.reactions, sol.iterations, sol.reason, sol.residual_rel, sol.dofs,
-                                    sol.solver))
+        meta = {"load_N": case.load_N, "E_MPa": case.E_MPa, "iterations": int(sol.iterations),
+                "reason": int(sol.reason), "residual_rel": float(sol.residual_rel), "dofs": int(sol.dofs),
+                "solver": sol.solver}
+        if runcache.finite(*(v for k, v in meta.items() if k != "solver")):
+            runcache.store(name, runcache.Entry(meta, {"node_ids": own[order].astype(np.int64),
+                                                       "nodes_mm": nodes[order], "u_mm": u[order]}))
 
 
 def earlier(name: str, comm: MPI.Comm) -> Stored | None:
-    """The stored solution ``name`` on every rank of ``comm``, or None on every rank."""
-    entry = runcache.load(name) if comm.rank == 0 else None
-    if not (isinstance(entry, Stored) and entry.load_N != 0.0):
-        entry = None
+    """The stored solution ``name`` on every rank of ``comm``, or None on every rank (a
+    failed entry is dropped, with one line). Read and checked for form on rank 0."""
+    entry = None
+    if comm.rank == 0:
+        loaded = runcache.load(name, REDO)
+        entry = None if loaded is None else _stored(loaded)
+        if loaded is not None and entry is None:
+            runcache.reject(name, "arrays or numbers not those of a solution", REDO)
     return comm.bcast(entry, root=0)
+
+
+def _stored(e: runcache.Entry) -> Stored | None:
+    """The Stored of an entry, or None if its arrays and numbers are not a solution's."""
+    m, a = e.meta, e.arrays
+    try:
+        ids, nodes, u = a["node_ids"], a["nodes_mm"], a["u_mm"]
+        numbers = [m[k] for k in ("load_N", "E_MPa", "iterations", "reason", "residual_rel", "dofs")]
+        ok = (ids.ndim == 1 and ids.dtype == np.int64 and nodes.shape == u.shape == (len(ids), 3)
+              and nodes.dtype == u.dtype == np.float64 and bool(np.all(np.diff(ids) > 0))
+              and runcache.finite(*numbers) and m["load_N"] != 0.0 and m["E_MPa"] > 0
+              and isinstance(m["solver"], str) and bool(np.all(np.isfinite(u)) and np.all(np.isfinite(nodes))))
+    except (KeyError, TypeError, AttributeError):
+        return None
+    if not ok:
+        return None
+    return Stored(m["load_N"], m["E_MPa"], ids, nodes, u, int(m["iterations"]), int(m["reason"]),
+                  m["residual_rel"], int(m["dofs"]), m["solver"])
 
 
 def stored_rows(entry: Stored, ids: np.ndarray, nodes_mm: np.ndarray, tol_mm: float) -> np.ndarray | None:
@@ -127,22 +167,87 @@ def stored_rows(entry: Stored, ids: np.ndarray, nodes_mm: np.ndarray, tol_mm: fl
     return rows
 
 
-def scaled(entry: Stored, m: ImportedMesh, V, ids: np.ndarray, lc: LoadCase, case: Case) -> Solution | None:
-    """The stored solution scaled to the case's load and E, as a Solution on space V of mesh
-    m whose solver figures (iterations, residual) are those of the solve it comes from; None
-    (on every rank) if some rank's DOF nodes are not all among the stored ones, at their
-    stored positions to 1e-6 mm."""
+@dataclass
+class Residual:
+    """A field checked against its system: ‖b − A u‖/‖b‖ as the solver measures it, and
+    R = K u − f at this rank's owned DOFs (N) with its sum per Constraint (N)."""
+
+    relative: float
+    reaction: np.ndarray
+    reactions: list[np.ndarray]
+
+
+def residual(u: fem.Function, m: ImportedMesh, lc: LoadCase, mat: Material, order: int,
+             bc_dofs: list[np.ndarray]) -> Residual:
+    """The residual of displacement u (mm) in the problem of mesh m, loads lc and material
+    mat: one assembly of K u − f (the form the solver's reactions use) and one of f. Collective.
+
+    The solver's system has the constrained rows replaced by diagonal × (u − g), so its
+    residual is K u − f on the free rows and that on the fixed ones; ‖b‖ is f on the free
+    rows and diagonal × g on the fixed ones."""
+    V = u.function_space
+    v = ufl.TestFunction(V)
+    mesh = m.mesh
+    ds = ufl.Measure("ds", domain=mesh, subdomain_data=m.facet_tags)
+    zero = fem.Constant(mesh, PETSc.ScalarType((0.0, 0.0, 0.0)))
+    L_form = ufl.inner(zero, v) * ufl.dx
+    for t in lc.tractions:
+        L_form += ufl.inner(t.value, v) * ds(t.marker)
+    dx_split = volume_measures(mesh, order)
+    R = fem.petsc.assemble_vector(fem.form(volume_integral(ufl.inner(stress(u, mat), strain(v)), dx_split) - L_form))
+    f = fem.petsc.assemble_vector(fem.form(L_form))
+    for vec in (R, f):
+        vec.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+    n_owned = V.dofmap.index_map.size_local * V.dofmap.index_map_bs
+    Ra, fa, ua = R.array_r[:n_owned].copy(), f.array_r[:n_owned], u.x.array[:n_owned]
+    R.destroy()
+    f.destroy()
+    fixed = np.zeros(n_owned, dtype=bool)
+    g = np.zeros(n_owned)
+    reactions = []
+    for c, d_ in zip(lc.constraints, bc_dofs, strict=True):
+        owned = d_[d_ < n_owned]
+        fixed[owned] = True
+        g[owned] = c.value
+        total = np.array([Ra[owned[owned % 3 == comp]].sum() for comp in range(3)])
+        reactions.append(mesh.comm.allreduce(total, op=MPI.SUM))
+    diag = constrained_diagonal(mat)
+    r2 = float(np.sum(Ra[~fixed] ** 2) + np.sum((diag * (ua[fixed] - g[fixed])) ** 2))
+    b2 = float(np.sum(fa[~fixed] ** 2) + np.sum((diag * g[fixed]) ** 2))
+    r2, b2 = mesh.comm.allreduce(r2, op=MPI.SUM), mesh.comm.allreduce(b2, op=MPI.SUM)
+    rel = math.sqrt(r2) / math.sqrt(b2) if b2 > 0 else math.sqrt(r2)
+    return Residual(relative=rel if math.isfinite(rel) else math.inf, reaction=Ra, reactions=reactions)
+
+
+def residual_limit(case: Case) -> float:
+    """The largest relative residual a reused field of the case may have (see the module)."""
+    return 1e-8 if case.solver == "mumps" else max(RESIDUAL_MARGIN * case.rtol, RESIDUAL_FLOOR)
+
+
+def scaled(entry: Stored, m: ImportedMesh, V, ids: np.ndarray, lc: LoadCase, case: Case, mat: Material,
+           name: str) -> Solution | None:
+    """The stored solution ``name`` scaled to the case's load and E, as a Solution on space
+    V of mesh m whose solver figures (iterations, residual) are those of the solve it comes
+    from and whose reactions come from its own residual; None (on every rank) if some
+    rank's DOF nodes are not all among the stored ones at their stored positions to 1e-6
+    mm, or if the scaled field does not solve the problem (the entry is then dropped, with
+    one line)."""
     comm = m.mesh.comm
     rows = stored_rows(entry, ids, V.tabulate_dof_coordinates(), 1e-6)
     if not comm.allreduce(rows is not None, op=MPI.LAND):
+        if comm.rank == 0:
+            runcache.reject(name, "its nodes are not this mesh's", REDO)
         return None
     force = case.load_N / entry.load_N
     u = fem.Function(V, name="displacement_mm")
     u.x.array[:] = (force * (entry.E_MPa / case.E_MPa) * entry.u_mm[rows]).ravel()
-    n_own = V.dofmap.index_map.size_local
     _, bc_dofs = constrained(V, m.facet_tags, lc.constraints)
+    res = residual(u, m, lc, mat, case.order, bc_dofs)
+    limit = residual_limit(case)
+    if not res.relative <= limit:
+        if comm.rank == 0:
+            runcache.reject(name, f"relative residual {res.relative:.3g} on this mesh, above {limit:.1g}", REDO)
+        return None
     return Solution(u=u, iterations=entry.iterations, reason=entry.reason, residual_rel=entry.residual_rel,
-                    dofs=entry.dofs, solver=entry.solver, bc_dofs=bc_dofs,
-                    reactions=[force * r for r in entry.reactions],
-                    reaction=(force * entry.reaction_N[rows[:n_own]]).ravel(),
-                    scaled_from={"load_N": entry.load_N, "E_MPa": entry.E_MPa})
+                    dofs=entry.dofs, solver=entry.solver, bc_dofs=bc_dofs, reactions=res.reactions,
+                    reaction=res.reaction, scaled_from={"load_N": entry.load_N, "E_MPa": entry.E_MPa})

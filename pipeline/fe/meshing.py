@@ -25,6 +25,7 @@ from geometry.meshspec import MeshSpec
 from geometry.sizing import mesh
 from geometry.table import Dimensions
 
+from pipeline.cache import meshes as meshcache
 from pipeline.cache import runs as runcache
 
 
@@ -195,13 +196,12 @@ class Mesher:
         :func:`meshing_scale`."""
         t0 = time.perf_counter()
         cache_key = runcache.key("mesh", dims=self.d, model=self.model, spec=spec)
-        hit = runcache.load(cache_key)
-        if hit is not None and (msh_path is None or hit[1] is not None):
-            part, msh_bytes = hit
+        hit = meshcache.earlier(cache_key)
+        if hit is not None and (msh_path is None or hit.msh is not None):
             if msh_path is not None:
-                Path(msh_path).write_bytes(msh_bytes)
-            part.timings = {"geometry": 0.0, "mesh": time.perf_counter() - t0}  # read from the cache
-            return part
+                Path(msh_path).write_bytes(hit.msh)
+            # Read from the cache, checked (pipeline/cache/meshes.py).
+            return MeshedPart(**hit.fields, timings={"geometry": 0.0, "mesh": time.perf_counter() - t0})
         dn, spec_n = _normalised(self.d, spec, self.scale)
         timings: dict[str, float] = {}
         if self._live():
@@ -234,7 +234,9 @@ class Mesher:
                           facet_values=np.asarray(topo[facet_types[0]]["cell_data"], dtype=np.int32),
                           cell_type=int(cell_type), names=names, built=self.built, scale=self.scale,
                           quality=quality, timings=timings)
-        runcache.store(cache_key, (part, Path(msh_path).read_bytes() if msh_path is not None else None))
+        if runcache.enabled():
+            fields = {k: v for k, v in vars(part).items() if k != "timings"}
+            meshcache.store(cache_key, fields, Path(msh_path).read_bytes() if msh_path is not None else None)
         return part
 
 
