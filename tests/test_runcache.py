@@ -23,13 +23,13 @@ def cache(tmp_path, monkeypatch):
 def test_a_load_change_reuses_mesh_pilot_and_solution(cache, tmp_path, monkeypatch):
     case = resolve("05", None, {"mesh_factor": 3.0})
     first = execute_run(case, tmp_path / "a", levels=3, write_fields=False)
-    n_entries = len(list(cache.glob("*.pickle")))
+    n_entries = len(list(cache.glob("*.entry")))
     # The pilot's mesh, its places; the requested mesh and its solution; each of the two
     # error-bar meshes, its solution and its results (pipeline/cache/levels.py).
     assert n_entries == 10
     changed = replace(case, load_N=2.5 * case.load_N, E_MPa=70_000.0)
     second = execute_run(changed, tmp_path / "b", levels=3, write_fields=False)
-    assert len(list(cache.glob("*.pickle"))) == n_entries  # nothing new: all reused
+    assert len(list(cache.glob("*.entry"))) == n_entries  # nothing new: all reused
     assert second["timings_s"]["pilot"] < 0.2 * first["timings_s"]["pilot"]
     assert second["fe"]["scaled_from"] == {"load_N": case.load_N, "E_MPa": case.E_MPa}
     monkeypatch.setenv("CROSSHEAD_NO_CACHE", "1")
@@ -77,17 +77,22 @@ def test_the_cache_is_bounded_by_bytes_and_keeps_the_recently_used(cache, monkey
     old entry read again counts as new (least recently used goes first)."""
     import os
     import time
-    rc.store("probe", b"x" * 1000)
-    size = (cache / "probe.pickle").stat().st_size
-    (cache / "probe.pickle").unlink()
+
+    import numpy as np
+
+    def entry(i: int) -> rc.Entry:
+        return rc.Entry({"i": i}, {"b": np.full(1000, i, dtype=np.uint8)})
+    rc.store("probe", entry(0))
+    size = (cache / "probe.entry").stat().st_size
+    (cache / "probe.entry").unlink()
     monkeypatch.setattr(rc, "MAX_BYTES", int(3.5 * size))
     for i in range(6):
-        rc.store(f"x-{i}", b"x" * 1000)
-        os.utime(cache / f"x-{i}.pickle", ns=(time.time_ns(), 1_000_000_000 * (100 + i)))  # distinct ages
-    assert sorted(p.stem for p in cache.glob("*.pickle")) == ["x-3", "x-4", "x-5"]
-    assert rc.load("x-3") == b"x" * 1000 and rc.load("x-0") is None  # x-3 read: now the newest
-    rc.store("x-6", b"x" * 1000)
-    assert sorted(p.stem for p in cache.glob("*.pickle")) == ["x-3", "x-5", "x-6"]
+        rc.store(f"x-{i}", entry(i))
+        os.utime(cache / f"x-{i}.entry", ns=(time.time_ns(), 1_000_000_000 * (100 + i)))  # distinct ages
+    assert sorted(p.stem for p in cache.glob("*.entry")) == ["x-3", "x-4", "x-5"]
+    assert rc.load("x-3", "redo").meta == {"i": 3} and rc.load("x-0", "redo") is None  # x-3 read: now the newest
+    rc.store("x-6", entry(6))
+    assert sorted(p.stem for p in cache.glob("*.entry")) == ["x-3", "x-5", "x-6"]
 
 
 def test_a_stored_solution_is_found_node_by_node_or_not_at_all():
@@ -99,7 +104,7 @@ def test_a_stored_solution_is_found_node_by_node_or_not_at_all():
     from pipeline.cache.solutions import Stored, stored_rows
     ids = np.array([0, 3, 5, 9])
     nodes = np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]])
-    entry = Stored(10_000.0, 210_000.0, ids, nodes, nodes * 0.1, nodes * 2.0, [], 1, 2, 1e-9, 12, "pmg")
+    entry = Stored(10_000.0, 210_000.0, ids, nodes, nodes * 0.1, 1, 2, 1e-9, 12, "pmg")
     mine = np.array([9, 0, 5])
     rows = stored_rows(entry, mine, nodes[[3, 0, 2]], 1e-6)
     assert rows.tolist() == [3, 0, 2]

@@ -31,6 +31,7 @@ from __future__ import annotations
 import contextlib
 import dataclasses
 import errno
+import functools
 import hashlib
 import json
 import math
@@ -59,6 +60,8 @@ VERSION = 1
 FIRST_LINE_MAX = 160  # bytes: magic, version, a sha256 and two lengths fit well within
 # The only array types an entry holds: numbers, never objects.
 DTYPES = ("<f8", "<i8", "<i4", "|u1")
+# Errors of the cache folder itself, not of one entry: one line says them for the run.
+FOLDER_ERRORS = (errno.EACCES, errno.EPERM, errno.ENOTDIR, errno.EIO)
 
 
 @dataclass
@@ -95,6 +98,13 @@ def say(line: str) -> None:
     with contextlib.suppress(OSError, ValueError):
         sys.stderr.write(line + "\n")
         sys.stderr.flush()
+
+
+@functools.cache
+def say_once(line: str) -> None:
+    """:func:`say`, once per process for each line: a folder that cannot be read or
+    written fails every entry of a run alike, and one line says it."""
+    say(line)
 
 
 def encode(name: str, entry: Entry) -> bytes:
@@ -213,7 +223,10 @@ def load(name: str, redo: str) -> Entry | None:
     except Corrupt as exc:
         reject(name, str(exc), redo)
     except OSError as exc:
-        say(f"cache: {path} cannot be read ({_os_reason(exc)}); {redo}")
+        if exc.errno in FOLDER_ERRORS:
+            say_once(f"cache: {ROOT} cannot be read ({_os_reason(exc)}); the run goes on without it")
+        else:
+            say(f"cache: {path} cannot be read ({_os_reason(exc)}); {redo}")
     return None
 
 
@@ -237,13 +250,19 @@ def store(name: str, entry: Entry) -> None:
     path = path_of(name)
     try:
         data = encode(name, entry)
-        if len(data) > min(MAX_ENTRY_BYTES, MAX_BYTES):
-            return  # larger than the cache may hold: kept, it would evict everything else
+    except (TypeError, ValueError) as exc:  # a number JSON cannot hold, an array of objects
+        say(f"cache: {path} not kept ({exc})")
+        return
+    if len(data) > min(MAX_ENTRY_BYTES, MAX_BYTES):
+        return  # larger than the cache may hold: kept, it would evict everything else
+    try:
         ROOT.mkdir(parents=True, exist_ok=True)
+        if os.path.isdir(path):
+            return  # a folder where the entry goes: reading it has said so (load)
         with replacing(path, "wb") as f:
             f.write(data)
     except OSError as exc:
-        say(f"cache: cannot write {path} ({_os_reason(exc)}); the run goes on without it")
+        say_once(f"cache: cannot write into {ROOT} ({_os_reason(exc)}); the run goes on without keeping its work")
         return
     evict(MAX_BYTES)
 
