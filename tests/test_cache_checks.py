@@ -356,6 +356,8 @@ def test_the_command_line_names_the_cache_not_the_output_folder(filled, tmp_path
     folder.unlink()
     folder.mkdir()
     (folder / "x").write_text("x")
+    for stray in ("stray.pickle", "stray.entry"):  # folders never looked up: eviction passes them
+        (root / stray).mkdir()
     code = ("import sys; from pathlib import Path; import pipeline.cache.runs as rc; "
             f"rc.ROOT = Path({str(root)!r}); from pipeline.cli import main; "
             "sys.exit(main(sys.argv[1:]))")
@@ -392,3 +394,41 @@ def test_an_entry_above_the_bound_is_not_kept_and_evicts_nothing(tmp_path, monke
     rc.store("large", rc.Entry({"n": 2}, {"a": np.zeros(1000)}))
     assert sorted(p.name for p in tmp_path.iterdir()) == ["small.entry"]
     assert rc.load("small", "redo").meta == {"n": 1}
+
+
+def _signed(header: bytes, payload: bytes = b"") -> bytearray:
+    """An entry file around ``header`` and ``payload`` with a valid sha256 and lengths."""
+    import hashlib
+    digest = hashlib.sha256(header + payload).hexdigest()
+    return bytearray(f"{rc.MAGIC} {rc.VERSION} {digest} {len(header)} {len(payload)}\n".encode() + header + payload)
+
+
+@pytest.mark.parametrize("header, payload", [
+    (b"[" * 100_000 + b"]" * 100_000, b""),  # deeper than the JSON reader's recursion
+    (b'{"name": "e", "meta": {}, "arrays": [["a", "|O", [1]]]}', bytes(8)),  # objects
+    (b'{"name": "e", "meta": {}, "arrays": [["a", "<f8", [-1]]]}', b""),
+    (b'{"name": "e", "meta": {}, "arrays": [["a", "<f8", [10]]]}', bytes(8)),  # runs past the end
+    (b'{"name": "e", "meta": {}, "arrays": []}', bytes(8)),  # bytes left over
+    (b'{"name": "other", "meta": {}, "arrays": []}', b""),  # another entry's file
+    (b'{"name": "e", "meta": [], "arrays": []}', b""),
+    (b'{"name": "e", "meta": {}, "arrays": [1]}', b""),
+    (b"\xff\xfe", b""),
+])
+def test_a_well_signed_entry_that_is_not_one_is_refused_as_corrupt(header, payload):
+    """What a checksum cannot catch (an entry written to pass it) still gives Corrupt, the
+    one failure that drops an entry with its line, never another error that ends the run."""
+    with pytest.raises(rc.Corrupt):
+        rc.decode("e", _signed(header, payload))
+
+
+def test_an_entry_reads_back_as_written():
+    """Numbers and arrays of each allowed type, an empty array among them, round-trip exactly."""
+    e = rc.Entry({"load_N": 10_000.0, "names": {"seat": 3}, "text": "pmg"},
+                 {"x": np.linspace(0.0, 1.0, 12).reshape(4, 3), "ids": np.arange(5, dtype=np.int64),
+                  "tags": np.arange(3, dtype=np.int32), "msh": np.frombuffer(b"$MeshFormat", dtype=np.uint8),
+                  "none": np.zeros((0, 3))})
+    back = rc.decode("e", bytearray(rc.encode("e", e)))
+    assert back.meta == e.meta
+    assert back.arrays.keys() == e.arrays.keys()
+    for k, a in e.arrays.items():
+        assert back.arrays[k].dtype == a.dtype and np.array_equal(back.arrays[k], a)

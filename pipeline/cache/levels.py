@@ -83,7 +83,7 @@ def problem(m: dict, case: Case, factor: float) -> str | None:
     try:
         peaks = [_peak(m["peak"]), _peak(m["critical"])]
         numbers = [m[k] for k in NUMBERS] + [m["load_N"], m["E_MPa"]]
-    except (KeyError, TypeError, ValueError):
+    except (KeyError, TypeError, ValueError, IndexError):
         return "a number missing or of the wrong type"
     if not (runcache.finite(*numbers) and all(runcache.finite(p.unaveraged.value_MPa, p.averaged.value_MPa,
                                                                *p.unaveraged.location_mm, *p.averaged.location_mm)

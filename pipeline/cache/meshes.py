@@ -97,6 +97,6 @@ def problem(entry: runcache.Entry) -> str | None:
         volume = corner_volume_mm3(x, cells)
         if abs(volume - m["volume_mm3"]) > 1e-9 * abs(m["volume_mm3"]):
             return f"volume {volume:.9g} mm³, stored {m['volume_mm3']:.9g} mm³"
-    except (KeyError, TypeError, ValueError, AttributeError):
+    except (KeyError, TypeError, ValueError, AttributeError, IndexError):
         return "a field missing or of the wrong type"
     return None

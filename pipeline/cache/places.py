@@ -46,7 +46,7 @@ def earlier(name: str, factor: float, reach_mm: float) -> StoredPlaces | None:
               and all(len(q) == 3 and runcache.finite(*q) and max(map(abs, q)) <= 10 * reach_mm for q in spots)
               and list(spots) == sorted(set(spots)) and 0 <= m["bridging"] <= len(spots)
               and math.floor(m["bridging"]) == m["bridging"])
-    except (KeyError, TypeError, ValueError):
+    except (KeyError, TypeError, ValueError, IndexError):
         ok = False
     if not ok:
         runcache.reject(name, "places not what a pilot writes", REDO)

@@ -159,7 +159,7 @@ def decode(name: str, data: bytes | bytearray) -> Entry:
             offset += size
         if offset != len(data):
             raise Corrupt("bytes left over after the arrays")
-    except (ValueError, KeyError, TypeError) as exc:
+    except (ValueError, KeyError, TypeError, IndexError, RecursionError) as exc:
         raise Corrupt(f"header unreadable: {type(exc).__name__}") from None
     return Entry(meta=meta, arrays=arrays)
 

@@ -148,7 +148,7 @@ def _stored(e: runcache.Entry) -> Stored | None:
               and nodes.dtype == u.dtype == np.float64 and bool(np.all(np.diff(ids) > 0))
               and runcache.finite(*numbers) and m["load_N"] != 0.0 and m["E_MPa"] > 0
               and isinstance(m["solver"], str) and bool(np.all(np.isfinite(u)) and np.all(np.isfinite(nodes))))
-    except (KeyError, TypeError, AttributeError):
+    except (KeyError, TypeError, ValueError, AttributeError):
         return None
     if not ok:
         return None
