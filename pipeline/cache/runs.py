@@ -13,8 +13,9 @@ Nothing read from the cache is trusted. An entry is one file ``<name>.entry`` in
 bytes>``, a JSON header (the entry's name, its plain numbers and the list of its arrays:
 name, dtype, shape) and the arrays' raw bytes. Reading it runs no code (no pickle; JSON and
 numpy buffers of a few fixed dtypes only); the sha256 of header and payload is checked on
-every read; only a regular file of at most MAX_ENTRY_BYTES is opened (no symlink, FIFO or
-device: ``O_NOFOLLOW | O_NONBLOCK``, then fstat), and its name must be the one asked for.
+every read; only a regular file of at most MAX_ENTRY_BYTES is opened (no symlink, FIFO,
+device or folder: lstat first, then ``O_NOFOLLOW | O_NONBLOCK`` and fstat), and the name in
+it must be the one asked for.
 Each kind then checks what it reads against what it must be (its module says how). An
 entry that fails is removed and the run says so in one line on stderr naming the file,
 then computes the work again; a cache that cannot be read or written costs time and one
