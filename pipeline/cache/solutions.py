@@ -21,7 +21,8 @@ match its mesh and loads: every DOF node's number and position (to 1e-6 mm) are 
 stored ones, and the scaled field solves this mesh's system: its relative residual
 ‖b − A u‖/‖b‖, measured as the solver measures it (free rows K u − f, fixed rows the
 diagonal × (u − g)) from one assembly of K u − f, lies within RESIDUAL_MARGIN × the
-solver's tolerance (rtol; 1e-8 for MUMPS, whose own check is that). The same vector
+solver's tolerance rtol (but never below RESIDUAL_FLOOR; 1e-8 for MUMPS, whose own check
+is that). The same vector
 gives the reactions (N), so none is read from the entry. An entry that fails is dropped
 with one line on stderr and the mesh is solved again.
 """
