@@ -8,8 +8,13 @@ from __future__ import annotations
 
 import math
 
-from pipeline.errors import InputError, given_twice
+from pipeline.errors import InputError
 
+# Two values closer than this are one value (relative, and absolute in mm or N for values
+# near zero): far above the round-off of a range's arithmetic (~1e-16), far below any
+# difference a dimension or a load can be made or measured to.
+SAME_REL = 1e-9
+SAME_ABS = 1e-12
 MOST_LOADS = 1000  # loads are cheap: one solve, scaled to each
 MOST_DIM_VALUES = 200  # each swept value of a dimension is a full analysis
 
@@ -38,10 +43,26 @@ def parse_values(text: str, name: str, most: int) -> list[float]:
         raise InputError(f"{name}: {text!r}: give one value, a list v1,v2,... or a range START:STOP:COUNT")
     if not all(math.isfinite(v) for v in values):
         raise InputError(f"{name}: {text!r}: every value must be a finite number")
-    twice = given_twice(values)
+    values = [v + 0.0 for v in values]  # -0.0 + 0.0 is 0.0
+    twice = same_values(values)
     if twice:
-        raise InputError(f"{name}: {text!r}: {', '.join(f'{v:g}' for v in twice)} given twice")
+        raise InputError(f"{name}: {text!r}: {', '.join(twice)} given twice")
     return values
+
+
+def same_values(values: list[float]) -> list[str]:
+    """The values of ``values`` given more than once, as text, sorted: a value repeated
+    exactly ("5000"), or two that are equal to round-off (within SAME_REL, or SAME_ABS
+    near zero), both named in full ("1.0 and 1.0000000000000002 (equal to round-off)")."""
+    order = sorted(values)
+    found: list[str] = []
+    for a, b in zip(order, order[1:]):
+        if not math.isclose(a, b, rel_tol=SAME_REL, abs_tol=SAME_ABS):
+            continue
+        text = f"{a:g}" if a == b else f"{a!r} and {b!r} (equal to round-off)"
+        if text not in found:
+            found.append(text)
+    return found
 
 
 def parse_loads(text: str) -> list[float]:
