@@ -7,7 +7,6 @@ geometry is built; a bad one raises InputError naming the field and the rule.
 from __future__ import annotations
 
 import math
-import tomllib
 from dataclasses import asdict, dataclass, field, fields, replace
 from pathlib import Path
 from typing import Any, Sequence
@@ -16,6 +15,7 @@ from geometry.meshspec import MeshSpec
 from geometry.table import Dimensions, InputError, lookup, validate
 
 from pipeline.inputs.choices import MODELS, SOLVERS, SUPPORTS, WANTS
+from pipeline.inputs.tomlfile import read_toml
 
 DIMENSION_KEYS = tuple(f.name for f in fields(Dimensions))
 
@@ -95,31 +95,13 @@ SCHEMA: dict[str, dict[str, tuple[str, tuple[type, ...]]]] = {
 }
 
 
-CASE_FILE_MAX_BYTES = 1 << 20  # a case file is a few hundred bytes; /dev/zero must not be read
-
-
 def read_case_file(path: Path) -> dict[str, Any]:
     """Flatten a TOML case file into {Case field or 'dims.x': value}, checking keys and types.
 
-    Only regular files up to CASE_FILE_MAX_BYTES are read; a UTF-8 byte-order mark (as some
-    editors write) is accepted."""
+    The file is read by pipeline.inputs.tomlfile (regular files of at most 1 MiB, nested
+    at most a few levels), the reader study files share."""
     path = Path(path)
-    try:
-        if not path.is_file():
-            raise InputError(f"case: cannot read {path}: not a regular file" if path.exists()
-                             else f"case: file not found: {path}")
-        with path.open("rb") as f:
-            raw = f.read(CASE_FILE_MAX_BYTES + 1)
-        if len(raw) > CASE_FILE_MAX_BYTES:
-            raise InputError(f"case: {path} is larger than {CASE_FILE_MAX_BYTES // 1024} KiB; "
-                             "a case file holds a few keys")
-        text = raw.decode("utf-8").removeprefix("\ufeff")
-    except (OSError, UnicodeDecodeError) as exc:
-        raise InputError(f"case: cannot read {path}: {exc}") from None
-    try:
-        data = tomllib.loads(text)
-    except ValueError as exc:  # TOMLDecodeError, or an integer too long to convert
-        raise InputError(f"case: {path} is not valid TOML: {exc}") from None
+    data = read_toml(path, "case")
     flat: dict[str, Any] = {}
     for section, content in data.items():
         if isinstance(content, dict):

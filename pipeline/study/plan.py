@@ -14,6 +14,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from pipeline.inputs.case import Case, check_error_bar_meshes, resolve
+from pipeline.inputs.tomlfile import read_toml
 from pipeline.cache.codekey import code_key
 from pipeline.errors import InputError
 
@@ -68,14 +69,11 @@ def plan(size: str | None, case_file: Path | None, base: dict, axes: dict[str, l
 def read_study(path: Path) -> dict:
     """A study file (TOML, e.g. cases/sweep-rf.toml): its [sweep] table with ``size`` or
     ``case``, ``dims`` (NAME = "START:STOP:COUNT" or "a,b,c"), ``load``, ``levels``,
-    ``ratio``, ``mesh_factor``, ``out``."""
-    import tomllib
-
+    ``ratio``, ``mesh_factor``, ``out``. Read by the guarded reader case files share
+    (pipeline.inputs.tomlfile). A relative ``case`` or ``out`` is taken from the study
+    file's folder, as a Path: the file means the same wherever the command starts."""
     from geometry.table import Dimensions
-    try:
-        data = tomllib.loads(Path(path).read_text(encoding="utf-8").removeprefix("\ufeff"))
-    except (OSError, UnicodeDecodeError, ValueError) as exc:
-        raise InputError(f"study: cannot read {path}: {exc}") from None
+    data = read_toml(path, "study")
     s = data.get("sweep")
     if not isinstance(s, dict) or set(data) != {"sweep"}:
         extra = ", ".join(sorted(set(data) - {"sweep"}))
@@ -101,7 +99,11 @@ def read_study(path: Path) -> dict:
             raise InputError(f"sweep.dims.{name}: expected \"START:STOP:COUNT\", \"v1,v2,...\", an array of "
                              f"numbers or a number in {path}, got {values!r}")
         dims[name] = values
-    return dict(s, **({"dims": dims} if "dims" in s else {}))
+    for key in ("case", "out"):
+        if key in s and not s[key].strip():
+            raise InputError(f"sweep.{key}: an empty path in {path}")
+    paths = {k: Path(path).parent / Path(s[k]).expanduser() for k in ("case", "out") if k in s}
+    return dict(s, **paths, **({"dims": dims} if "dims" in s else {}))
 
 
 def _array_as_list(values, name: str, path: Path):
