@@ -307,8 +307,10 @@ def test_summary_of_a_study_goes_beside_its_variants_not_among_them(tmp_path):
     from pipeline.study import summary
     from pipeline.runtime.folders import MARKER
     study = tmp_path / "study"
+    from pipeline.study.manifest import write_manifest
     for key, size in (("a1", "1.6"), ("b2", "10")):
         _fake_results(study / "variants" / key, size, 66.0, "converged")
+        write_manifest(study / "variants" / key)  # a study's variant is read with its checksums
     (study / MARKER).write_text('{"tool": "crosshead", "sweep": true}\n')
     assert summary.main([str(study / "variants"), "--all"]) == 0
     assert (study / "summary" / "summary.md").is_file()
@@ -347,8 +349,9 @@ def test_summary_names_a_size_whose_analysis_failed(tmp_path):
     from pipeline.study import summary
     for key, size in (("a1", "1.6"), ("b2", "10")):
         _fake_results(tmp_path / "variants" / key, size, 66.0, "converged")
-    (tmp_path / "variants" / "c3.failed.json").write_text(json.dumps(
-        {"error": "gmsh could not mesh the part: boom", "size": "4", "parameters": {"size": "4"}}))
+    from pipeline.study.manifest import write_failure
+    write_failure(tmp_path / "variants" / "c3.failed.json",  # with its checksum, as a study writes it
+                  {"error": "gmsh could not mesh the part: boom", "size": "4", "parameters": {"size": "4"}})
     assert summary.main([str(tmp_path / "variants"), "--all", "--out", str(tmp_path / "sum")]) == 0
     md = (tmp_path / "sum" / "summary.md").read_text()
     assert "Not in the table: No. 4 (its analysis failed: gmsh could not mesh the part: boom)." in md

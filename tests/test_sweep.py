@@ -243,6 +243,7 @@ def test_a_failed_variant_writes_why_with_its_size_and_inputs(tmp_path, monkeypa
     from pipeline import commands
     from pipeline.study import sweep as sweep_module
     from pipeline.errors import NumericalError
+    from pipeline.study.manifest import read_failure
     from pipeline.study.plan import failure_file, plan
 
     def fails(*a, **k):
@@ -251,7 +252,7 @@ def test_a_failed_variant_writes_why_with_its_size_and_inputs(tmp_path, monkeypa
     task, = plan("1.6", None, {"mesh_factor": 3.0}, {"dims.rf": [2.0]}, [], 1, 1.3)
     (tmp_path / "variants").mkdir()
     sweep_module.run_task(task, tmp_path, 1, 1.3)
-    note = json.loads(failure_file(tmp_path, task.key).read_text())
+    note = read_failure(failure_file(tmp_path, task.key))  # checked against its checksum
     assert note == {"error": "solver pmg did not converge (PETSc reason -3, 1000 iterations)", "size": "1.6",
                     "parameters": {"dims.rf": 2.0}}
 
@@ -297,8 +298,8 @@ def test_small_sweep_contract_invalid_variant_and_resume(tmp_path):
     assert all(r["peak_MPa"] > r["critical_peak_MPa"] > 0 for r in data["rows"] if r["status"] == "done")
     assert (out / "report.md").is_file() and (out / "peak_vs_rf.png").is_file()
     # A variant keeps its results, not its 7 MB mesh (at the default mesh): the study asks for peaks.
-    for folder in (out / "variants").iterdir():
-        assert sorted(p.name for p in folder.iterdir()) == [".crosshead-results", "results.json"]
+    for folder in (out / "variants").iterdir():  # and the checksums of the two (pipeline.study.manifest)
+        assert sorted(p.name for p in folder.iterdir()) == [".crosshead-results", "manifest.json", "results.json"]
         assert "mesh" not in json.loads((folder / "results.json").read_text())["files"]
     report = (out / "report.md").read_text(encoding="utf-8")
     assert "## Against the allowable (80 MPa)" in report and report.count("analysed case") == 3

@@ -154,8 +154,13 @@ def warnings_of(r: dict) -> list[str]:
 
 def collect(results_dir: Path, take_all: bool = False) -> tuple[list[dict], list[str]]:
     """Rows for every size folder with a results.json, sorted by hook number; and notes
-    on folders that were skipped."""
+    on folders that were skipped. A design study's variant (in its ``variants/`` folder,
+    or any folder with a variant's checksums) is read only when its files match their
+    checksums (pipeline.study.manifest): one edited or cut short is named, not summarised."""
+    from pipeline.runtime.folders import marked_kind
+    from pipeline.study.manifest import MANIFEST, VariantFault, folder_fault, read_failure
     sizes = None if take_all else set(_table())
+    in_study = results_dir.name == "variants" and marked_kind(results_dir.parent) == "sweep"
     rows, skipped, unnamed = [], [], []
     for sub in sorted(p for p in results_dir.iterdir() if p.is_dir()):
         f = sub / "results.json"
@@ -163,6 +168,10 @@ def collect(results_dir: Path, take_all: bool = False) -> tuple[list[dict], list
             continue
         if sizes is not None and sub.name not in sizes:
             unnamed.append(sub.name)
+            continue
+        why = folder_fault(sub) if in_study or (sub / MANIFEST).exists() else None
+        if why is not None:
+            skipped.append(f"{sub.name} ({why}; not summarised)")
             continue
         try:
             row = checked(row_of(sub, json.loads(f.read_text(encoding="utf-8"))))
@@ -172,9 +181,11 @@ def collect(results_dir: Path, take_all: bool = False) -> tuple[list[dict], list
             skipped.append(f"{sub.name} (unreadable results.json: {type(exc).__name__}: {exc})")
     for f in sorted(results_dir.glob("*.failed.json")):  # a study's variant that failed (pipeline.study.sweep)
         try:
-            failed = json.loads(f.read_text(encoding="utf-8"))
+            failed = read_failure(f)
             skipped.append(f"No. {failed['size']} (its analysis failed: {failed['error']})")
-        except (OSError, ValueError, KeyError, TypeError):
+        except VariantFault as exc:
+            skipped.append(f"{f.name} (a failed variant: {exc}; not summarised)")
+        except (KeyError, TypeError):
             skipped.append(f"{f.name} (a failed variant; its note cannot be read)")
     if unnamed:  # said once: a study's variants/ folder has one per variant
         skipped.append(f"{', '.join(unnamed[:3])}{f' and {len(unnamed) - 3} more' if len(unnamed) > 3 else ''} "

@@ -11,7 +11,9 @@ and the analysing code (codekey.code_key), so a re-run skips finished tasks and 
 any whose inputs or code changed. Invalid variants
 (rules of docs/design.md §2) are reported and skipped; a failed variant is reported, not
 fatal. Results: ``sweep.csv``, ``sweep.json``, one plot per peak and swept parameter,
-``report.md``; each variant's own results in ``variants/<key>/``.
+``report.md``; each variant's own results in ``variants/<key>/``, with the checksums of
+its files (pipeline.study.manifest): a variant whose files no longer match them (edited,
+cut short) is named and analysed again, on resuming and before the study is summarised.
 """
 from __future__ import annotations
 
@@ -26,17 +28,22 @@ from typing import Callable
 
 from mpi4py import MPI
 
-from pipeline.runtime.atomicfile import write_text
 from pipeline.errors import InputError, NumericalError
 from pipeline.runtime.interrupts import on_stop, stop_outcome
 # pipeline.fe.meshing loads DOLFINx, whose import starts PETSc collectively over COMM_WORLD:
 # importing it here, on every rank as the command starts, keeps rank 0's later memory probe
 # from being the only rank to do so (it met the others' broadcast and aborted them).
 from pipeline.fe.meshing import heartbeat
+from pipeline.study.manifest import MANIFEST, failure_fault, folder_fault, write_failure, write_manifest
 from pipeline.study.plan import Task, earlier_variants, failure_file, plan, variant_folder
 from pipeline.study.table import inputs_text, write_outputs
 
 Progress = Callable[[str], None]
+
+# How many times a study analyses again the variants whose files fail their checksums
+# after its work: once is enough unless something keeps changing them; then the table
+# leaves them out, saying why.
+REPAIR_ROUNDS = 1
 
 
 def _claim(out: Path, key: str) -> bool:
@@ -49,23 +56,82 @@ def _claim(out: Path, key: str) -> bool:
 
 
 def _done(out: Path, key: str) -> bool:
-    """Has task ``key`` ended, with results or with its failure written?"""
-    return (variant_folder(out, key) / "results.json").is_file() or failure_file(out, key).is_file()
+    """Has task ``key`` ended, with results or with its failure written, each matching
+    its checksums? (Results without them are a run that stopped, or files changed since.)"""
+    failed = failure_file(out, key)
+    return folder_fault(variant_folder(out, key)) is None or (failed.is_file() and failure_fault(failed) is None)
+
+
+def _ended(out: Path, key: str) -> bool:
+    """Has task ``key`` written its checksums or its failure? For the progress line: the
+    files are checked against them (:func:`_done`) before a task is skipped or read."""
+    return (variant_folder(out, key) / MANIFEST).is_file() or failure_file(out, key).is_file()
+
+
+def fault_of(out: Path, key: str) -> str | None:
+    """Why the files task ``key`` left in the study ``out`` cannot be taken as its run
+    wrote them ("results.json does not match its checksum"), or None: when they match,
+    or when it left none."""
+    folder, failed = variant_folder(out, key), failure_file(out, key)
+    if failed.is_file() or failed.is_symlink():
+        why = failure_fault(failed)
+        if why is not None:
+            return why
+    if folder.is_dir() or folder.is_symlink():
+        return folder_fault(folder)
+    return None
+
+
+def discard_damaged(out: Path, tasks: list[Task], say: Progress) -> list[str]:
+    """Remove what each task of ``tasks`` left in ``out`` that does not match its
+    checksums, saying so in one line per task, so that the study analyses it again; its
+    keys. Its claim goes too: a study that has run it once takes it again."""
+    from pipeline.study.table import inputs_text
+    keys = []
+    for t in tasks:
+        why = None if t.case is None else fault_of(out, t.key)
+        if why is None:
+            continue
+        for p in (variant_folder(out, t.key), failure_file(out, t.key), out / ".claims" / t.key):
+            _remove(p)
+        say(f"sweep: variant {t.key} ({inputs_text(t.params)}): {why}; analysed again")
+        keys.append(t.key)
+    return keys
+
+
+def _remove(path: Path) -> None:
+    """Remove what a task left at ``path``: a file, a link (not what it points to), an
+    empty folder or a run's folder (it holds the results marker). A folder the tool did
+    not write stays: the run into it is then refused and written as the task's failure."""
+    from pipeline.runtime.folders import MARKER
+    if path.is_dir() and not path.is_symlink():
+        if (path / MARKER).is_file():
+            shutil.rmtree(path)
+        elif not any(path.iterdir()):
+            path.rmdir()
+    else:
+        path.unlink(missing_ok=True)
 
 
 def run_task(task: Task, out: Path, levels: int, ratio: float) -> None:
-    """Analyse one task on this rank alone; a failure is written beside, never raised."""
+    """Analyse one task on this rank alone, then write the checksums of its files; a
+    failure is written beside (with its own checksum), never raised. What the task left
+    before (files that failed their checksums) is removed first, so that only this run's
+    files are found."""
     from geometry.part import GeometryError
 
     from pipeline.commands import execute_run
     case = replace(task.case, load_N=task.loads[0])
+    folder, failed = variant_folder(out, task.key), failure_file(out, task.key)
+    _remove(folder)
+    _remove(failed)
     try:
-        execute_run(case, variant_folder(out, task.key), levels=levels, ratio=ratio, write_fields=False,
+        execute_run(case, folder, levels=levels, ratio=ratio, write_fields=False,
                     write_mesh=False, loads=list(task.loads) if len(task.loads) > 1 else None, comm=MPI.COMM_SELF)
     except (NumericalError, GeometryError, InputError) as exc:
-        write_text(failure_file(out, task.key),
-                   json.dumps({"error": " ".join(str(exc).split()), "size": case.size,
-                               "parameters": task.params}) + "\n")
+        write_failure(failed, {"error": " ".join(str(exc).split()), "size": case.size, "parameters": task.params})
+        return
+    write_manifest(folder)
 
 
 def work(tasks: list[Task], out: Path, levels: int, ratio: float, say: Progress, before: int) -> None:
@@ -80,7 +146,7 @@ def work(tasks: list[Task], out: Path, levels: int, ratio: float, say: Progress,
         # is heard from every HEARTBEAT_S while it runs.
         with heartbeat(say, f"sweep: variant {inputs_text(task.params)}"):
             run_task(task, out, levels, ratio)
-        finished = sum(_done(out, t.key) for t in todo)
+        finished = sum(_ended(out, t.key) for t in todo)
         say(f"sweep: {finished}/{len(todo)} variants done; "
             f"about {time_left_s(time.perf_counter() - t0, finished - before, len(todo) - finished):.0f} s left")
 
@@ -153,6 +219,7 @@ def execute_sweep(size: str | None, case_file: Path | None, base: dict, axes: di
             (out / ".claims").mkdir()
             (out / "variants").mkdir(exist_ok=True)
             (out / MARKER).write_text(json.dumps({"tool": "crosshead", "sweep": True}) + "\n")
+            discard_damaged(out, tasks, say)  # before anything counts them as done
             stop_outcome(f"the study in {out} keeps the variants finished so far; the same command resumes it")
         except (InputError, OSError) as exc:
             if lock is not None:
@@ -172,10 +239,16 @@ def execute_sweep(size: str | None, case_file: Path | None, base: dict, axes: di
         if lock is not None:  # a stop ends the process with os._exit: the finally below never runs
             stack.enter_context(on_stop(lock.release))
         try:
-            work(tasks, out, levels, ratio, say, before)
-            request = comm.Ibarrier()
-            while not request.Test():
-                time.sleep(0.05)
+            for round_ in range(REPAIR_ROUNDS + 1):
+                work(tasks, out, levels, ratio, say, before)
+                request = comm.Ibarrier()
+                while not request.Test():
+                    time.sleep(0.05)
+                # Before the study is summarised: every variant's files as its run wrote them.
+                again = comm.bcast(bool(discard_damaged(out, tasks, say)) if comm.rank == 0
+                                   and round_ < REPAIR_ROUNDS else False, root=0)
+                if not again:
+                    break
             if comm.rank == 0:
                 remove_earlier_variants(out, tasks, say)
                 allowable = next((t.case.allowable_MPa for t in tasks if t.case is not None), 80.0)

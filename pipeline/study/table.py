@@ -12,6 +12,7 @@ from pathlib import Path
 from pipeline.runtime.atomicfile import replacing, write_text
 from pipeline.post.errorbar import verdict_against
 from pipeline.output.report import pm
+from pipeline.study.manifest import VariantFault, read_failure, read_results
 from pipeline.study.plan import Task, failure_file, variant_folder
 
 COLUMNS = ("variant", "status", "size", "load_N", "parameters", "peak_MPa", "peak_band_MPa", "critical_peak_MPa",
@@ -39,16 +40,14 @@ def rows_of(tasks: list[Task], out: Path) -> list[dict]:
         if t.case is None:
             rows += [dict(base, status="invalid", load_N=q, note=t.note) for q in (t.loads or (None,))]
             continue
-        failed = failure_file(out, t.key)
-        res_path = variant_folder(out, t.key) / "results.json"
-        if failed.is_file():
-            note = json.loads(failed.read_text())["error"]
-            rows += [dict(base, status="failed", load_N=q, note=note) for q in t.loads]
+        res, error, why = variant_files(out, t.key)
+        if error is not None:
+            rows += [dict(base, status="failed", load_N=q, note=error) for q in t.loads]
             continue
-        if not res_path.is_file():
-            rows += [dict(base, status="not run", load_N=q) for q in t.loads]
+        if res is None:
+            note = {} if why is None else {"note": f"{why}: not read (the same command analyses it again)"}
+            rows += [dict(base, status="not run", load_N=q, **note) for q in t.loads]
             continue
-        res = json.loads(res_path.read_text())
         fe = res["fe"]
         nominal = ((fe.get("sections") or {}).get("critical_section") or {}).get("nominal_MPa")
         per_load = res.get("load_sweep") or [{
@@ -75,6 +74,26 @@ def rows_of(tasks: list[Task], out: Path) -> list[dict]:
                 row["note"] = "; ".join(why for _, _, why, _ in unusable)
             rows.append(row)
     return rows
+
+
+def variant_files(out: Path, key: str) -> tuple[dict | None, str | None, str | None]:
+    """What task ``key`` of the study in ``out`` left, read only when its files match
+    their checksums (pipeline.study.manifest): (its results.json or None, why it failed
+    or None, why what it left cannot be read or None). A file edited or cut short after
+    its run is never summarised."""
+    failed, folder = failure_file(out, key), variant_folder(out, key)
+    why = None
+    if failed.is_file():
+        try:
+            return None, str(read_failure(failed)["error"]), None
+        except (VariantFault, KeyError) as exc:
+            why = str(exc) if isinstance(exc, VariantFault) else f"{failed.name} names no error"
+    if folder.is_dir():
+        try:
+            return read_results(folder), None, None
+        except VariantFault as exc:
+            why = str(exc)
+    return None, None, why
 
 
 def _unusable(block: dict, name: str) -> tuple[str | None, str | None]:
