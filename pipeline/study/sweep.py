@@ -86,7 +86,6 @@ def discard_damaged(out: Path, tasks: list[Task], say: Progress) -> list[str]:
     """Remove what each task of ``tasks`` left in ``out`` that does not match its
     checksums, saying so in one line per task, so that the study analyses it again; its
     keys. Its claim goes too: a study that has run it once takes it again."""
-    from pipeline.study.table import inputs_text
     keys = []
     for t in tasks:
         why = None if t.case is None else fault_of(out, t.key)
@@ -101,12 +100,18 @@ def discard_damaged(out: Path, tasks: list[Task], say: Progress) -> list[str]:
 
 def _remove(path: Path) -> None:
     """Remove what a task left at ``path``: a file, a link (not what it points to), an
-    empty folder or a run's folder (it holds the results marker). A folder the tool did
-    not write stays: the run into it is then refused and written as the task's failure."""
+    empty folder or a variant's folder (it holds the results marker or the checksums). A
+    folder the tool did not write stays: the run into it is then refused and written as
+    the task's failure."""
     from pipeline.runtime.folders import MARKER
     if path.is_dir() and not path.is_symlink():
-        if (path / MARKER).is_file():
-            shutil.rmtree(path)
+        if (path / MARKER).is_file() or (path / MANIFEST).is_file():
+            # Renamed first (one step), so a stop during the removal leaves no half a
+            # variant under its key; the study removes the renamed rest when it ends
+            # (earlier_variants: a marked folder of no key of the study).
+            gone = path.with_name(f".removing-{path.name}-{os.getpid()}")
+            os.replace(path, gone)
+            shutil.rmtree(gone)
         elif not any(path.iterdir()):
             path.rmdir()
     else:
