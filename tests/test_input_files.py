@@ -78,7 +78,7 @@ def test_a_fifo_is_refused_without_opening_it_for_a_blocking_read(tmp_path):
     for reader, what in ((read_study, "study"), (read_case_file, "case")):
         said: list[BaseException] = []
 
-        def read() -> None:
+        def read(reader=reader, said=said) -> None:
             try:
                 reader(fifo)
             except BaseException as exc:  # noqa: BLE001 - handed to the test's thread

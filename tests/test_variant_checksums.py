@@ -6,6 +6,7 @@ never read it.
 """
 from __future__ import annotations
 
+import csv
 import json
 import os
 import subprocess
@@ -16,8 +17,15 @@ from types import SimpleNamespace
 import pytest
 
 from pipeline.runtime.folders import MARKER
-from pipeline.study.manifest import (MANIFEST, VariantFault, folder_fault, read_failure, read_results, write_failure,
-                                     write_manifest)
+from pipeline.study.manifest import (
+    MANIFEST,
+    VariantFault,
+    folder_fault,
+    read_failure,
+    read_results,
+    write_failure,
+    write_manifest,
+)
 from pipeline.study.plan import Task, failure_file, variant_folder
 from pipeline.study.sweep import discard_damaged
 from pipeline.study.table import rows_of
@@ -156,7 +164,6 @@ def test_an_edited_or_truncated_variant_is_analysed_again_and_never_summarised(t
                        capture_output=True, text=True, timeout=300)
     assert p.returncode == 0, p.stderr
     with open(out / "summary" / "summary.csv", newline="") as f:
-        import csv
         rows = list(csv.DictReader(f))
     assert len(rows) == 1 and float(rows[0]["fe_peak_MPa"]) == pytest.approx(
         next(r["peak_MPa"] for r in first if r["dims.rf"] == 1.5))
