@@ -55,7 +55,7 @@ def folder_fault(folder: Path) -> str | None:
     try:
         sums = json.loads((folder / MANIFEST).read_text(encoding="utf-8"))["sha256"]
     except FileNotFoundError:
-        return f"{RESULTS} has no checksum (its run stopped before the end)"
+        return f"{RESULTS} has no checksum (its run did not end, or an older version wrote it)"
     except (OSError, ValueError, KeyError, TypeError):
         return f"its checksums ({MANIFEST}) cannot be read"
     if not isinstance(sums, dict) or RESULTS not in sums:
