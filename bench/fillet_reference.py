@@ -265,7 +265,8 @@ def run_point(order: int, h_ball: float, centres: tuple[tuple[float, float, floa
             "ball_centre_mm": list(centres[0]), "ball_centres_mm": [list(c) for c in centres],
             "dofs": lv.dofs, "cells": lv.cells, "surface_peak_outside_balls_MPa": outside,
             "iterations": lv.iterations, "surface_peak_MPa": value, "surface_peak_cellmax_MPa": value_hi,
-            "cellmax_theta_deg": math.degrees(theta_hi), "cellmax_phi_deg": math.degrees(phi_hi), "theta_deg": math.degrees(theta),
+            "cellmax_theta_deg": math.degrees(theta_hi), "cellmax_phi_deg": math.degrees(phi_hi),
+            "theta_deg": math.degrees(theta),
             "phi_deg": math.degrees(phi), "surface_peak_at_mm": list(where),
             "peak_from_centre_mm": float(np.linalg.norm(cs - np.array(where), axis=1).min()),
             "nodal_peak_MPa": nodal.value_MPa, "nodal_peak_at_mm": list(nodal.location_mm),
@@ -393,7 +394,8 @@ def main(argv: list[str] | None = None) -> int:
         study.say(f"P{order}: finest three {fit['finest_three_mean_MPa']:.3f} MPa (spread {fit['finest_three_spread_MPa']:.3f}), "
                   f"all levels {fit['min_MPa']:.3f}..{fit['max_MPa']:.3f} MPa; Richardson {fit['richardson']}")
     if ref:
-        study.say(f"reference: {ref['value_MPa']:.2f} ± {ref['band_MPa']:.2f} MPa ({100 * ref['band_MPa'] / ref['value_MPa']:.2f} %), "
+        study.say(f"reference: {ref['value_MPa']:.2f} ± {ref['band_MPa']:.2f} MPa "
+                  f"({100 * ref['band_MPa'] / ref['value_MPa']:.2f} %), "
                   f"{ref['how']}")
     return 0
 

@@ -16,14 +16,14 @@ from pipeline.runtime.environment import configure  # noqa: E402
 
 configure()  # the pipeline's form cache and PETSc options in every point process
 
-import importlib
+import importlib  # noqa: E402
 import json  # noqa: E402
 import os  # noqa: E402
 import shutil  # noqa: E402
 import subprocess  # noqa: E402
 import sys  # noqa: E402
 from pathlib import Path  # noqa: E402
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING  # noqa: E402
 
 if TYPE_CHECKING:  # for annotations only: a point imports its modules when it runs (timed)
     from pipeline.inputs.case import Case

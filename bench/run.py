@@ -80,7 +80,8 @@ def load_reference(path: Path, make: bool, say, remake: bool = False) -> dict:
         if not make:
             raise SystemExit(f"bench: reference {path} not found; run `python -m pipeline converge "
                              f"--size 05 --levels 4 --out {path.parent}` (make converge) first")
-        say(f"reference {path} {'to be remade' if remake else 'missing'}: running the convergence study (python -m pipeline converge --size 05 --levels 4)")
+        say(f"reference {path} {'to be remade' if remake else 'missing'}: running the convergence study "
+            "(python -m pipeline converge --size 05 --levels 4)")
         proc = subprocess.run([sys.executable, "-m", "pipeline", "converge", "--size", "05",
                                "--levels", "4", "--out", str(path.parent)], cwd=ROOT, env=point_env(1))
         if proc.returncode != 0 or not path.exists():

@@ -28,7 +28,8 @@ from pipeline.errors import InputError, NumericalError
 from pipeline.analysis.level import solve_level
 
 FACTOR = 2.5
-MAX_ITERATIONS = 200      # a cap far above the default solver's (CG + p-multigrid) ~25-40 on sound meshes; 1000 is the solver's own
+# A cap far above the default solver's (CG + p-multigrid) ~25-40 on sound meshes; 1000 is the solver's own.
+MAX_ITERATIONS = 200
 
 # name: (dimension overrides in mm, expected outcome, what it tests). No. 05: b1 45, b2 12.5,
 # b6 70, d14 31, d2 21, h3 25, dj 20, rf 1.5, seat 25..37 (limits in geometry/table.py).

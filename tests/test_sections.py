@@ -26,7 +26,8 @@ from test_verification import BB, BH, BI, BL  # the cantilever's dimensions (mm)
 from pipeline.inputs.case import resolve
 from pipeline.fe.loads import crosshead_loads
 from pipeline.fe.meshing import make_mesh
-from pipeline.post.sections import journal_nominal, linearised_line, sigma_xx_field, ligament_resultants, linearise, peterson_kt_bending, plane_resultants
+from pipeline.post.sections import (journal_nominal, ligament_resultants, linearise, linearised_line, peterson_kt_bending,
+                                    plane_resultants, sigma_xx_field)
 
 
 def test_linearisation_is_exact_for_a_linear_profile():
@@ -106,7 +107,8 @@ def test_cantilever_section_resultants_and_linearised_bending():
     assert abs(2 * N) < 1e-8 * F
     assert 2 * M == pytest.approx(F * L, rel=1e-8)  # hogging at the clamp: top (y > 0) in tension, M > 0
     xs = L / 2
-    line = linearised_line(sigma_xx_field(sol.u, mat), np.array([xs, -h / 2 + 1e-9, BB / 4]), np.array([xs, h / 2 - 1e-9, BB / 4]))
+    line = linearised_line(sigma_xx_field(sol.u, mat), np.array([xs, -h / 2 + 1e-9, BB / 4]),
+                           np.array([xs, h / 2 - 1e-9, BB / 4]))
     expected = F * (L - xs) * (h / 2) / I  # M c / I at mid-span
     assert abs(line.bending_MPa) == pytest.approx(expected, rel=0.01)
     assert abs(line.membrane_MPa) < 1e-3 * expected
