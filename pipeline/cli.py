@@ -29,7 +29,7 @@ from pipeline.runtime.environment import configure  # noqa: E402
 configure()  # before numpy, PETSc or DOLFINx load (pipeline/runtime/environment.py)
 
 from geometry.table import is_scaled_row  # noqa: E402
-from pipeline.inputs.choices import MODELS, SOLVERS, SUPPORTS, WANTS  # noqa: E402
+from pipeline.inputs.choices import BEARING_AT, BEARING_SHAPES, MODELS, SOLVERS, SUPPORTS, WANTS  # noqa: E402
 from pipeline.errors import OneLineParser, given_twice  # noqa: E402
 from pipeline.runtime.interrupts import (  # noqa: E402
     first_rank_by_environment, install as install_interrupts, new_command, stop_line, yield_to_stop)
@@ -123,6 +123,19 @@ def add_case_options(p: argparse.ArgumentParser, dim_type=None) -> None:
                    help="override one dimension in mm (b1 b2 b6 d14 d2 h3 dj rf seat_inner seat_outer); repeatable")
     g.add_argument("--support", choices=SUPPORTS,
                    help="journal support: cosine bearing pressure (default) or rigid u_z = 0 (singular edges)")
+    g.add_argument("--bearing-shape", choices=BEARING_SHAPES, dest="bearing_shape",
+                   help="bearing pressure on each journal's lower half: p0·cos θ (default) or uniform "
+                        "(uniform over the projected area); support bearing only")
+    g.add_argument("--bearing-length", type=_number, dest="bearing_length_mm", metavar="MM",
+                   help="loaded length along each journal, mm: the side plate's thickness (default: the whole "
+                        "journal from the fillet's end b1/2 + rf to the tip b6/2)")
+    g.add_argument("--bearing-centre", type=_number, dest="bearing_centre_mm", metavar="MM",
+                   help="distance from the centre plane x = 0 to the middle of the loaded length, mm (default: "
+                        "the middle of the journal's bearing surface)")
+    g.add_argument("--bearing-at", choices=BEARING_AT, dest="bearing_at",
+                   help="put the journal load at a hand formula's own position: approximate (b1 + b2)/2, or "
+                        "exact b6/2 (a band ending at the tip); the band is --bearing-length long, or a fifth "
+                        "of the journal's bearing length (docs/design.md §3)")
     g.add_argument("--want", choices=WANTS,
                    help="the peaks wanted: both (default), critical (bore ligaments; the fillet is not refined) "
                         "or global (fillet); a run skips the refinement the other needs")
@@ -198,7 +211,8 @@ A re-run with the same --out skips the variants already finished.
 
 CASE_KEYS = ("want", "support", "model", "E_MPa", "nu", "allowable_MPa", "approximate_span_mm",
              "exact_span_mm", "order", "mesh_factor", "size_body_mm", "size_feature_mm",
-             "size_fillet_mm", "grading_mm", "solver", "rtol")
+             "size_fillet_mm", "grading_mm", "solver", "rtol", "bearing_shape", "bearing_length_mm",
+             "bearing_centre_mm")
 
 
 NO_COMMAND = "error: command: choose run, converge or sweep (see crosshead --help)"
@@ -304,9 +318,25 @@ def _case_of(args: argparse.Namespace) -> tuple[Case, list[float]]:
         check(replace(resolve(args.size, args.case, overrides), load_N=q))
     if args.size is None and args.case is None:
         raise InputError("size: give --size (hook number) or --case (case file)")
-    case = resolve(args.size, args.case, overrides)
+    case = _bearing_at(args, resolve(args.size, args.case, overrides))
     _check_levels(args, case)
     return case, loads
+
+
+def _bearing_at(args: argparse.Namespace, case: Case) -> Case:
+    """The case with --bearing-at applied: the bearing band's centre (and, unless given,
+    its length) at that hand formula's own load position (pipeline.inputs.case.formula_bearing);
+    refused beside --bearing-centre, which names another position."""
+    from dataclasses import replace
+
+    from pipeline.inputs.case import check, formula_bearing
+    from pipeline.errors import InputError
+    if getattr(args, "bearing_at", None) is None:
+        return case
+    if args.bearing_centre_mm is not None:
+        raise InputError("bearing_at: --bearing-at sets the bearing centre; give it or --bearing-centre, not both")
+    centre, length = formula_bearing(case.dims, args.bearing_at, case.bearing_length_mm)
+    return check(replace(case, bearing_centre_mm=centre, bearing_length_mm=length))
 
 
 def _check_levels(args: argparse.Namespace, case: Case) -> None:
@@ -387,6 +417,8 @@ def _sweep(args, rank0: bool) -> int:
     from pipeline.study.plan import read_study
     from pipeline.inputs.valuelist import MOST_DIM_VALUES, parse_loads, parse_values
     from pipeline.study.sweep import execute_sweep
+    if args.bearing_at is not None:
+        raise InputError("bearing_at: a sweep takes --bearing-centre (and --bearing-length), not --bearing-at")
     study = read_study(args.study) if args.study else {}
     size = args.size or study.get("size")
     case_file = args.case or (Path(study["case"]) if "case" in study else None)

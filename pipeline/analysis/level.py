@@ -98,7 +98,8 @@ def set_up(case: Case, factor: float, msh_path: Path | None = None, comm: MPI.Co
         raise NumericalError(f"mesh: a curved element is inverted (worst det J ratio {m.jacobian_ratio:.3g}) "
                              f"at mesh factor {factor:.3g}; try a slightly different --mesh-factor")
     t0 = time.perf_counter()
-    lc = crosshead_loads(m, case.dims, case.load_N, case.support)
+    lc = crosshead_loads(m, case.dims, case.load_N, case.support, shape=case.bearing_shape,
+                         band=case.bearing_band(), order=case.order)
     return Problem(m, Material(E=case.E_MPa, nu=case.nu), lc, time.perf_counter() - t0)
 
 
@@ -165,7 +166,7 @@ def solve_level(case: Case, factor: float, msh_path: Path | None = None,
         sym_idx = next((i for i, c in enumerate(lc.constraints) if c.component == 0 and c.marker == sym_x
                         and sym_x is not None), None)
         sections = section_results(sol, mat, case.dims, case.load_N, 0.25 if case.model == "quarter" else 1.0,
-                                   sym_idx, pk.value_MPa)
+                                   sym_idx, pk.value_MPa, bearing_centre_mm=case.bearing_band().centre_mm)
     t_post = time.perf_counter() - t0
     timings = dict(m.timings, **sol.timings, post=t_post)
     how = (f"{sol.iterations} iterations ({case.solver}), assemble {sol.timings['assemble']:.2f} s, "

@@ -113,6 +113,7 @@ def pilot(case: Case, comm: MPI.Comm = MPI.COMM_WORLD, progress: Progress | None
     say = progress or (lambda s: None)
     # What shapes the stress field, not its size: load, E and the allowable do not move the places.
     cache_key = runcache.key("pilot", dims=case.dims, model=case.model, support=case.support, nu=case.nu, want=case.want,
+                             bearing=case.load_model(),
                              order=case.order, solver=case.solver, spec=case.mesh_spec(pilot_factor(case)))
     reach = max(case.dims.b1, case.dims.b6, case.dims.h3)  # mm: the part's largest dimension
     known = placecache.earlier(cache_key, pilot_factor(case), reach) if comm.rank == 0 else None

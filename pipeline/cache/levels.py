@@ -39,6 +39,7 @@ NUMBERS = ("factor", "dofs", "cells", "iterations", "residual_rel", "seat_force_
 def key(case: Case, spec) -> str:
     """The run-cache key of the case's results on the mesh of ``spec`` (a MeshSpec)."""
     return runcache.key("level", spec=spec, dims=case.dims, model=case.model, support=case.support,
+                        bearing=case.load_model(),
                         nu=case.nu, order=case.order, solver=case.solver, rtol=case.rtol)
 
 

@@ -104,7 +104,7 @@ def key(case: Case, m: ImportedMesh, V) -> str:
         for t, n in d.items():
             facets[t] = facets.get(t, 0) + n
     return runcache.key("solution", nodes=nodes, cells=cells, facets=sorted(facets.items()), dims=case.dims,
-                        model=case.model, support=case.support, nu=case.nu, order=case.order,
+                        model=case.model, support=case.support, bearing=case.load_model(), nu=case.nu, order=case.order,
                         solver=case.solver, rtol=case.rtol)
 
 

@@ -14,7 +14,7 @@ from typing import Any, Sequence
 from geometry.meshspec import MeshSpec
 from geometry.table import Dimensions, InputError, lookup, validate
 
-from pipeline.inputs.choices import MODELS, SOLVERS, SUPPORTS, WANTS
+from pipeline.inputs.choices import BEARING_AT, BEARING_SHAPES, MODELS, SOLVERS, SUPPORTS, WANTS
 from pipeline.inputs.tomlfile import read_toml
 
 DIMENSION_KEYS = tuple(f.name for f in fields(Dimensions))
@@ -46,6 +46,23 @@ class Case:
     exact_span_mm: float | None = None
     want: str = "both"
     assumed: tuple[str, ...] = field(default_factory=tuple)
+    # The journal load model of support "bearing" (docs/design.md §3): the pressure's shape,
+    # the loaded length along the journal axis (mm, the side plate's thickness) and the
+    # distance from the centre plane x = 0 to the middle of that length (mm). None: the whole
+    # journal beyond the fillet, from x = b1/2 + rf to the tip x = b6/2.
+    bearing_shape: str = "cosine"
+    bearing_length_mm: float | None = None
+    bearing_centre_mm: float | None = None
+
+    def load_model(self) -> dict[str, Any]:
+        """What of the journal load a cache key must hold besides the support: the bearing
+        pressure's shape and band (mm). Load and E scale a solution; these reshape it."""
+        return {"bearing_shape": self.bearing_shape, "bearing_length_mm": self.bearing_length_mm,
+                "bearing_centre_mm": self.bearing_centre_mm}
+
+    def bearing_band(self) -> "BearingBand":
+        """The loaded band of each journal along x (mm), the defaults resolved."""
+        return bearing_band(self.dims, self.bearing_length_mm, self.bearing_centre_mm)
 
     def mesh_spec(self, factor: float | None = None,
                   hotspots: Sequence[tuple[float, float, float]] = ()) -> MeshSpec:
@@ -85,7 +102,9 @@ SCHEMA: dict[str, dict[str, tuple[str, tuple[type, ...]]]] = {
     "load": {"load_N": ("load_N", _NUM)},
     "material": {"E_MPa": ("E_MPa", _NUM), "nu": ("nu", _NUM),
                  "allowable_MPa": ("allowable_MPa", _NUM)},
-    "model": {"model": ("model", (str,)), "support": ("support", (str,)), "want": ("want", (str,))},
+    "model": {"model": ("model", (str,)), "support": ("support", (str,)), "want": ("want", (str,)),
+              "bearing_shape": ("bearing_shape", (str,)), "bearing_length_mm": ("bearing_length_mm", _NUM),
+              "bearing_centre_mm": ("bearing_centre_mm", _NUM)},
     "mesh": {"order": ("order", (int,)), "factor": ("mesh_factor", _NUM),
              "size_body_mm": ("size_body_mm", _NUM), "size_feature_mm": ("size_feature_mm", _NUM),
              "size_fillet_mm": ("size_fillet_mm", _NUM), "grading_mm": ("grading_mm", _NUM)},
@@ -93,6 +112,71 @@ SCHEMA: dict[str, dict[str, tuple[str, tuple[type, ...]]]] = {
     "analytic": {"approximate_span_mm": ("approximate_span_mm", _NUM),
                  "exact_span_mm": ("exact_span_mm", _NUM)},
 }
+
+
+@dataclass(frozen=True)
+class BearingBand:
+    """The loaded band of a journal along its axis: from ``start_mm`` to ``end_mm``, both
+    distances from the centre plane x = 0 (mm); ``whole`` when it is the journal's whole
+    bearing surface, from the fillet's end x = b1/2 + rf to the tip x = b6/2."""
+
+    start_mm: float
+    end_mm: float
+    whole: bool
+
+    @property
+    def length_mm(self) -> float:
+        return self.end_mm - self.start_mm
+
+    @property
+    def centre_mm(self) -> float:
+        """Where the band's resultant acts (mm from x = 0): its middle, since the pressure
+        is uniform along the journal axis."""
+        return (self.start_mm + self.end_mm) / 2
+
+
+def journal_bearing_surface(d: Dimensions) -> tuple[float, float]:
+    """(start, end) of a journal's bearing surface along x (mm): the fillet's end b1/2 + rf
+    and the tip b6/2; a loaded band must lie between them."""
+    return d.b1 / 2 + d.rf, d.b6 / 2
+
+
+def bearing_band(d: Dimensions, length_mm: float | None, centre_mm: float | None) -> BearingBand:
+    """The loaded band (mm) for a given length and centre, either None: both None, the
+    whole bearing surface; a length alone, centred on the bearing surface; a centre alone,
+    the longest band centred there that stays on the journal."""
+    start, end = journal_bearing_surface(d)
+    if length_mm is None and centre_mm is None:
+        return BearingBand(start, end, whole=True)
+    c = (start + end) / 2 if centre_mm is None else centre_mm
+    half = min(c - start, end - c) if length_mm is None else length_mm / 2
+    # A band equal to the whole surface (to round-off) is the default model, bit for bit.
+    tol = 1e-9 * d.b6
+    if abs(c - half - start) <= tol and abs(c + half - end) <= tol:
+        return BearingBand(start, end, whole=True)
+    return BearingBand(c - half, c + half, whole=False)
+
+
+# The band --bearing-at puts at a formula's own position unless a length is given: a
+# fifth of the journal's bearing length (2.2 mm for No. 05), narrow so that the exact
+# formula's tip position is approached within a tenth of that length, and still a few
+# facets wide on the default and coarse meshes (docs/design.md §3).
+NARROW_BAND_FRACTION = 0.2
+
+
+def formula_bearing(d: Dimensions, which: str, length_mm: float | None = None) -> tuple[float, float]:
+    """(centre, length) in mm of the bearing band at a hand formula's own load position
+    (docs/design.md §4): the approximate formula's journal centre (b1 + b2)/2 (28.75 mm
+    for No. 05) or the exact formula's b6/2 (35 mm, the tip). A band cannot be centred on
+    the tip, so there it ends at the tip: centre b6/2 − length/2. ``length_mm`` None: the
+    narrow band, NARROW_BAND_FRACTION of the bearing length."""
+    if which not in BEARING_AT:
+        raise InputError(f"bearing_at: must be one of {', '.join(BEARING_AT)}, got {which!r}")
+    start, end = journal_bearing_surface(d)
+    length = NARROW_BAND_FRACTION * (end - start) if length_mm is None else length_mm
+    if which == "approximate":
+        return (d.b1 + d.b2) / 2, length
+    return d.b6 / 2 - length / 2, length
 
 
 def read_case_file(path: Path) -> dict[str, Any]:
@@ -201,6 +285,41 @@ def check_spans(case: Case) -> None:
                          f"R = (b1 + di)/4 = {ring:.4g} mm (the reactions act outside the ring)")
 
 
+def check_bearing(case: Case) -> None:
+    """The bearing load model must be one of the shapes, and its band must lie on the
+    journal, between the fillet's end b1/2 + rf and the tip b6/2 (docs/design.md §3)."""
+    if not isinstance(case.bearing_shape, str) or case.bearing_shape not in BEARING_SHAPES:
+        raise InputError(f"bearing_shape: must be one of {', '.join(BEARING_SHAPES)}, got {case.bearing_shape!r}")
+    length, centre = case.bearing_length_mm, case.bearing_centre_mm
+    if length is not None:
+        _finite_positive("bearing_length_mm", length)
+    if centre is not None:
+        _finite_positive("bearing_centre_mm", centre)
+    default = case.bearing_shape == "cosine" and length is None and centre is None
+    if case.support != "bearing" and not default:
+        given = [k for k, v in (("bearing_shape", case.bearing_shape != "cosine"),
+                                ("bearing_length_mm", length is not None),
+                                ("bearing_centre_mm", centre is not None)) if v][0]
+        raise InputError(f"{given}: applies to support = bearing only, got support = {case.support}")
+    start, end = journal_bearing_surface(case.dims)
+    tol = 1e-9 * case.dims.b6
+    where = (f"the journal's bearing surface runs from the fillet's end x = b1/2 + rf = {start:g} mm "
+             f"to the tip x = b6/2 = {end:g} mm")
+    if length is not None and length > end - start + tol:
+        raise InputError(f"bearing_length_mm: must lie in (0, {end - start:g}] mm ({where}), got {length:g}")
+    if centre is None:
+        return
+    if length is None:
+        if not start < centre < end:
+            raise InputError(f"bearing_centre_mm: must lie strictly between {start:g} and {end:g} mm ({where}), "
+                             f"got {centre:g}")
+        return
+    lo, hi = start + length / 2, end - length / 2
+    if not lo - tol <= centre <= hi + tol:
+        raise InputError(f"bearing_centre_mm: must lie in [{lo:g}, {hi:g}] mm for a loaded length of {length:g} mm "
+                         f"({where}), got {centre:g}")
+
+
 def check(case: Case) -> Case:
     """Return case if every field is usable, else raise InputError for the first bad one."""
     validate(case.dims)
@@ -233,6 +352,7 @@ def check(case: Case) -> Case:
         if v is not None:
             _finite_positive(k, v)
     check_spans(case)
+    check_bearing(case)
     spec = case.mesh_spec()
     for k, size, least in (("size_body_mm", spec.size_body, 1e-3), ("size_feature_mm", spec.size_feature, 2e-4),
                            ("size_fillet_mm", spec.size_fillet, 2e-4)):

@@ -8,5 +8,10 @@ ORDERS = (1, 2, 3)  # element order of the displacement
 # What the run is asked for: both peaks, or only the critical (bore-ligament) or the
 # global (fillet) one; a run skips the refinement the other would need.
 WANTS = ("both", "critical", "global")
+# The bearing pressure's shape over the lower half of each journal (docs/design.md §3):
+# p0·cos θ, or a uniform normal pressure (uniform over the projected area dj × length).
+BEARING_SHAPES = ("cosine", "uniform")
+# Where --bearing-at puts the journal load: each hand formula's own span position (§4).
+BEARING_AT = ("approximate", "exact")
 
-__all__ = ["MODELS", "SUPPORTS", "SOLVERS", "ORDERS", "WANTS"]
+__all__ = ["MODELS", "SUPPORTS", "SOLVERS", "ORDERS", "WANTS", "BEARING_SHAPES", "BEARING_AT"]

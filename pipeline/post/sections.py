@@ -144,10 +144,12 @@ def ligament_resultants(sol: Solution, symmetry_x: int, d: Dimensions, share: fl
     return halves * N, halves * M
 
 
-def journal_nominal(d: Dimensions, load_N: float) -> tuple[float, float]:
+def journal_nominal(d: Dimensions, load_N: float, bearing_centre_mm: float | None = None) -> tuple[float, float]:
     """(M in N·mm, σ in MPa): the journal's bending moment at its root x = b1/2 from the
-    support resultant Q/2 at the bearing surface's middle, and 32 M / (π dj³)."""
-    lever = (d.b1 / 2 + d.rf + d.b6 / 2) / 2 - d.b1 / 2
+    support resultant Q/2 at the bearing band's middle ``bearing_centre_mm`` (mm from x = 0;
+    None: the middle of the whole bearing surface, b1/2 + rf to b6/2), and 32 M / (π dj³)."""
+    centre = (d.b1 / 2 + d.rf + d.b6 / 2) / 2 if bearing_centre_mm is None else bearing_centre_mm
+    lever = centre - d.b1 / 2
     M = load_N / 2 * lever
     return M, 32.0 * M / (math.pi * d.dj ** 3)
 
@@ -173,8 +175,11 @@ def peterson_kt_bending(D: float, d: float, r: float) -> float:
 
 
 def section_results(sol: Solution, mat: Material, d: Dimensions, load_N: float, share: float,
-                    symmetry_x: int | None, global_peak_MPa: float) -> dict:
-    """Everything above for one solved mesh, as a results.json block (docs/design.md §7)."""
+                    symmetry_x: int | None, global_peak_MPa: float,
+                    bearing_centre_mm: float | None = None) -> dict:
+    """Everything above for one solved mesh, as a results.json block (docs/design.md §7);
+    ``bearing_centre_mm``: where the journal load acts (mm from x = 0; None: the middle of
+    the bearing surface)."""
     u = sol.u
     w, h = d.b1 - d.d2, d.h3  # both ligaments' width, and the height
     eps = 1e-7 * d.b6  # start lines just inside the part
@@ -195,7 +200,7 @@ def section_results(sol: Solution, mat: Material, d: Dimensions, load_N: float, 
             "membrane_MPa": N / (w * h), "bending_MPa": 6.0 * abs(M) / (w * h ** 2),
             "nominal_MPa": N / (w * h) + 6.0 * abs(M) / (w * h ** 2),
             "method": "reactions of the symmetry plane x = 0 (exact for the discrete solution)"}
-    Mj, s_nom = journal_nominal(d, load_N)
+    Mj, s_nom = journal_nominal(d, load_N, bearing_centre_mm)
     root: dict = {"M_Nmm": Mj, "nominal_MPa": s_nom, "Kt": global_peak_MPa / s_nom}
     if d.rf > 0:
         try:

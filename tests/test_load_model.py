@@ -1,0 +1,247 @@
+"""The journal load model (docs/design.md §3): the bearing pressure's shape and its band
+along the journal, against independent figures (mm, N, MPa).
+
+- Balance: for each shape, on the whole bearing surface and on a band, the assembled load
+  vector's z-forces sum to Q/2 per journal (the input, not the code's own integral) to
+  round-off, and a band's forces act at the band's middle.
+- Statics: moving the band along the journal changes the critical section's moment (from
+  the symmetry plane's reactions) by Q/2 × the shift, and the journal's own section moment
+  (σ_xx integrated over a cross-section) is Q/2 × (centre − section position).
+- The journal's nominal stress follows 32·M/(π·dj³) as dj changes: the moment from stress
+  integration over the journal's section, for two journal diameters.
+- Bad bands are refused with one line naming the key and the allowed range in mm.
+"""
+from __future__ import annotations
+
+import argparse
+import math
+import subprocess
+import sys
+from dataclasses import replace
+
+import numpy as np
+import pytest
+import ufl
+from dolfinx import fem
+from dolfinx.fem.petsc import assemble_vector
+from mpi4py import MPI
+from petsc4py import PETSc
+
+import pipeline.fe.elasticity as pe
+import pipeline.fe.solve as ps
+from conftest import ROOT
+from pipeline.cli import _bearing_at
+from pipeline.errors import InputError
+from pipeline.fe.loads import crosshead_loads
+from pipeline.fe.meshing import make_mesh
+from pipeline.inputs.case import formula_bearing, read_case_file, resolve
+from pipeline.post.sections import journal_nominal, ligament_resultants, sigma_xx_at, sigma_xx_field
+
+Q = 10_000.0  # N, No. 05's load
+FACTOR = 3.0  # coarse meshes: the statics below do not depend on the mesh
+
+
+def load_vector(m, lc, order: int = 2):
+    """The bearing traction's assembled load vector (N per DOF) and the x of its nodes (mm),
+    owned DOFs of this rank."""
+    V = fem.VectorFunctionSpace(m.mesh, ("Lagrange", order))
+    v = ufl.TestFunction(V)
+    ds = ufl.Measure("ds", domain=m.mesh, subdomain_data=m.facet_tags)
+    bearing = next(t for t in lc.tractions if t.marker == m.facet_ids["journal_bearing"])
+    f = assemble_vector(fem.form(ufl.inner(bearing.value, v) * ds(bearing.marker)))
+    f.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+    n = V.dofmap.index_map.size_local
+    return f.array_r.reshape(-1, 3)[:n].copy(), V.tabulate_dof_coordinates()[:n, 0]
+
+
+def total(a) -> float:
+    return MPI.COMM_WORLD.allreduce(float(a), op=MPI.SUM)
+
+
+@pytest.fixture(scope="module")
+def meshes():
+    """No. 05's quarter and full model on a coarse mesh."""
+    case = resolve("05", None, {"mesh_factor": FACTOR})
+    return {model: make_mesh(case.dims, model, case.mesh_spec(FACTOR)) for model in ("quarter", "full")}
+
+
+@pytest.mark.parametrize("model", ["quarter", "full"])
+@pytest.mark.parametrize("shape", ["cosine", "uniform"])
+@pytest.mark.parametrize("band", [(None, None), (5.0, 30.0), (2.2, 33.9)])
+def test_each_shape_and_band_carries_q_half_per_journal_at_its_middle(meshes, model, shape, band):
+    length, centre = band
+    case = replace(resolve("05"), model=model, bearing_shape=shape, bearing_length_mm=length,
+                   bearing_centre_mm=centre)
+    m = meshes[model]
+    b = case.bearing_band()
+    lc = crosshead_loads(m, case.dims, Q, "bearing", shape=shape, band=b, order=2)
+    f, x = load_vector(m, lc)
+    # Q/2 per journal; the quarter model holds half of one journal (y >= 0): Q/4.
+    per_journal = Q / 2 if model == "full" else Q / 4
+    for side in ((1.0, -1.0) if model == "full" else (1.0,)):
+        on = side * x > 0
+        fz = total(f[on, 2].sum())
+        assert fz == pytest.approx(per_journal, rel=1e-10)
+        # Nothing outside the band beyond the facets that straddle its ends (< 3 mm here).
+        outside = on & ((side * x < b.start_mm - 3.0) | (side * x > b.end_mm + 3.0))
+        assert total(np.abs(f[outside]).sum()) < 1e-12 * Q
+        if not b.whole:  # a band's resultant acts at its middle, on the mesh's own load vector
+            centroid = total(np.dot(f[on, 2], side * x[on])) / fz
+            assert centroid == pytest.approx(centre, abs=1e-9 * case.dims.b6)
+    assert lc.support_force_z_N == pytest.approx(Q * (0.25 if model == "quarter" else 1.0), rel=1e-10)
+
+
+@pytest.mark.parametrize("band", [(None, None), (5.0, 30.0)])
+def test_the_uniform_shape_is_p0_everywhere_on_the_projected_area(meshes, band):
+    """Uniform: a normal pressure of one value p0 = (Q/2) / (dj · L) on the lower half,
+    the journal's share over its projected area (docs/design.md §3): on the faceted mesh,
+    its mean over the loaded surface is that closed form to the faceting error and its
+    spread about the mean vanishes."""
+    length, centre = band
+    case = replace(resolve("05"), bearing_shape="uniform", bearing_length_mm=length, bearing_centre_mm=centre)
+    d, m = case.dims, meshes["quarter"]
+    b = case.bearing_band()
+    lc = crosshead_loads(m, d, Q, "bearing", shape="uniform", band=b, order=2)
+    t = lc.tractions[1].value
+    ds = ufl.Measure("ds", domain=m.mesh, subdomain_data=m.facet_tags)(m.facet_ids["journal_bearing"])
+    x = ufl.SpatialCoordinate(m.mesh)
+    # Away from the band's ends, where facets straddle them (a band of the whole surface has none).
+    inner = ufl.conditional(ufl.And(ufl.ge(x[0], b.start_mm + (0 if b.whole else 1.5)),
+                                    ufl.le(x[0], b.end_mm - (0 if b.whole else 1.5))), 1.0, 0.0)
+    mag = ufl.sqrt(ufl.inner(t, t))
+    area = total(fem.assemble_scalar(fem.form(inner * ds)))
+    mean = total(fem.assemble_scalar(fem.form(inner * mag * ds))) / area
+    spread = math.sqrt(total(fem.assemble_scalar(fem.form(inner * (mag - mean) ** 2 * ds))) / area)
+    p0 = Q / 2 / (d.dj * b.length_mm)
+    assert mean == pytest.approx(p0, rel=0.01 if b.whole else 0.05)
+    assert spread < (1e-6 if b.whole else 0.05) * p0
+
+
+def journal_section_moment(sol, mat, d, x_s: float, n_r: int = 20, n_phi: int = 120) -> float:
+    """M = ∫ σ_xx (z − h/2) dA (N·mm) over the journal's whole cross-section at x = x_s,
+    from σ_xx sampled on the half disc y >= 0 of the quarter model (Gauss in r, midpoints
+    in φ), doubled for the other half."""
+    R = d.dj / 2
+    g, w = np.polynomial.legendre.leggauss(n_r)
+    r, wr = R / 2 * (g + 1), R / 2 * w
+    phi = (np.arange(n_phi) + 0.5) * math.pi / n_phi
+    rr, pp = np.meshgrid(r, phi, indexing="ij")
+    pts = np.column_stack([np.full(rr.size, x_s), (rr * np.sin(pp)).ravel(),
+                           (d.h3 / 2 + rr * np.cos(pp)).ravel()])
+    pts[:, 1] = np.maximum(pts[:, 1], 1e-9)  # just inside y >= 0
+    s = sigma_xx_at(sigma_xx_field(sol.u, mat), pts).reshape(rr.shape)
+    assert np.all(np.isfinite(s))
+    half = np.sum(wr[:, None] * (math.pi / n_phi) * s * (rr * np.cos(pp)) * rr)
+    return 2 * half
+
+
+def solve_band(case, m, length, centre):
+    case = replace(case, bearing_length_mm=length, bearing_centre_mm=centre)
+    lc = crosshead_loads(m, case.dims, Q, "bearing", shape=case.bearing_shape, band=case.bearing_band(), order=2)
+    mat = pe.Material(case.E_MPa, case.nu)
+    sol = ps.solve(m.mesh, m.facet_tags, 2, mat, lc.tractions, lc.constraints, solver="mumps")
+    sym = next(i for i, c in enumerate(lc.constraints) if c.component == 0 and c.marker == m.facet_ids["symmetry_x"])
+    return sol, mat, sym
+
+
+def test_moving_the_band_changes_the_section_moments_as_statics_says(meshes):
+    case = resolve("05", None, {"mesh_factor": FACTOR})
+    d, m = case.dims, meshes["quarter"]
+    x_s = 26.0  # a journal section between the fillet's end (24 mm) and both bands
+    moments = {}
+    for centre in (29.0, 32.0):
+        sol, mat, sym = solve_band(case, m, 4.0, centre)
+        _, M0 = ligament_resultants(sol, sym, d, 0.25)
+        moments[centre] = M0, journal_section_moment(sol, mat, d, x_s)
+    # The critical section x = 0: the seat's moment is the same, the journal load's grows
+    # by Q/2 × the shift (sagging: M < 0). The reactions carry the statics of the discrete
+    # load exactly; that differs from Q/2 × the shift only by the x-forces of the facets'
+    # tilted normals (1.6e-4 of it on this coarse mesh; measured: 2.4 N·mm of 15 000).
+    assert moments[32.0][0] - moments[29.0][0] == pytest.approx(-Q / 2 * 3.0, rel=1e-3)
+    # The journal's section: an upward load beyond it bends it with the bottom in tension
+    # (M < 0), |M| = Q/2 × (centre − x_s); from sampled stresses, to the mesh's accuracy.
+    for centre, (_, Mj) in moments.items():
+        assert Mj == pytest.approx(-Q / 2 * (centre - x_s), rel=0.02)
+    assert moments[32.0][1] - moments[29.0][1] == pytest.approx(-Q / 2 * 3.0, rel=0.02)
+
+
+def test_journal_nominal_stress_follows_the_cube_of_its_diameter():
+    """For dj = 16 and 20 mm the FE journal section moment gives the nominal stress
+    32·M/(π·dj³) of the statics moment, and the code's journal-root figure is that
+    closed form at the band's middle."""
+    x_s, centre, length = 26.0, 31.0, 6.0
+    M_statics = Q / 2 * (centre - x_s)
+    nominal = {}
+    for dj in (16.0, 20.0):
+        case = resolve("05", None, {"mesh_factor": FACTOR, "dims.dj": dj})
+        d = case.dims
+        m = make_mesh(d, "quarter", case.mesh_spec(FACTOR))
+        sol, mat, _ = solve_band(case, m, length, centre)
+        Mj = journal_section_moment(sol, mat, d, x_s)
+        nominal[dj] = 32 * abs(Mj) / (math.pi * dj ** 3)
+        assert nominal[dj] == pytest.approx(32 * M_statics / (math.pi * dj ** 3), rel=0.02)
+        M_root, s_root = journal_nominal(d, Q, bearing_centre_mm=centre)
+        assert M_root == pytest.approx(Q / 2 * (centre - d.b1 / 2), rel=1e-12)
+        assert s_root == pytest.approx(32 * Q / 2 * (centre - 22.5) / (math.pi * dj ** 3), rel=1e-12)
+    assert nominal[16.0] / nominal[20.0] == pytest.approx((20 / 16) ** 3, rel=0.02)
+
+
+def test_formula_positions_are_the_papers_spans():
+    """The approximate formula's load at (b1 + b2)/2 = 28.75 mm (span 57.5 mm); the exact
+    one's at b6/2 = 35 mm, the tip, which a band of length L approaches to L/2."""
+    d = resolve("05").dims
+    assert formula_bearing(d, "approximate") == pytest.approx((28.75, 2.2))
+    assert formula_bearing(d, "exact") == pytest.approx((35.0 - 1.1, 2.2))
+    assert formula_bearing(d, "exact", 4.0) == pytest.approx((33.0, 4.0))
+
+
+@pytest.mark.parametrize("overrides, key, allowed", [
+    ({"bearing_length_mm": 12.0}, "bearing_length_mm", "(0, 11] mm"),
+    ({"bearing_centre_mm": 23.0}, "bearing_centre_mm", "between 24 and 35 mm"),
+    ({"bearing_centre_mm": 35.0}, "bearing_centre_mm", "between 24 and 35 mm"),
+    ({"bearing_length_mm": 4.0, "bearing_centre_mm": 33.5}, "bearing_centre_mm", "[26, 33] mm"),
+    ({"bearing_length_mm": -1.0}, "bearing_length_mm", "> 0"),
+    ({"bearing_shape": "parabolic"}, "bearing_shape", "cosine, uniform"),
+    ({"support": "rigid", "bearing_centre_mm": 30.0}, "bearing_centre_mm", "support = bearing only"),
+])
+def test_a_band_off_the_journal_is_refused_naming_key_and_range(overrides, key, allowed):
+    with pytest.raises(InputError) as exc:
+        resolve("05", None, overrides)
+    line = str(exc.value)
+    assert line.startswith(f"{key}:") and allowed in line and "\n" not in line
+
+
+def test_a_band_equal_to_the_whole_surface_is_the_default_model():
+    case = resolve("05", None, {"bearing_length_mm": 11.0, "bearing_centre_mm": 29.5})
+    assert case.bearing_band() == resolve("05").bearing_band() and case.bearing_band().whole
+
+
+@pytest.mark.parametrize("args, key", [
+    (["--bearing-centre", "40"], "bearing_centre_mm"),
+    (["--bearing-length", "20"], "bearing_length_mm"),
+    (["--bearing-at", "exact", "--bearing-centre", "30"], "bearing_at"),
+    (["--bearing-at", "exact", "--bearing-length", "12"], "bearing_length_mm"),
+    (["--bearing-shape", "uniform", "--support", "rigid"], "bearing_shape"),
+])
+def test_the_command_line_refuses_a_bad_band_with_exit_2_and_one_line(tmp_path, args, key):
+    out = tmp_path / "never"
+    p = subprocess.run([sys.executable, "-m", "pipeline", "run", "--size", "05", "--out", str(out), *args],
+                       cwd=ROOT, capture_output=True, text=True, timeout=120)
+    lines = p.stderr.strip().splitlines()
+    assert p.returncode == 2 and len(lines) == 1 and lines[0].startswith(f"error: {key}:"), p.stderr
+    assert not out.exists()
+
+
+def test_the_case_file_and_bearing_at_set_the_band(tmp_path):
+    """Case-file keys under [model]; --bearing-at puts the band at a formula's position."""
+    f = tmp_path / "c.toml"
+    f.write_text('size = "05"\n[model]\nbearing_shape = "uniform"\nbearing_length_mm = 6\nbearing_centre_mm = 30.5\n')
+    assert read_case_file(f) == {"size": "05", "bearing_shape": "uniform", "bearing_length_mm": 6,
+                                 "bearing_centre_mm": 30.5}
+    case = resolve(None, f)
+    assert (case.bearing_band().start_mm, case.bearing_band().end_mm) == (27.5, 33.5)
+    at = argparse.Namespace(bearing_at="exact", bearing_centre_mm=None)
+    exact = _bearing_at(at, replace(case, bearing_centre_mm=None))
+    assert (exact.bearing_centre_mm, exact.bearing_length_mm) == (32.0, 6)  # the band ends at the tip, 35 mm
+    at.bearing_at = "approximate"
+    assert _bearing_at(at, resolve("05")).bearing_centre_mm == 28.75
