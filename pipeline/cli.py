@@ -335,7 +335,8 @@ def _bearing_at(args: argparse.Namespace, case: Case) -> Case:
         return case
     if args.bearing_centre_mm is not None:
         raise InputError("bearing_at: --bearing-at sets the bearing centre; give it or --bearing-centre, not both")
-    centre, length = formula_bearing(case.dims, args.bearing_at, case.bearing_length_mm)
+    span = case.approximate_span_mm if args.bearing_at == "approximate" else case.exact_span_mm
+    centre, length = formula_bearing(case.dims, args.bearing_at, case.bearing_length_mm, span)
     return check(replace(case, bearing_centre_mm=centre, bearing_length_mm=length))
 
 

@@ -245,3 +245,47 @@ def test_the_case_file_and_bearing_at_set_the_band(tmp_path):
     assert (exact.bearing_centre_mm, exact.bearing_length_mm) == (32.0, 6)  # the band ends at the tip, 35 mm
     at.bearing_at = "approximate"
     assert _bearing_at(at, resolve("05")).bearing_centre_mm == 28.75
+
+
+def test_more_load_sets_on_one_operator_equal_separate_solves(meshes):
+    """A load-model variant changes only the right-hand side: solved on the first solve's
+    matrix (solve's ``more``) it gives the displacement of a solve of its own."""
+    case = resolve("05", None, {"mesh_factor": FACTOR})
+    d, m = case.dims, meshes["quarter"]
+    mat = pe.Material(case.E_MPa, case.nu)
+    lc0 = crosshead_loads(m, d, Q, "bearing", band=case.bearing_band(), order=2)
+    band = replace(case, bearing_length_mm=3.0, bearing_centre_mm=33.0).bearing_band()
+    lc1 = crosshead_loads(m, d, Q, "bearing", shape="uniform", band=band, order=2)
+    both = ps.solve(m.mesh, m.facet_tags, 2, mat, lc0.tractions, lc0.constraints, solver="mumps",
+                    more=[lc1.tractions])
+    alone = ps.solve(m.mesh, m.facet_tags, 2, mat, lc1.tractions, lc1.constraints, solver="mumps")
+    u1, u = both.more[0].u.x.array, alone.u.x.array
+    assert np.max(np.abs(u1 - u)) <= 1e-10 * np.max(np.abs(u))
+    assert np.allclose(both.more[0].reactions, alone.reactions, rtol=1e-8, atol=1e-8 * Q)
+    assert np.max(np.abs(both.u.x.array - u)) > 1e-3 * np.max(np.abs(u))  # another load, another answer
+
+
+def test_each_formulas_row_is_the_section_under_its_own_load_position():
+    """The like-with-like rows (fe.sections.formula_load): the FE section moment with the
+    journal load at the approximate formula's (b1 + b2)/2 = 28.75 mm and at the band ending
+    at the exact formula's tip (middle 33.9 mm) is the statics of those loads,
+    M = −Q/2 · (position − seat centroid), the seat a uniform annulus 25 to 37 mm
+    (centroid 4/(3π)·(ro³ − ri³)/(ro² − ri²)); the formula beside it is the paper's."""
+    from pipeline.analysis.level import solve_level
+    case = resolve("05", None, {"mesh_factor": FACTOR, "solver": "mumps"})
+    lv = solve_level(case, FACTOR, with_sections=True, reuse=False)
+    rows = lv.sections["formula_load"]
+    ri, ro = 12.5, 18.5
+    x_seat = 4 / (3 * math.pi) * (ro ** 3 - ri ** 3) / (ro ** 2 - ri ** 2)
+    for which, at, formula in (("approximate", 28.75, 37.76), ("exact", 33.9, 43.81)):
+        r = rows[which]
+        assert r["fe_load_at_mm"] == pytest.approx(at, abs=1e-12)
+        # The faceted seat's and journal's centroids: within 1e-3 (see the shift test).
+        assert r["critical_section"]["M_Nmm"] == pytest.approx(-Q / 2 * (at - x_seat), rel=1e-3)
+        assert r["fe_MPa"] == pytest.approx(6 * Q / 2 * (at - x_seat) / (24 * 25 ** 2), rel=1e-3)
+        assert r["formula_MPa"] == pytest.approx(formula, abs=0.05)  # docs/design.md §6
+    # The approximate formula's own position is on the journal: it and the FE share it.
+    assert rows["approximate"]["formula_at_fe_load_MPa"] == rows["approximate"]["formula_MPa"]
+    # The exact formula at the FE load's middle: span 2 × 33.9 mm, between the paper's
+    # 43.81 MPa (70 mm) and its 32.6 MPa at 57.5 mm (docs/design.md §6).
+    assert 32.6 < rows["exact"]["formula_at_fe_load_MPa"] < 43.81

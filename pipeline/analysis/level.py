@@ -10,14 +10,15 @@ import numpy as np
 from dolfinx import fem
 from mpi4py import MPI
 
-from pipeline.inputs.case import Case
-from pipeline.fe.elasticity import Material
+from pipeline.inputs.case import BearingBand, Case, formula_bands
+from pipeline.fe.elasticity import Material, Traction
 from pipeline.errors import NumericalError
 from pipeline.post.features import critical_region, fillet_region
 from pipeline.fe.loads import LoadCase, crosshead_loads, equilibrium
 from pipeline.fe.meshing import ImportedMesh, Mesher, make_mesh
 from pipeline.post.peaks import MIDPOINT, UNAVERAGED, NodalPeak, averaged_von_mises, largest, nodal_peak, von_mises
-from pipeline.post.sections import section_results
+from pipeline.post import formulas
+from pipeline.post.sections import formula_load_sections, section_results
 from pipeline.cache import runs as runcache
 from pipeline.cache import solutions as solvecache
 from pipeline.fe.solve import Solution, solve
@@ -103,11 +104,30 @@ def set_up(case: Case, factor: float, msh_path: Path | None = None, comm: MPI.Co
     return Problem(m, Material(E=case.E_MPa, nu=case.nu), lc, time.perf_counter() - t0)
 
 
-def solve_or_scale(case: Case, prob: Problem, reuse: bool = True) -> Solution:
+def formula_load_cases(case: Case, prob: Problem) -> dict[str, tuple[BearingBand, float, LoadCase | None]]:
+    """Per hand formula (support "bearing" only): the bearing band at its own load position
+    (pipeline.inputs.case.formula_bands), that position (mm), and the load case with the
+    band on the problem's mesh, or None when the band is the case's own (its solve serves)."""
+    if case.support != "bearing":
+        return {}
+    out = {}
+    own = case.bearing_band()
+    for which, (band, position) in formula_bands(case).items():
+        same = band == own or (band.whole and own.whole)
+        lc = None if same else crosshead_loads(prob.mesh, case.dims, case.load_N, case.support,
+                                               shape=case.bearing_shape, band=band, order=case.order)
+        out[which] = (band, position, lc)
+    return out
+
+
+def solve_or_scale(case: Case, prob: Problem, reuse: bool = True,
+                   more: Sequence[Sequence[Traction]] = ()) -> Solution:
     """The displacement of the problem: with ``reuse`` and the run cache on, an earlier
     solve of the same mesh and problem at another load or E, scaled
     (pipeline/cache/solutions.py: exact in linear elasticity), or else a new solve, which is
-    then kept for the next run; without them, a new solve."""
+    then kept for the next run; without them, a new solve. ``more``: further sets of
+    tractions under the same constraints, solved on the same operator (the result's
+    ``more``; solved afresh, never kept)."""
     m, lc = prob.mesh, prob.loads
     V = fem.VectorFunctionSpace(m.mesh, ("Lagrange", case.order)) if reuse and runcache.enabled() else None
     ids = None if V is None else solvecache.node_ids(V, m)
@@ -119,15 +139,38 @@ def solve_or_scale(case: Case, prob: Problem, reuse: bool = True) -> Solution:
         sol = None if entry is None else solvecache.scaled(entry, m, V, ids, lc, case, prob.material, name)
         if sol is not None:
             sol.timings = {"assemble": 0.0, "solve": time.perf_counter() - t0}
+            if more:
+                extra = solve(m.mesh, m.facet_tags, case.order, prob.material, more[0], lc.constraints,
+                              solver=case.solver, rtol=case.rtol, V=V, more=more[1:])
+                sol.more = [extra, *extra.more]
+                for k in ("assemble", "solve"):
+                    sol.timings[k] += extra.timings[k]
             return sol
     t_key = time.perf_counter() - t0
     sol = solve(m.mesh, m.facet_tags, case.order, prob.material, lc.tractions, lc.constraints,
-                solver=case.solver, rtol=case.rtol, V=V)
+                solver=case.solver, rtol=case.rtol, V=V, more=more)
     if keep:
         t0 = time.perf_counter()
         solvecache.store(name, sol, ids, case)
         sol.timings["solve"] += t_key + time.perf_counter() - t0
     return sol
+
+
+def formula_load_table(case: Case, variants: dict, sol: Solution, mat: Material, share: float,
+                       sym_idx: int | None) -> dict[str, dict]:
+    """The like-with-like rows (pipeline.post.sections.formula_load_sections): per formula,
+    the FE sections of the solve with the journal load at its position, ``sol`` itself
+    or one of its ``more`` in the order of ``variants``' load cases."""
+    hand = formulas.hand_results(case.dims, case.load_N, case.approximate_span_mm, case.exact_span_mm)
+    others = iter(sol.more)
+    rows = {}
+    for which, (band, position, lc_k) in variants.items():
+        sol_k = sol if lc_k is None else next(others)
+        formula = (hand.approximate if which == "approximate" else hand.exact).sigma_MPa
+        at_fe = formulas.sigma_at_span(case.dims, case.load_N, which, 2 * band.centre_mm)
+        rows[which] = formula_load_sections(sol_k, mat, case.dims, share, sym_idx, formula, at_fe, which,
+                                            (band.start_mm, band.end_mm), position)
+    return rows
 
 
 def solve_level(case: Case, factor: float, msh_path: Path | None = None,
@@ -152,12 +195,16 @@ def solve_level(case: Case, factor: float, msh_path: Path | None = None,
     say(f"mesh ×{factor:.3g}: {m.mesh.topology.index_map(3).size_global} tets, "
         f"geometry {m.timings['geometry']:.2f} s, mesh {m.timings['mesh']:.2f} s, "
         f"import {m.timings['import']:.2f} s")
-    sol = solve_or_scale(case, prob, reuse)
-    support, eq_err, point_r = equilibrium(lc, sol.reactions)
+    variants = formula_load_cases(case, prob) if with_sections else {}
+    extra = [v[2] for v in variants.values() if v[2] is not None]
+    sol = solve_or_scale(case, prob, reuse, more=[v.tractions for v in extra])
     limit = 1e-6 * case.load_N
-    if not (eq_err <= limit and point_r <= limit):
-        raise NumericalError(f"loads out of balance: equilibrium error {eq_err:.3g} N, "
-                             f"constraint reaction {point_r:.3g} N (limit {limit:.3g} N)")
+    for lc_k, sol_k in zip([lc, *extra], [sol, *sol.more]):
+        support_k, eq_err, point_r = equilibrium(lc_k, sol_k.reactions)
+        if not (eq_err <= limit and point_r <= limit):
+            raise NumericalError(f"loads out of balance: equilibrium error {eq_err:.3g} N, "
+                                 f"constraint reaction {point_r:.3g} N (limit {limit:.3g} N)")
+    support, eq_err, point_r = equilibrium(lc, sol.reactions)
     t0 = time.perf_counter()
     vm, pk, crit = peaks_of(case, sol.u, mat)
     sections = None
@@ -165,8 +212,11 @@ def solve_level(case: Case, factor: float, msh_path: Path | None = None,
         sym_x = m.facet_ids.get("symmetry_x")
         sym_idx = next((i for i, c in enumerate(lc.constraints) if c.component == 0 and c.marker == sym_x
                         and sym_x is not None), None)
-        sections = section_results(sol, mat, case.dims, case.load_N, 0.25 if case.model == "quarter" else 1.0,
+        share = 0.25 if case.model == "quarter" else 1.0
+        sections = section_results(sol, mat, case.dims, case.load_N, share,
                                    sym_idx, pk.value_MPa, bearing_centre_mm=case.bearing_band().centre_mm)
+        if variants:
+            sections["formula_load"] = formula_load_table(case, variants, sol, mat, share, sym_idx)
     t_post = time.perf_counter() - t0
     timings = dict(m.timings, **sol.timings, post=t_post)
     how = (f"{sol.iterations} iterations ({case.solver}), assemble {sol.timings['assemble']:.2f} s, "

@@ -52,6 +52,8 @@ class Solution:
     # Set when this is an earlier solve scaled to a new load or E (pipeline/cache/solutions.py):
     # that solve's load_N (N) and E_MPa (MPa).
     scaled_from: dict | None = None
+    # The solutions of further load sets on the same operator (solve's ``more``), in order.
+    more: list["Solution"] = field(default_factory=list)
 
 
 # GAMG on an elasticity matrix: smoothed aggregation, threshold, aggressive coarsening on
@@ -119,13 +121,21 @@ class _System:
     b: PETSc.Vec
     bcs: list
     bc_dofs: list[np.ndarray]
+    a: object  # the compiled stiffness form (for the lifting of another load vector)
+    diagonal: float  # the constrained rows' diagonal (MPa·mm)
+    ds_data: object  # the facet tags the tractions' markers refer to
 
 
 def solve(mesh, facet_tags, order: int, mat: Material, tractions: Sequence[Traction],
           constraints: Sequence[Constraint], solver: str = "pmg", rtol: float = 1e-10,
-          progress: Callable[[str], None] | None = None, V: fem.FunctionSpace | None = None) -> Solution:
+          progress: Callable[[str], None] | None = None, V: fem.FunctionSpace | None = None,
+          more: Sequence[Sequence[Traction]] = ()) -> Solution:
     """Solve div σ(u) = 0 with the given tractions and constraints (on the vector Lagrange
     space V of that order, if the caller has made it already).
+
+    ``more``: further sets of tractions under the same constraints, solved with the same
+    matrix and preconditioner (only the right-hand side differs: a load-model variant);
+    their solutions, checked alike, are the result's ``more``.
 
     Checks the solver's converged reason and the true relative residual ‖b − A u‖/‖b‖
     (below max(1000·rtol, 1e-6) for iterative solvers, 1e-8 for MUMPS) and that u is finite.
@@ -138,17 +148,54 @@ def solve(mesh, facet_tags, order: int, mat: Material, tractions: Sequence[Tract
     system = _assemble(mesh, facet_tags, order, mat, tractions, constraints, solver, V)
     t_assemble = time.perf_counter() - t0
     t0 = time.perf_counter()
-    uh, reason, its, res_rel = _krylov(system, mat, facet_tags, constraints, solver, rtol)
-    t_solve = time.perf_counter() - t0
-    _check(uh, reason, its, res_rel, solver, rtol)
-    t0 = time.perf_counter()
-    reactions, reaction = _reactions(system, uh, mat)
+    variants = [_variant(system, tractions_k) for tractions_k in more]
     t_assemble += time.perf_counter() - t0
+    t0 = time.perf_counter()
+    solved = _krylov(system, mat, facet_tags, constraints, solver, rtol, more=variants)
+    t_solve = time.perf_counter() - t0
     V = system.V
     dofs = V.dofmap.index_map.size_global * V.dofmap.index_map_bs
-    return Solution(u=uh, iterations=its, reason=reason, residual_rel=float(res_rel), dofs=dofs,
-                    solver=solver, bc_dofs=system.bc_dofs, reactions=reactions, reaction=reaction,
-                    timings={"assemble": t_assemble, "solve": t_solve})
+    out = []
+    for sys_k, (uh, reason, its, res_rel) in zip([system, *variants], solved):
+        _check(uh, reason, its, res_rel, solver, rtol)
+        t0 = time.perf_counter()
+        reactions, reaction = _reactions(sys_k, uh, mat)
+        t_assemble += time.perf_counter() - t0
+        out.append(Solution(u=uh, iterations=its, reason=reason, residual_rel=float(res_rel), dofs=dofs,
+                            solver=solver, bc_dofs=sys_k.bc_dofs, reactions=reactions, reaction=reaction))
+    first = out[0]
+    first.more = out[1:]
+    first.timings = {"assemble": t_assemble, "solve": t_solve}
+    return first
+
+
+def _load_form(V, v, tractions: Sequence[Traction], ds: ufl.Measure) -> ufl.Form:
+    """The load form (N) of the tractions, with a zero volume term so that it is a form
+    even without tractions."""
+    zero = fem.Constant(V.mesh, PETSc.ScalarType((0.0, 0.0, 0.0)))
+    L_form = ufl.inner(zero, v) * ufl.dx
+    for t in tractions:
+        L_form += ufl.inner(t.value, v) * ds(t.marker)
+    return L_form
+
+
+def _load_vector(L_form: ufl.Form, a, bcs: list, diagonal: float) -> PETSc.Vec:
+    """The load vector (N) with the constraints applied: b = diagonal × g on a constrained row."""
+    b = assemble_vector(fem.form(L_form))
+    apply_lifting(b, [a], bcs=[bcs])
+    b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+    set_bc(b, bcs, scale=diagonal)
+    return b
+
+
+def _variant(system: _System, tractions: Sequence[Traction]) -> _System:
+    """The system of another set of tractions on the same matrix and constraints: only the
+    load form and vector are new."""
+    ds = ufl.Measure("ds", domain=system.V.mesh, subdomain_data=system.ds_data)
+    L_form = _load_form(system.V, system.v, tractions, ds)
+    b = _load_vector(L_form, system.a, system.bcs, system.diagonal)
+    return _System(system.V, system.v, system.dx_split, L_form, system.A, b, system.bcs, system.bc_dofs,
+                   system.a, system.diagonal, system.ds_data)
 
 
 def _assemble(mesh, facet_tags, order: int, mat: Material, tractions: Sequence[Traction],
@@ -159,31 +206,25 @@ def _assemble(mesh, facet_tags, order: int, mat: Material, tractions: Sequence[T
     ds = ufl.Measure("ds", domain=mesh, subdomain_data=facet_tags)
     dx_split = volume_measures(mesh, order)  # once, for the stiffness and for the reactions
     a_form = volume_integral(ufl.inner(stress(u, mat), strain(v)), dx_split)
-    zero = fem.Constant(mesh, PETSc.ScalarType((0.0, 0.0, 0.0)))
-    L_form = ufl.inner(zero, v) * ufl.dx
-    for t in tractions:
-        L_form += ufl.inner(t.value, v) * ds(t.marker)
+    L_form = _load_form(V, v, tractions, ds)
     bcs, bc_dofs = constrained(V, facet_tags, constraints)
     a = fem.form(a_form)
-    L = fem.form(L_form)
     # pmg multiplies with the fine matrix in SBAIJ (see assemble_sbaij, p_multigrid); the
     # others need AIJ.
     diagonal = constrained_diagonal(mat)
     A = assemble_sbaij(a, bcs, diagonal) if solver == "pmg" else assemble_aij(a, bcs, diagonal)
-    b = assemble_vector(L)
-    apply_lifting(b, [a], bcs=[bcs])
-    b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
-    set_bc(b, bcs, scale=diagonal)  # b = diagonal × g on a constrained row: u = g there
+    b = _load_vector(L_form, a, bcs, diagonal)  # b = diagonal × g on a constrained row: u = g there
     if solver in ("gamg", "hypre"):  # pmg gives its coarse (P1) matrix its own
         A.setNearNullSpace(rigid_body_nullspace(V))
-    return _System(V, v, dx_split, L_form, A, b, bcs, bc_dofs)
+    return _System(V, v, dx_split, L_form, A, b, bcs, bc_dofs, a, diagonal, facet_tags)
 
 
 def _krylov(system: _System, mat: Material, facet_tags, constraints: Sequence[Constraint], solver: str,
-            rtol: float) -> tuple[fem.Function, int, int, float]:
-    """Solve A u = b with the named solver: (u in mm, PETSc's converged reason, iterations,
-    true relative residual ‖b − A u‖/‖b‖)."""
-    A, b, V = system.A, system.b, system.V
+            rtol: float, more: Sequence[_System] = ()) -> list[tuple[fem.Function, int, int, float]]:
+    """Solve A u = b with the named solver, for the system's b and then each of ``more``'s
+    with the same set-up: per b (u in mm, PETSc's converged reason, iterations, true
+    relative residual ‖b − A u‖/‖b‖)."""
+    A, V = system.A, system.V
     ksp = PETSc.KSP().create(V.mesh.comm)
     prefix = f"crosshead_{ksp.handle}_"  # unique while this KSP lives (its options are removed after set-up)
     ksp.setOptionsPrefix(prefix)
@@ -204,22 +245,25 @@ def _krylov(system: _System, mat: Material, facet_tags, constraints: Sequence[Co
             # to the next solve (a sweep goes on after a failed variant).
             for k in options:
                 del opts[prefix + k]
-        uh = fem.Function(V, name="displacement_mm")
         ksp.setMonitor(_let_threads_run)
-        ksp.solve(b, uh.vector)
-        uh.x.scatter_forward()
-        reason, its = ksp.getConvergedReason(), ksp.getIterationNumber()
-        r = b.duplicate()
-        A.mult(uh.vector, r)
-        r.axpy(-1.0, b)
-        bnorm = b.norm()
-        res_rel = r.norm() / bnorm if bnorm > 0 else r.norm()
-        r.destroy()
+        solved = []
+        for b in [system.b, *(m.b for m in more)]:
+            uh = fem.Function(V, name="displacement_mm")
+            ksp.solve(b, uh.vector)
+            uh.x.scatter_forward()
+            reason, its = ksp.getConvergedReason(), ksp.getIterationNumber()
+            r = b.duplicate()
+            A.mult(uh.vector, r)
+            r.axpy(-1.0, b)
+            bnorm = b.norm()
+            res_rel = r.norm() / bnorm if bnorm > 0 else r.norm()
+            r.destroy()
+            solved.append((uh, reason, its, res_rel))
     finally:
         ksp.destroy()
         for obj in mg_parts:
             obj.destroy()
-    return uh, reason, its, res_rel
+    return solved
 
 
 def _let_threads_run(ksp: PETSc.KSP, its: int, rnorm: float) -> None:

@@ -164,19 +164,37 @@ def bearing_band(d: Dimensions, length_mm: float | None, centre_mm: float | None
 NARROW_BAND_FRACTION = 0.2
 
 
-def formula_bearing(d: Dimensions, which: str, length_mm: float | None = None) -> tuple[float, float]:
+def formula_bearing(d: Dimensions, which: str, length_mm: float | None = None,
+                    span_mm: float | None = None) -> tuple[float, float]:
     """(centre, length) in mm of the bearing band at a hand formula's own load position
-    (docs/design.md §4): the approximate formula's journal centre (b1 + b2)/2 (28.75 mm
-    for No. 05) or the exact formula's b6/2 (35 mm, the tip). A band cannot be centred on
-    the tip, so there it ends at the tip: centre b6/2 − length/2. ``length_mm`` None: the
-    narrow band, NARROW_BAND_FRACTION of the bearing length."""
+    (docs/design.md §4): half its span, by default the paper's, (b1 + b2)/2 for the
+    approximate formula (28.75 mm for No. 05) and b6/2 for the exact one (35 mm, the
+    tip). The band goes as near that position as the journal lets it: a band cannot be
+    centred on the tip, so there it ends at the tip, centre b6/2 − length/2.
+    ``length_mm`` None: the narrow band, NARROW_BAND_FRACTION of the bearing length."""
     if which not in BEARING_AT:
         raise InputError(f"bearing_at: must be one of {', '.join(BEARING_AT)}, got {which!r}")
     start, end = journal_bearing_surface(d)
     length = NARROW_BAND_FRACTION * (end - start) if length_mm is None else length_mm
-    if which == "approximate":
-        return (d.b1 + d.b2) / 2, length
-    return d.b6 / 2 - length / 2, length
+    span = span_mm if span_mm is not None else _paper_span(d, which)
+    return min(max(span / 2, start + length / 2), end - length / 2), length
+
+
+def formula_bands(case: "Case") -> dict[str, tuple[BearingBand, float]]:
+    """Per hand formula, the bearing band at its own load position (formula_bearing, the
+    case's spans and bearing length) and that position, half its span (mm)."""
+    out = {}
+    for which, span in zip(BEARING_AT, (case.approximate_span_mm, case.exact_span_mm)):
+        centre, length = formula_bearing(case.dims, which, case.bearing_length_mm, span)
+        own = (span if span is not None else _paper_span(case.dims, which)) / 2
+        out[which] = (bearing_band(case.dims, length, centre), own)
+    return out
+
+
+def _paper_span(d: Dimensions, which: str) -> float:
+    """The paper's span of a formula (mm): b1 + b2 (approximate) or b6 (exact)."""
+    from pipeline.post.formulas import paper_spans
+    return paper_spans(d)[BEARING_AT.index(which)]
 
 
 def read_case_file(path: Path) -> dict[str, Any]:

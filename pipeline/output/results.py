@@ -63,9 +63,19 @@ def build_results(case: Case, levels: list[Level], timings: dict[str, float],
             "critical_vs_approximate": pct(fine.critical.value_MPa, hand.approximate.sigma_MPa),
             "peak_vs_exact": pct(fine.peak.value_MPa, hand.exact.sigma_MPa),
             "peak_vs_approximate": pct(fine.peak.value_MPa, hand.approximate.sigma_MPa),
+            **_like_with_like_pct(fine),
         },
         "timings_s": timings,
     }
+
+
+def _like_with_like_pct(fine: Level) -> dict[str, float]:
+    """Per formula, the FE section's figure under the formula's own load position against
+    the formula at that same position (%), ``section_vs_approximate_same_load`` and
+    ``section_vs_exact_same_load``: they differ in their theory only. None without those
+    sections (support rigid)."""
+    rows = (fine.sections or {}).get("formula_load") or {}
+    return {f"section_vs_{k}_same_load": pct(r["fe_MPa"], r["formula_at_fe_load_MPa"]) for k, r in rows.items()}
 
 
 def peak_block(case: Case, p: NodalPeak, est: Estimate | None, refined: bool = True) -> dict:

@@ -93,3 +93,12 @@ def hand_results(d: Dimensions, Q_N: float, approximate_span_mm: float | None = 
         approximate_at_exact_span=approximate(Q_N, le, Dm=d.d14, **geo),
         exact_at_approximate_span=exact(Q_N, la, **geo),
     )
+
+
+def sigma_at_span(d: Dimensions, Q_N: float, which: str, span_mm: float) -> float:
+    """The stress (MPa) of formula ``which`` ("approximate" or "exact") for dimensions d
+    under Q_N with span ``span_mm`` (mm)."""
+    geo = dict(b=d.b1, di=d.d2, h=d.h3)
+    if which == "approximate":
+        return approximate(Q_N, span_mm, Dm=d.d14, **geo).sigma_MPa
+    return exact(Q_N, span_mm, **geo).sigma_MPa

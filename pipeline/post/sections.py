@@ -16,7 +16,10 @@ ligament's width (exact method). Here the FE solution gives the same quantities:
   mid-height (the exact method's stress);
 - the journal's nominal bending stress at its root (the plane x = b1/2) and the fillet's
   concentration factor Kt = global peak / nominal, with Peterson's chart value for a
-  shouldered round bar in bending beside it.
+  shouldered round bar in bending beside it;
+- for each hand formula, the same section quantities under that formula's own journal
+  load position (:func:`formula_load_sections`), so that formula and FE differ in their
+  theory only, not in where the load sits.
 
 Sign convention: σ_xx > 0 in tension; M = ∫ σ_xx (z − h/2) dA, so a crosshead sagging
 under its load (bottom in tension) has M < 0. Units: mm, N, MPa.
@@ -174,12 +177,10 @@ def peterson_kt_bending(D: float, d: float, r: float) -> float:
     return c[0] + c[1] * x + c[2] * x ** 2 + c[3] * x ** 3
 
 
-def section_results(sol: Solution, mat: Material, d: Dimensions, load_N: float, share: float,
-                    symmetry_x: int | None, global_peak_MPa: float,
-                    bearing_centre_mm: float | None = None) -> dict:
-    """Everything above for one solved mesh, as a results.json block (docs/design.md §7);
-    ``bearing_centre_mm``: where the journal load acts (mm from x = 0; None: the middle of
-    the bearing surface)."""
+def ligament_sections(sol: Solution, mat: Material, d: Dimensions, share: float, symmetry_x: int | None) -> dict:
+    """The critical section's resultants and nominal stress (quarter model: ``symmetry_x``
+    the constraint of x = 0, else None) and the linearised lines through the ligament, as
+    results.json blocks (N, N·mm, MPa, mm)."""
     u = sol.u
     w, h = d.b1 - d.d2, d.h3  # both ligaments' width, and the height
     eps = 1e-7 * d.b6  # start lines just inside the part
@@ -200,6 +201,16 @@ def section_results(sol: Solution, mat: Material, d: Dimensions, load_N: float, 
             "membrane_MPa": N / (w * h), "bending_MPa": 6.0 * abs(M) / (w * h ** 2),
             "nominal_MPa": N / (w * h) + 6.0 * abs(M) / (w * h ** 2),
             "method": "reactions of the symmetry plane x = 0 (exact for the discrete solution)"}
+    return out
+
+
+def section_results(sol: Solution, mat: Material, d: Dimensions, load_N: float, share: float,
+                    symmetry_x: int | None, global_peak_MPa: float,
+                    bearing_centre_mm: float | None = None) -> dict:
+    """Everything above for one solved mesh, as a results.json block (docs/design.md §7);
+    ``bearing_centre_mm``: where the journal load acts (mm from x = 0; None: the middle of
+    the bearing surface)."""
+    out = ligament_sections(sol, mat, d, share, symmetry_x)
     Mj, s_nom = journal_nominal(d, load_N, bearing_centre_mm)
     root: dict = {"M_Nmm": Mj, "nominal_MPa": s_nom, "Kt": global_peak_MPa / s_nom}
     if d.rf > 0:
@@ -214,4 +225,35 @@ def section_results(sol: Solution, mat: Material, d: Dimensions, load_N: float, 
         except ValueError as exc:
             root["peterson_note"] = str(exc)
     out["journal_root"] = root
+    return out
+
+
+# The FE figure beside each formula: the nominal stress of the section x = 0 from its force
+# and moment (the quarter model's symmetry-plane reactions), or on the full model, which has
+# no such plane, σ_xx over the height at mid-ligament, linearised.
+NOMINAL_QUANTITY = "FE nominal stress of the section x = 0, N/(w·h) + 6|M|/(w·h²), from the symmetry plane's reactions"
+LINE_QUANTITY = "FE σ_xx over the height at mid-ligament, x = 0, linearised: membrane + bending"
+
+
+def formula_load_sections(sol: Solution, mat: Material, d: Dimensions, share: float, symmetry_x: int | None,
+                          formula_MPa: float, formula_at_fe_load_MPa: float, which: str,
+                          band_mm: tuple[float, float], own_position_mm: float) -> dict:
+    """One formula's row of the like-with-like table (MPa, N, N·mm, mm): the FE section
+    quantities of ``sol``, solved with the journal load on ``band_mm`` (as near as the
+    journal allows to the formula's own position ``own_position_mm``), beside the formula
+    at its own span and at the FE load's position (2 × the band's middle). The FE figure
+    is of the beam's kind for both formulas: the exact formula's curved bar is another
+    theory of the same section, which is what the row shows."""
+    full = ligament_sections(sol, mat, d, share, symmetry_x)
+    lines = {k: {q: v[q] for q in ("membrane_MPa", "bending_MPa", "membrane_plus_bending_MPa", "peak_on_line_MPa")}
+             for k, v in full["lines"].items()}
+    cs = full.get("critical_section")
+    fe, quantity = ((cs["nominal_MPa"], NOMINAL_QUANTITY) if cs is not None else
+                    (lines["mid_ligament_height"]["membrane_plus_bending_MPa"], LINE_QUANTITY))
+    out = {"formula": which, "formula_MPa": formula_MPa, "formula_load_at_mm": own_position_mm,
+           "fe_load_band_mm": list(band_mm), "fe_load_at_mm": (band_mm[0] + band_mm[1]) / 2,
+           "formula_at_fe_load_MPa": formula_at_fe_load_MPa,
+           "fe_MPa": fe, "fe_quantity": quantity, "lines": lines}
+    if "critical_section" in full:
+        out["critical_section"] = {k: v for k, v in full["critical_section"].items() if k != "method"}
     return out
