@@ -289,3 +289,34 @@ def test_each_formulas_row_is_the_section_under_its_own_load_position():
     # The exact formula at the FE load's middle: span 2 × 33.9 mm, between the paper's
     # 43.81 MPa (70 mm) and its 32.6 MPa at 57.5 mm (docs/design.md §6).
     assert 32.6 < rows["exact"]["formula_at_fe_load_MPa"] < 43.81
+
+
+def test_a_band_narrower_than_the_mesh_resolves_is_a_numerical_failure(meshes):
+    """A band that holds no quadrature point of the coarse mesh cannot carry a load: one
+    line asking for a longer band or a finer mesh, never a division by zero."""
+    from pipeline.errors import NumericalError
+    case = resolve("05", None, {"bearing_length_mm": 1e-4, "bearing_centre_mm": 30.0})
+    with pytest.raises(NumericalError, match="longer --bearing-length or a finer mesh"):
+        crosshead_loads(meshes["quarter"], case.dims, Q, "bearing", band=case.bearing_band(), order=2)
+
+
+def test_the_run_cache_keeps_load_models_apart_and_scaled_runs_keep_their_table(tmp_path, monkeypatch):
+    """A cached solution is never taken for another load model (the shape and band shape
+    the field, not only its size); a run scaled from a cached solve at another load still
+    solves its formulas' rows, equal to those of a run at that load solved anew."""
+    import pipeline.cache.runs as rc
+    from pipeline.commands import execute_run
+    monkeypatch.setenv("CROSSHEAD_NO_CACHE", "0")
+    monkeypatch.setattr(rc, "ROOT", tmp_path / "runs")
+    case = resolve("05", None, {"mesh_factor": FACTOR})
+    execute_run(case, tmp_path / "a", levels=1, write_fields=False)
+    for other in (replace(case, bearing_shape="uniform"), replace(case, bearing_length_mm=4.0, bearing_centre_mm=30.0)):
+        res = execute_run(other, tmp_path / f"b{len(list(tmp_path.iterdir()))}", levels=1, write_fields=False)
+        assert res["fe"]["scaled_from"] is None
+    scaled = execute_run(replace(case, load_N=2 * Q), tmp_path / "s", levels=1, write_fields=False)
+    assert scaled["fe"]["scaled_from"] == {"load_N": Q, "E_MPa": case.E_MPa}
+    monkeypatch.setenv("CROSSHEAD_NO_CACHE", "1")
+    fresh = execute_run(replace(case, load_N=2 * Q), tmp_path / "f", levels=1, write_fields=False)
+    for which in ("approximate", "exact"):
+        a, b = (r["fe"]["sections"]["formula_load"][which] for r in (scaled, fresh))
+        assert a["fe_MPa"] == pytest.approx(b["fe_MPa"], rel=1e-7)
