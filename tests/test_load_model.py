@@ -275,6 +275,8 @@ def test_each_formulas_row_is_the_section_under_its_own_load_position():
     case = resolve("05", None, {"mesh_factor": FACTOR, "solver": "mumps"})
     lv = solve_level(case, FACTOR, with_sections=True, reuse=False)
     rows = lv.sections["formula_load"]
+    root = lv.sections["journal_root"]  # the case's own load: the middle of 24 to 35 mm
+    assert root["load_at_mm"] == 29.5 and root["M_Nmm"] == pytest.approx(Q / 2 * (29.5 - 22.5), rel=1e-12)
     ri, ro = 12.5, 18.5
     x_seat = 4 / (3 * math.pi) * (ro ** 3 - ri ** 3) / (ro ** 2 - ri ** 2)
     for which, at, formula in (("approximate", 28.75, 37.76), ("exact", 33.9, 43.81)):

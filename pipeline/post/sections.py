@@ -212,7 +212,8 @@ def section_results(sol: Solution, mat: Material, d: Dimensions, load_N: float, 
     the bearing surface)."""
     out = ligament_sections(sol, mat, d, share, symmetry_x)
     Mj, s_nom = journal_nominal(d, load_N, bearing_centre_mm)
-    root: dict = {"M_Nmm": Mj, "nominal_MPa": s_nom, "Kt": global_peak_MPa / s_nom}
+    centre = (d.b1 / 2 + d.rf + d.b6 / 2) / 2 if bearing_centre_mm is None else bearing_centre_mm
+    root: dict = {"M_Nmm": Mj, "nominal_MPa": s_nom, "Kt": global_peak_MPa / s_nom, "load_at_mm": centre}
     if d.rf > 0:
         try:
             root["Kt_peterson"] = peterson_kt_bending(D=d.h3, d=d.dj, r=d.rf)
