@@ -322,3 +322,16 @@ def test_the_run_cache_keeps_load_models_apart_and_scaled_runs_keep_their_table(
     for which in ("approximate", "exact"):
         a, b = (r["fe"]["sections"]["formula_load"][which] for r in (scaled, fresh))
         assert a["fe_MPa"] == pytest.approx(b["fe_MPa"], rel=1e-7)
+
+
+def test_the_report_compares_each_formula_at_the_fe_loads_position():
+    """The report's row: FE against the formula with its load where the FE's is (41.84
+    MPa at 33.9 mm), not at the tip: (47.81 − 41.84)/41.84 = +14.3 %."""
+    from pipeline.output.report import formula_load_lines
+    line = {"membrane_plus_bending_MPa": 1.0}
+    row = {"formula_MPa": 43.81, "formula_load_at_mm": 35.0, "fe_load_band_mm": [32.8, 35.0], "fe_load_at_mm": 33.9,
+           "formula_at_fe_load_MPa": 41.84, "fe_MPa": 47.81, "fe_quantity": "q",
+           "lines": {"mid_ligament_height": line, "bore_edge_height": line}}
+    text = "\n".join(formula_load_lines({"exact": row}))
+    assert "| exact | 35.00 | 32.80 to 35.00, 33.90 | 43.81 | 41.84 | **47.81** | +14.3 % |" in text
+    assert formula_load_lines(None) == [] and formula_load_lines({}) == []

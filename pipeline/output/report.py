@@ -183,13 +183,16 @@ def formula_load_lines(rows: dict | None) -> list[str]:
          "journal's tip: there it ends at the tip, and the formula at the FE load's own position is "
          "given beside it.\n",
          "| formula | its load at (mm from x = 0) | FE load band (mm), its middle | formula (MPa) | "
-         "formula with its load at the band's middle (MPa) | FE section (MPa) | FE − formula, same load |",
-         "|---|---|---|---|---|---|---|"]
+         "formula with its load at the band's middle (MPa) | FE section (MPa) | FE − formula, same load | "
+         "FE linearised σ_xx, m + b: mid-ligament; bore edge (MPa) |",
+         "|---|---|---|---|---|---|---|---|"]
     for which, r in rows.items():
         a, b = r["fe_load_band_mm"]
         diff = 100 * (r["fe_MPa"] - r["formula_at_fe_load_MPa"]) / r["formula_at_fe_load_MPa"]
         L.append(f"| {which} | {_f(r['formula_load_at_mm'], 2)} | {_f(a, 2)} to {_f(b, 2)}, {_f(r['fe_load_at_mm'], 2)} | "
-                 f"{_f(r['formula_MPa'])} | {_f(r['formula_at_fe_load_MPa'])} | **{_f(r['fe_MPa'])}** | {diff:+.1f} % |")
+                 f"{_f(r['formula_MPa'])} | {_f(r['formula_at_fe_load_MPa'])} | **{_f(r['fe_MPa'])}** | {diff:+.1f} % | "
+                 f"{_f(r['lines']['mid_ligament_height']['membrane_plus_bending_MPa'])}; "
+                 f"{_f(r['lines']['bore_edge_height']['membrane_plus_bending_MPa'])} |")
     L.append(f"\nFE section: {next(iter(rows.values()))['fe_quantity']}.\n")
     return L
 
