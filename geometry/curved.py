@@ -71,7 +71,8 @@ def _relax_curved(target: float) -> float:
     is slow, and this is on the path of every run.
 
     Why: curving second-order tets onto the shoulder fillet inverts some, and elements left
-    near a ratio of 0.1 give spurious peaks (docs/decisions.md). The bad tets are slivers with all four vertices on the fillet
+    near a ratio of 0.1 give spurious peaks
+    (docs/decisions/0004-curved-tet-repair.md). The bad tets are slivers with all four vertices on the fillet
     near its tangent line with the body face: their boundary edges bow (follow the CAD
     surface) while their interior edge stays straight, which folds a tet thinner than the bow.
 
@@ -81,7 +82,7 @@ def _relax_curved(target: float) -> float:
 
     It gives the peaks of gmsh's high-order optimiser on the same linear meshes to a few
     hundredths of a percent, in a fraction of its time; why step 1 and why steps of half
-    the bow: docs/decisions.md.
+    the bow: docs/decisions/0004-curved-tet-repair.md.
     """
     mesh = _gmsh_tet10()
     if mesh is None:

@@ -22,7 +22,7 @@ def _balls(point: tuple[float, float, float], size: float, size_far: float, radi
     growing linearly to size_far over ``thickness``.
 
     A Ball is the same size function as a Threshold on a MathEval distance, but gmsh
-    evaluates it natively, several times faster with ten refined places (docs/decisions.md)."""
+    evaluates it natively, several times faster with ten refined places (docs/decisions/0004-curved-tet-repair.md)."""
     x, y, z = abs(point[0]), abs(point[1]), point[2]
     field = gmsh.model.mesh.field
     tags = []
@@ -134,7 +134,7 @@ def _set_mesh_options(order: int, hmax: float, hmin: float) -> None:
     opt("Mesh.Algorithm3D", 1)
     opt("Mesh.ElementOrder", order)
     # gmsh's own high-order optimiser is off: it spent most of the meshing time repairing a
-    # few hundred curved tets; geometry/curved.py does it in a fraction (docs/decisions.md).
+    # few hundred curved tets; geometry/curved.py does it in a fraction (docs/decisions/0004-curved-tet-repair.md).
     opt("Mesh.HighOrderOptimize", 0)
     opt("General.NumThreads", 1)
 

@@ -37,7 +37,7 @@ def pilot_factor(case: Case) -> float:
     and never finer than the case's own mesh.
 
     Why: the pilot must see the features it is to find; a much coarser pilot has fillet
-    elements larger than rf and misses the bore-edge place (docs/decisions.md).
+    elements larger than rf and misses the bore-edge place (docs/decisions/0009-pilot-places.md).
     """
     f = case.mesh_factor * PILOT_RATIO
     if case.dims.rf > 0:
@@ -71,7 +71,8 @@ def refinement_places(case: Case, comm: MPI.Comm = MPI.COMM_WORLD, progress: Pro
 
     Why: the critical peak sits at a bore edge on every row of the size table, and there
     the known places give the pilot's critical peak within 0.07 % at half the DOFs and
-    half the time (docs/performance.md); the pilot's value for that scene is only the
+    half the time
+    (docs/decisions/0013-critical-peak-known-places.md); the pilot's value for that scene is only the
     extra places along the same edges. analysis.analyse checks on the requested mesh that
     the critical peak did fall inside the known places' refinement and runs the pilot
     where it did not (an unusual part).
@@ -142,7 +143,7 @@ def pilot(case: Case, comm: MPI.Comm = MPI.COMM_WORLD, progress: Progress | None
     # Within 15 % of the global peak as the run reads it (at the fillet the midpoint of
     # its two readings), not of the largest element-node value: on the coarse pilot mesh
     # that can over-read the fillet at one node, and the rest of the crest then falls
-    # below the threshold (docs/decisions.md).
+    # below the threshold (docs/decisions/0009-pilot-places.md).
     spots = hot_spots(vm, PILOT_FRACTION * lv.peak.value_MPa, separation, limit) if case.want != "critical" else []
     if case.want != "global":
         spots += [q for q in hot_spots(vm, PILOT_FRACTION * lv.critical.unaveraged.value_MPa, separation,
@@ -176,7 +177,7 @@ def bridged(spots: Sequence[tuple[float, float, float]], d, radius_mm: float,
     Why: the pilot's places along the fillet's crest are its mesh's nodes, up to 2.8 times
     the separation apart, so their balls left gaps on the crest, and a coarse error-bar
     mesh's element-node peak sat in a gap (No. 05 at rf = 0.5 mm: 0.39 and 0.63 mm from
-    the nearest place, the balls 0.2 mm; docs/decisions.md). The points are found from
+    the nearest place, the balls 0.2 mm; docs/decisions/0010-refinement-lengths.md). The points are found from
     the rounded places, so every rank adds the same ones.
     """
     pts = [np.asarray(q, dtype=float) for q in spots]

@@ -20,7 +20,8 @@ def assemble_aij(a, bcs, diagonal: float = 1.0) -> PETSc.Mat:
     """The matrix of bilinear form ``a`` with ``bcs`` applied, as an AIJ matrix (bs 3).
 
     Why through BAIJ: DOLFINx inserts each element matrix into a 3×3-block matrix faster
-    than into AIJ, by enough to pay for the conversion (docs/decisions.md). GAMG and hypre need AIJ;
+    than into AIJ, by enough to pay for the conversion
+    (docs/decisions/0002-fine-matrix-sbaij-coarse-operator-assembled.md). GAMG and hypre need AIJ;
     "pmg" converts to SBAIJ instead (:func:`assemble_sbaij`).
     """
     A = assemble_baij(a, bcs, diagonal)
@@ -34,7 +35,7 @@ def constrained_diagonal(mat: Material) -> float:
 
     Why not 1 (DOLFINx's default): with a large E the other entries stand so far above
     the constrained rows' 1 that the p-multigrid's CG stopped on an indefinite
-    preconditioner (docs/decisions.md). The load vector carries this value × the imposed
+    preconditioner (docs/decisions/0018-constrained-rows-diagonal.md). The load vector carries this value × the imposed
     displacement on those rows (solve._assemble), so the solution does not depend on it."""
     return float(mat.E)
 
@@ -53,7 +54,7 @@ def assemble_sbaij(a, bcs, diagonal: float = 1.0) -> PETSc.Mat:
     zeroed: still symmetric), stored as its upper triangle in 3×3 blocks (SBAIJ).
 
     Why: the product with a vector, most of pmg's time, reads half the matrix; the
-    conversion from BAIJ is cheap (docs/decisions.md).
+    conversion from BAIJ is cheap (docs/decisions/0002-fine-matrix-sbaij-coarse-operator-assembled.md).
     """
     A = assemble_baij(a, bcs, diagonal)
     A.convert("sbaij")  # in place, as in assemble_aij

@@ -116,7 +116,7 @@ def volume_measures(mesh, order: int, like: tuple[ufl.Measure, ufl.Measure] | No
     Why: on an affine tet the stiffness integrand of Pk is a polynomial of degree 2(k−1),
     which that degree integrates exactly; UFL picks degree 5 for P2 on the curved (P2
     geometry) mesh, for every cell, while most tets (those not touching the fillet, bore
-    and journal surfaces) are straight. Curved cells keep UFL's degree (docs/decisions.md).
+    and journal surfaces) are straight. Curved cells keep UFL's degree (docs/decisions/0003-quadrature-split-straight-curved.md).
     ``like``: measures of this mesh made before, whose cell split is reused.
     """
     if like is not None:

@@ -223,7 +223,7 @@ class Mesher:
         cell_type = max(topo, key=lambda t: gmsh.model.mesh.getElementProperties(t)[1])
         facet_types = [t for t in topo if gmsh.model.mesh.getElementProperties(t)[1] == 2]
         # Free gmsh's copy now: kept until the next mesh, it slows DOLFINx's import of this
-        # one (docs/decisions.md).
+        # one (docs/decisions/0006-error-bar-meshes-over-the-ranks.md).
         gmsh.model.mesh.clear()
         timings["mesh"] = time.perf_counter() - t0
         if len(facet_types) != 1:

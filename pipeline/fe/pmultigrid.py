@@ -77,7 +77,8 @@ def p_multigrid(ksp: PETSc.KSP, V, mat: Material, facet_tags, constraints: Seque
 
     Why not the Galerkin product P^T A P: PETSc forms it only for AIJ matrices, and keeping
     the fine matrix in AIJ costs a conversion and a slower product with a vector in every
-    smoothing step (docs/decisions.md). Returns (P, coarse matrix), to be destroyed after
+    smoothing step
+    (docs/decisions/0002-fine-matrix-sbaij-coarse-operator-assembled.md). Returns (P, coarse matrix), to be destroyed after
     the solve.
     """
     mesh = V.mesh

@@ -7,7 +7,7 @@ wheel crashes (std::regex, bad_alloc) when DOLFINx's libraries are loaded first.
 
 Drawn with VTK's own classes, not pyvista's plotter: pyvista.plotting imports
 matplotlib.pyplot, most of the picture's CPU time, while it runs beside the error-bar
-solves on the same cores (docs/decisions.md).
+solves on the same cores (docs/decisions/0007-drawing-and-field-files.md).
 """
 from __future__ import annotations
 
@@ -54,7 +54,7 @@ def boundary_surface(xyz: np.ndarray, tets: np.ndarray) -> tuple[np.ndarray, np.
     the surface uses and its triangles numbered into that list, so every node keeps its
     own values (von Mises, displacement). Why: in such a grid every face of every tet is
     a free face, and VTK would draw all of them (twenty times those on the part's
-    boundary, docs/decisions.md). A face is on the boundary when no
+    boundary, docs/decisions/0007-drawing-and-field-files.md). A face is on the boundary when no
     other tet has the same three corner positions.
     """
     corner = _position_numbers(xyz)
@@ -361,7 +361,8 @@ def _panel(window: vtkRenderWindow, scene: _Scene, col: int) -> vtkRenderer:
     ren = vtkRenderer()
     ren.SetViewport(PANELS[col][0], 0.0, PANELS[col][1], 1.0)
     ren.SetBackground(1.0, 1.0, 1.0)
-    ren.UseFXAAOn()  # smooth edges for less than the window's 8 samples per pixel cost (docs/performance.md)
+    # smooth edges for less than the window's 8 samples per pixel cost (docs/decisions/0007-drawing-and-field-files.md)
+    ren.UseFXAAOn()
     vtkLightKit().AddLightsToRenderer(ren)
     window.AddRenderer(ren)
     ren.AddActor(_surface_actor(scene.points, scene.tri, scene.vm, scene.lut))
