@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 from pathlib import Path
 from typing import Callable
 
@@ -16,18 +17,77 @@ STAGING_MARK = ".crosshead-staging"  # written first into every staging folder
 REPOSITORY = Path(__file__).resolve().parents[2]
 
 
-def marked_kind(out: Path) -> str:
-    """The kind of results folder ``out``'s marker names: "sweep" and "summary" say so in
-    it; any other marker (a run's, an earlier version's) is a run's."""
+def marker_data(folder: Path) -> dict | None:
+    """What ``folder``'s marker says, or None when it is not the tool's: the tool writes a
+    regular file holding a JSON object with ``"tool": "crosshead"``. An empty, unreadable
+    or foreign marker, or one that is a folder, does not make a folder the tool's: a user
+    can make such a file, and only the tool's own JSON says the tool wrote the rest."""
+    mark = folder / MARKER
     try:
-        data = json.loads((out / MARKER).read_text(encoding="utf-8"))
+        if mark.is_symlink() or not mark.is_file():
+            return None
+        data = json.loads(mark.read_text(encoding="utf-8"))
     except (OSError, ValueError):
-        return "run"
-    if isinstance(data, dict):
-        for kind in ("sweep", "summary"):
-            if data.get(kind) is True:
-                return kind
+        return None
+    if not isinstance(data, dict) or data.get("tool") != "crosshead":
+        return None
+    return data
+
+
+def marked_kind(out: Path) -> str | None:
+    """The kind of results folder ``out``'s marker names ("sweep" and "summary" say so in
+    it; the tool's other markers are a run's), or None when it carries no marker of the
+    tool's (:func:`marker_data`)."""
+    data = marker_data(out)
+    if data is None:
+        return None
+    for kind in ("sweep", "summary"):
+        if data.get(kind) is True:
+            return kind
     return "run"
+
+
+def enclosing_study(out: Path) -> Path | None:
+    """The design study's folder that ``out`` (resolved) is, or lies inside, or None.
+
+    A run written into a study's ``variants/<key>`` carries a run marker there, and the
+    study's next resume would report that run's numbers as the variant's: only the study
+    itself writes inside its folder."""
+    for folder in (out, *out.parents):
+        if marked_kind(folder) == "sweep":
+            return folder
+    return None
+
+
+MOUNTINFO = Path("/proc/self/mountinfo")
+
+
+def _unescape_mount(text: str) -> str:
+    """A mount point as /proc/self/mountinfo writes it: space, tab, newline and backslash
+    as octal escapes (\\040 ...)."""
+    return re.sub(r"\\([0-7]{3})", lambda m: chr(int(m.group(1), 8)), text)
+
+
+def mount_points(mountinfo: Path = MOUNTINFO) -> set[Path]:
+    """Every mount point of this process's mount namespace (empty when the kernel does not
+    say). A bind mount of a folder of the same file system has the same device number as
+    its parent, so ``os.path.ismount`` misses it; the kernel's table does not."""
+    try:
+        lines = mountinfo.read_text(encoding="utf-8", errors="surrogateescape").splitlines()
+    except OSError:
+        return set()
+    found = set()
+    for line in lines:
+        fields = line.split(" ")
+        if len(fields) > 4:
+            found.add(Path(_unescape_mount(fields[4])))
+    return found
+
+
+def is_mount_point(folder: Path, mountinfo: Path = MOUNTINFO) -> bool:
+    """True when ``folder`` (resolved) is a mount point: a different device from its
+    parent (``os.path.ismount``) or listed in the kernel's mount table (a bind mount)."""
+    return os.path.ismount(folder) or folder in mount_points(mountinfo)
 
 
 def _is_same_or_above(folder: Path, other: Path) -> bool:
@@ -57,7 +117,7 @@ def protected_reason(out: Path, raw: str) -> str | None:
         top = out.relative_to(REPOSITORY).parts[0]
         if top != "results" and (REPOSITORY / top).exists():
             return f"it is inside the crosshead source tree ({top}/); use a folder under results/"
-    if out.exists() and os.path.ismount(out):
+    if out.exists() and is_mount_point(out):
         return "it is a mount point"
     return None
 

@@ -3,16 +3,33 @@
 A run writes into a hidden staging folder beside ``--out`` and renames it into place only
 when complete, so a failed or interrupted run leaves the earlier result as it was. The
 tool replaces a folder only when it is empty or carries the marker file that the tool
-writes last into every results folder; any other folder belongs to the user and is
-refused before any work is done (docs/design.md §8).
+writes last into every results folder (its own JSON, listing the files the run wrote);
+any other folder belongs to the user and is refused before any work is done
+(docs/design.md §8).
+
+Files a user adds to a results folder (notes, a ParaView state in a subfolder) are carried
+over into the new result when a run replaces it, not refused: such files belong next to
+the results they describe, and a refusal would make the user move them out and back on
+every re-run. Only the names the earlier run's marker lists are the tool's; everything
+else is moved (a rename, same file system) into the published folder. A user's file
+with a name the tool writes (``results.json`` say) would be overwritten, so that folder is
+refused up front, naming the file. A run killed between the renames leaves its earlier
+folder beside ``--out`` with the user's files in it; the next run to the same folder
+finishes the carry-over (or puts the earlier result back) instead of deleting it.
+
+The names beside ``--out`` (lock, staging, replaced folder) start with ``.<name>`` and,
+for a name longer than NAME_ROOM bytes, a shortened name and a hash of the whole one, so
+that every folder name the file system accepts (255 bytes) can be an output folder.
 """
 from __future__ import annotations
 
 import contextlib
 import errno
 import fcntl
+import hashlib
 import json
 import os
+import re
 import shutil
 import tempfile
 import threading
@@ -24,19 +41,49 @@ from typing import Iterator
 from mpi4py import MPI
 
 from pipeline.errors import InputError
-from pipeline.runtime.folders import MARKER, REPOSITORY, STAGING_MARK, marked_kind, protected_reason
+from pipeline.runtime.folders import (MARKER, REPOSITORY, STAGING_MARK, enclosing_study, marked_kind, marker_data,
+                                      protected_reason)
 from pipeline.runtime.idle import wait_for_ranks
 from pipeline.runtime.interrupts import on_stop, signals_wait, stop_outcome
 
 # Files a run writes; a folder holding nothing else (and a results.json) is a results folder
-# of a version of the tool that wrote no marker yet.
+# of a version of the tool that wrote no marker yet, and a marker without its list of files
+# (such a version's too) names these as the tool's.
 RUN_FILES = frozenset({"results.json", "report.md", "report.html", "mesh.msh", "displacement.pvd",
                        "displacement.vtu", "von_mises.vtu", "fields.vtu", "von_mises.png", "convergence.png",
-                       "sections.png", "peaks.png", MARKER})
+                       "sections.png", "peaks.png"})
+NAME_ROOM = 200  # bytes of --out's name kept in the names beside it (see module doc)
+HASH_CHARS = 12  # hex digits of the name's hash in a shortened name (48 bits)
 
 
-class OutputError(InputError):
-    """The output could not be written (disk full, permission); nothing was written."""
+class OutputError(OSError):
+    """The output folder could not be written (disk full, permission); the message names
+    ``--out``. ``outcome`` says what became of the folder when it is not "nothing written"."""
+
+    def __init__(self, line: str, outcome: str | None = None) -> None:
+        super().__init__(line)
+        self.outcome = outcome
+
+
+def _is_field_part(name: str) -> bool:
+    """A piece of the displacement field a run wrote (one .vtu per rank under MPI)."""
+    return name.startswith("displacement") and name.endswith((".vtu", ".pvtu"))
+
+
+def tool_names(folder: Path, names: set[str]) -> set[str]:
+    """Of ``names`` (the entries of ``folder``, which carries the tool's marker), those the
+    tool wrote: what its marker lists, or for a marker without the list a run's files."""
+    listed = (marker_data(folder) or {}).get("files")
+    if isinstance(listed, list) and all(isinstance(n, str) for n in listed):
+        return (names & set(listed)) | ({MARKER} & names)
+    return {n for n in names if n in RUN_FILES or n == MARKER or _is_field_part(n)}
+
+
+def user_names(folder: Path) -> list[str]:
+    """The entries of ``folder`` (the tool's results folder) that the tool did not write,
+    sorted: the user's, which a re-run carries over."""
+    names = {p.name for p in folder.iterdir()}
+    return sorted(names - tool_names(folder, names))
 
 
 def default_out(name: str) -> Path:
@@ -49,11 +96,16 @@ def default_out(name: str) -> Path:
 KINDS = {"run": "a run's results", "sweep": "a design study's results", "summary": "a size summary"}
 
 
+def _named(names: list[str], most: int = 3) -> str:
+    return ", ".join(names[:most]) + (", ..." if len(names) > most else "")
+
+
 def ownership_reason(out: Path, kind: str = "run") -> str | None:
     """Why an existing ``out`` may not be written by a command of ``kind`` ("run": run and
     converge replace it; "sweep": a study resumes in it), or None when it is empty or holds
     that kind's results. Another kind's results folder is refused too: a run would replace a
-    study's finished variants, and a study would write its report over a run's."""
+    study's finished variants, and a study would write its report over a run's. A run's
+    folder holding a user's file with a name the run writes is refused, naming it."""
     if not out.exists():
         return None
     if not out.is_dir():
@@ -67,8 +119,11 @@ def ownership_reason(out: Path, kind: str = "run") -> str | None:
     found = None
     if MARKER in names:
         found = marked_kind(out)
+        if found is None:
+            return (f"its {MARKER} marker is not crosshead's (empty, unreadable, a folder or another "
+                    "program's), so the files in it are not the tool's; choose a new or empty folder")
     else:
-        field_parts = {n for n in names if n.startswith("displacement") and n.endswith((".vtu", ".pvtu"))}
+        field_parts = {n for n in names if _is_field_part(n)}
         if "results.json" in names and names - field_parts <= RUN_FILES:
             found = "run"  # written by an earlier version of the tool (no marker yet)
     if found is None:
@@ -76,21 +131,46 @@ def ownership_reason(out: Path, kind: str = "run") -> str | None:
                 "choose a new or empty folder")
     if found != kind:
         return f"it holds {KINDS[found]}, not {KINDS[kind]}; choose another folder"
+    if kind == "run":
+        clash = [n for n in user_names(out) if n in RUN_FILES or _is_field_part(n)]
+        if clash:
+            return (f"it holds {_named(clash)}, which crosshead did not write and a run would overwrite; "
+                    "move or rename them, or choose another folder")
     return None
 
 
-def check_out(raw: str | os.PathLike, kind: str = "run") -> Path:
+def check_out(raw: str | os.PathLike, kind: str = "run", inside_study_ok: bool = False) -> Path:
     """The resolved output folder for a command of ``kind`` (see :func:`ownership_reason`),
     or InputError naming it and why it is refused.
 
-    Runs before any work: a folder that will be refused costs the user nothing.
+    Runs before any work: a folder that will be refused costs the user nothing. A folder
+    inside a design study's is refused unless ``inside_study_ok`` (the study's own
+    variants): a run there would stand for a variant at the study's next resume. The
+    study's folder itself is refused to a run by its kind, and resumed by a sweep.
     """
     text = os.fspath(raw)
     out = Path(text).expanduser().resolve()
-    reason = protected_reason(out, text) or ownership_reason(out, kind)
+    reason = protected_reason(out, text)
+    if reason is None and not inside_study_ok:
+        study = enclosing_study(out.parent)  # the study itself: refused below by its kind, or resumed
+        if study is not None:
+            reason = (f"it lies inside the design study {study}: only that study writes there (its variants "
+                      "are its own runs); choose a folder outside it")
+    reason = reason or ownership_reason(out, kind)
     if reason is not None:
         raise InputError(f"out: refusing {text or repr(text)} ({out}): {reason}")
     return out
+
+
+def sidecar_stem(out: Path) -> str:
+    """The start of every name the tool puts beside ``out``: ``.<name>``, or for a name
+    longer than NAME_ROOM bytes its first bytes, ``~`` and a hash of the whole name (the
+    file system allows 255 bytes, and the longest suffix takes 27)."""
+    raw = os.fsencode(out.name)
+    if len(raw) <= NAME_ROOM:
+        return f".{out.name}"
+    head = os.fsdecode(raw[:NAME_ROOM - HASH_CHARS - 1].decode("utf-8", errors="ignore").encode())
+    return f".{head}~{hashlib.sha256(raw).hexdigest()[:HASH_CHARS]}"
 
 
 @dataclass
@@ -115,7 +195,8 @@ class Lock:
 
 
 def lock_path(out: Path) -> Path:
-    return out.parent / f".{out.name}.lock"
+    """The lock file beside ``out``."""
+    return out.parent / f"{sidecar_stem(out)}.lock"
 
 
 def acquire_lock(out: Path) -> Lock:
@@ -126,7 +207,7 @@ def acquire_lock(out: Path) -> Lock:
     """
     path = lock_path(out)
     while True:
-        fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
+        fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o666)
         try:
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except OSError as exc:
@@ -148,21 +229,99 @@ def acquire_lock(out: Path) -> Lock:
         os.close(fd)
 
 
-def remove_leftovers(out: Path) -> list[Path]:
-    """Delete staging folders and replaced results of dead runs to ``out``; return them.
+def _leftover_pattern(out: Path) -> re.Pattern:
+    """The names of the staging and replaced folders of runs to ``out`` (and of no other
+    folder: ``.res.x.abcd1234.partial`` is the staging folder of ``res.x``, not of ``res``)."""
+    return re.compile(re.escape(sidecar_stem(out)) + r"\.(?:[a-z0-9_]{8}(?:\.discarded)?\.partial|old-\d+)")
+
+
+def remove_leftovers(out: Path, notice=lambda s: None) -> list[Path]:
+    """Deal with the staging and replaced folders of dead runs to ``out``; return those removed.
 
     Called with the lock held, so none of them belongs to a running process. Only folders
-    the tool made (staging mark inside, or the ``.old-`` name of a replaced results
-    folder with its marker) are touched.
+    the tool made are touched: a staging folder (staging mark or marker inside) is removed;
+    a replaced folder (``.old-``, the tool's marker inside) goes back in place when ``out``
+    is missing (the run died between its two renames), or else gives its user's files to
+    ``out`` (see module doc) and is removed. ``notice`` receives a line for one kept.
     """
     removed = []
-    for p in out.parent.glob(f".{out.name}.*"):
-        ours = (p.name.endswith(".partial") and ((p / STAGING_MARK).exists() or (p / MARKER).exists())) or (
-            ".old-" in p.name and (p / MARKER).exists())
-        if p.is_dir() and not p.is_symlink() and ours:
+    pattern = _leftover_pattern(out)
+    try:
+        entries = [p for p in out.parent.iterdir() if pattern.fullmatch(p.name)]
+    except OSError:
+        return removed
+    for p in entries:
+        if not p.is_dir() or p.is_symlink():
+            continue
+        if p.name.endswith(".partial") and ((p / STAGING_MARK).exists() or marker_data(p) is not None):
             _remove_marked(p, STAGING_MARK if (p / STAGING_MARK).exists() else MARKER)
             removed.append(p)
+        elif ".old-" in p.name and marker_data(p) is not None:
+            if not os.path.lexists(out):
+                p.rename(out)
+                notice(f"put back {out.name}, the earlier result a killed run had set aside")
+                continue
+            left = _carry_over(p, out)
+            if _remove_replaced(p):
+                removed.append(p)
+            else:
+                notice(f"kept {p.name} beside the output folder: it holds {_named(left)}, not crosshead's, "
+                       f"and {out.name} already holds that name")
     return removed
+
+
+def _carry_over(old: Path, new: Path) -> list[str]:
+    """Move the user's entries of ``old`` (a replaced results folder) into ``new``; return
+    those that stay in ``old`` because ``new`` holds that name."""
+    left = []
+    for name in user_names(old):
+        if os.path.lexists(new / name):
+            left.append(name)
+            continue
+        try:
+            (old / name).rename(new / name)
+        except OSError:
+            left.append(name)
+    return left
+
+
+def _remove_replaced(old: Path) -> bool:
+    """Delete the tool's files of a replaced results folder, its marker last, and the
+    folder when nothing else is left; True when it is gone. The user's files (those the
+    carry-over could not move) stay, with the marker that names them for the next run."""
+    try:
+        names = {p.name for p in old.iterdir()}
+    except OSError:
+        return False
+    if names - tool_names(old, names):
+        for name in tool_names(old, names) - {MARKER}:
+            _remove_entry(old / name)
+        return False
+    _remove_marked(old, MARKER)
+    return not os.path.lexists(old)
+
+
+def _remove_entry(p: Path) -> None:
+    """Delete a file or a folder tree (a symlink itself, never its target)."""
+    if p.is_dir() and not p.is_symlink():
+        shutil.rmtree(p, ignore_errors=True)
+    else:
+        with contextlib.suppress(OSError):
+            p.unlink()
+
+
+def _umask() -> int:
+    """The process's file-mode creation mask, read without changing it (Linux's
+    /proc/self/status; elsewhere by setting it and putting it back)."""
+    try:
+        for line in Path("/proc/self/status").read_text().splitlines():
+            if line.startswith("Umask:"):
+                return int(line.split()[1], 8)
+    except (OSError, ValueError, IndexError):
+        pass
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
 
 
 def _created_parents(folder: Path) -> list[Path]:
@@ -175,9 +334,11 @@ def _created_parents(folder: Path) -> list[Path]:
     return created[::-1]
 
 
-def _prepare(raw: str) -> tuple[Path, Lock, list[Path], list[Path]]:
-    """Rank 0's checks and set-up: (staging, lock, parents created, leftovers removed)."""
-    out = check_out(raw)
+def _prepare(raw: str, notice=lambda s: None) -> tuple[Path, Lock, list[Path], list[Path]]:
+    """Rank 0's checks and set-up: (staging, lock, parents created, leftovers removed).
+    The study check is the caller's (the command line's; a study's own variants are
+    written inside it)."""
+    out = check_out(raw, inside_study_ok=True)
     try:
         created = _created_parents(out)
     except OSError as exc:
@@ -188,9 +349,12 @@ def _prepare(raw: str) -> tuple[Path, Lock, list[Path], list[Path]]:
         _remove_empty(created)
         raise InputError(f"out: cannot write to {out.parent}: {exc.strerror or exc}") from None
     try:
-        leftovers = remove_leftovers(out)
-        check_out(raw)  # again under the lock: another run may have changed it meanwhile
-        staging = Path(tempfile.mkdtemp(prefix=f".{out.name}.", suffix=".partial", dir=out.parent))
+        leftovers = remove_leftovers(out, notice)
+        check_out(raw, inside_study_ok=True)  # again under the lock: another run may have changed it meanwhile
+        staging = Path(tempfile.mkdtemp(prefix=f"{sidecar_stem(out)}.", suffix=".partial", dir=out.parent))
+        # mkdtemp makes the folder private (0700); a results folder is made like any other
+        # folder, 0777 under the user's umask (0755 with the usual 022), for others to read.
+        staging.chmod(0o777 & ~_umask())
         (staging / STAGING_MARK).write_text(f"pid {os.getpid()}\n", encoding="utf-8")
     except BaseException as exc:
         lock.release()
@@ -216,15 +380,9 @@ def _remove_marked(folder: Path, mark: str) -> None:
     except OSError:
         return
     for p in entries:
-        if p.name == mark:
-            continue
-        if p.is_dir() and not p.is_symlink():
-            shutil.rmtree(p, ignore_errors=True)
-        else:
-            with contextlib.suppress(OSError):
-                p.unlink()
-    with contextlib.suppress(OSError):
-        (folder / mark).unlink()
+        if p.name != mark:
+            _remove_entry(p)
+    _remove_entry(folder / mark)
     with contextlib.suppress(OSError):
         folder.rmdir()
 
@@ -241,25 +399,44 @@ def _discard(staging: Path) -> None:
     _remove_marked(trash, STAGING_MARK)
 
 
-def _publish(staging: Path, out: Path) -> None:
-    """Mark ``staging`` as a finished results folder and put it in place of ``out``. The
-    results marker comes before the staging mark goes, so the folder always carries one."""
+def _publish(staging: Path, out: Path) -> list[str]:
+    """Mark ``staging`` as a finished results folder and put it in place of ``out``, with
+    the user's files of ``out`` carried over (module doc). The results marker, listing the
+    files the run wrote, comes before the staging mark goes, so the folder always carries
+    one. Returns the user's entries that stay beside it (the new folder holds their name)."""
+    files = sorted(p.name for p in staging.iterdir() if p.name != STAGING_MARK)
     (staging / MARKER).write_text(json.dumps({"tool": "crosshead", "written": time.strftime(
-        "%Y-%m-%dT%H:%M:%S%z"), "pid": os.getpid()}) + "\n", encoding="utf-8")
+        "%Y-%m-%dT%H:%M:%S%z"), "pid": os.getpid(), "files": files}) + "\n", encoding="utf-8")
     (staging / STAGING_MARK).unlink()
     old = None
     if out.exists():
-        old = out.with_name(f".{out.name}.old-{os.getpid()}")
+        old = out.with_name(f"{sidecar_stem(out)}.old-{os.getpid()}")
         out.rename(old)
     try:
         staging.rename(out)
-    except OSError:
+    except OSError as exc:
         if old is not None:  # the earlier result back in its place, not left to be removed
-            old.rename(out)
+            try:
+                old.rename(out)
+            except OSError:
+                raise OutputError(f"out: cannot write {out}: {exc.strerror or exc}", outcome=(
+                    f"the earlier result is in {old} (putting it back failed); the next run to {out.name} "
+                    "puts it back")) from None
         raise
     stop_outcome(f"the results were already written to {out}")
-    if old is not None:
-        _remove_marked(old, MARKER)
+    if old is None:
+        return []
+    left = _carry_over(old, out)
+    _remove_replaced(old)
+    return left
+
+
+def _within(filename: object, folder: Path) -> bool:
+    """True when ``filename`` (an OSError's, maybe None or bytes) names ``folder`` or a path in it."""
+    if filename is None:
+        return False
+    path = Path(os.fsdecode(filename))
+    return path == folder or folder in path.parents
 
 
 @contextlib.contextmanager
@@ -275,7 +452,7 @@ def staged_dir(out_dir: str | os.PathLike, comm: MPI.Comm = MPI.COMM_WORLD,
     prepared: object = None
     if comm.rank == 0:
         try:
-            prepared = _prepare(raw)
+            prepared = _prepare(raw, notice)
         except InputError as exc:
             prepared = exc
     shared = comm.bcast(prepared[0] if isinstance(prepared, tuple) else prepared, root=0)
@@ -297,15 +474,24 @@ def staged_dir(out_dir: str | os.PathLike, comm: MPI.Comm = MPI.COMM_WORLD,
             stack.callback(lock.release)
             stack.enter_context(on_stop(discard))
         try:
-            yield staging
+            try:
+                yield staging
+            except OSError as exc:
+                if not isinstance(exc, OutputError) and _within(exc.filename, staging):
+                    raise OutputError(f"out: cannot write {out}: {exc.strerror or exc}") from None
+                raise
             wait_for_ranks(comm)  # rank 0 may still be waiting for the picture
             if comm.rank == 0:
                 try:
                     with signals_wait():  # a stop between the two renames would lose both
-                        _publish(staging, out)
+                        left = _publish(staging, out)
+                except OutputError:
+                    raise
                 except OSError as exc:
-                    raise OutputError(f"out: cannot write {out}: {exc.strerror or exc}; nothing written, "
-                                      "the output folder is as it was") from None
+                    raise OutputError(f"out: cannot write {out}: {exc.strerror or exc}") from None
+                if left:
+                    notice(f"kept {_named(left)} beside {out} in {sidecar_stem(out)}.old-{os.getpid()}: "
+                           "not crosshead's, and the new result holds that name")
             ok = True
         finally:
             if comm.rank == 0 and not ok:
