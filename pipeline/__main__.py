@@ -3,10 +3,15 @@ import signal
 import sys
 
 from pipeline.runtime.interrupts import stop_before_start
+from pipeline.runtime.streams import make_safe
+
 
 
 def console() -> None:
     """Run the command line and exit with its status (the ``crosshead`` command)."""
+    # Closed or unencodable standard streams made safe before anything is written or
+    # opened (pipeline/runtime/streams.py).
+    make_safe()
     # Until the run's own stop is set up (pipeline.cli.main), Ctrl-C or SIGTERM ends the
     # loading program with its one line: nothing has been written yet.
     for s in (signal.SIGINT, signal.SIGTERM):

@@ -32,7 +32,7 @@ from geometry.table import is_scaled_row  # noqa: E402
 from pipeline.inputs.choices import BEARING_AT, BEARING_SHAPES, MODELS, SOLVERS, SUPPORTS, WANTS  # noqa: E402
 from pipeline.errors import OneLineParser, given_twice  # noqa: E402
 from pipeline.runtime.interrupts import (  # noqa: E402
-    first_rank_by_environment, install as install_interrupts, new_command, stop_line, yield_to_stop)
+    declared_outcome, first_rank_by_environment, install as install_interrupts, new_command, stop_line, yield_to_stop)
 
 DESCRIPTION = """\
 Finite-element stress analysis of a DIN 15412 crane hook-block crosshead.
@@ -221,12 +221,18 @@ TWO_LEVELS = ("levels: 2 meshes give no error bar (the estimate needs 3) and cos
               "error bar, or 3 to 8")
 
 
+class StdoutError(Exception):
+    """stdout could not take a line (a full disk, /dev/full); the message names stdout.
+    Not an OSError: the line must not blame --out."""
+
+
 def main(argv: list[str] | None = None, handle_signals: bool = False) -> int:
     """The command line; ``handle_signals`` (the program, not a test calling in) makes
     Ctrl-C and SIGTERM stop a run cleanly with exit 130 / 143 (pipeline.runtime.interrupts)."""
     args = make_parser().parse_args(argv)
     if args.command is None:
-        make_parser().print_help()
+        with contextlib.suppress(OSError):  # a full stdout: the error line below still says what to do
+            make_parser().print_help()
         sys.stderr.write(NO_COMMAND + "\n")
         return 2
     if handle_signals:
@@ -249,6 +255,7 @@ def _dispatch(args: argparse.Namespace) -> int:
 
     from geometry.part import GeometryError
     from pipeline.errors import InputError, NumericalError
+    from pipeline.runtime.outdir import OutputError
     from pipeline.runtime.rankfailure import RankFailures
     rank0 = MPI.COMM_WORLD.rank == 0
     new_command()
@@ -258,18 +265,20 @@ def _dispatch(args: argparse.Namespace) -> int:
                 if args.command == "sweep":
                     return _sweep(args, rank0)
                 return _run_or_converge(args, rank0, stack)
+        except OutputError as exc:  # before InputError and OSError: it is both an output and an OS failure
+            code, line = 2, f"error: {_one_line(exc)}; {exc.outcome or declared_outcome()}"
+        except StdoutError as exc:
+            code, line = 2, f"error: {_one_line(exc)}; {declared_outcome()}"
         except InputError as exc:
             code, line = 2, f"error: {_one_line(exc)}"
         except (NumericalError, GeometryError) as exc:
-            code, line = 3, f"numerical failure: {_one_line(exc)}; nothing written"
-        except OSError as exc:  # disk full, permission, ...: the staging folder is already gone
-            where = f" {exc.filename}" if exc.filename else ""
-            code, line = 2, (f"error: out: cannot write{where}: {exc.strerror or exc}; nothing written, "
-                             "the output folder is as it was")
-        except Exception as exc:  # a failure no check foresaw: still one line and nothing written
+            code, line = 3, f"numerical failure: {_one_line(exc)}; {declared_outcome()}"
+        except OSError as exc:  # disk full, permission, ... outside the output folder (the cache, say)
+            code, line = 2, f"error: {_os_failure(exc)}; {declared_outcome()}"
+        except Exception as exc:  # a failure no check foresaw: still one line, and what became of the output
             if os.environ.get("CROSSHEAD_TRACEBACK"):
                 raise
-            code, line = 3, (f"failure: {type(exc).__name__}: {_one_line(exc)}; nothing written "
+            code, line = 3, (f"failure: {type(exc).__name__}: {_one_line(exc)}; {declared_outcome()} "
                              "(set CROSSHEAD_TRACEBACK=1 for the traceback)")
         return failures.fail(code, line)
 
@@ -482,15 +491,39 @@ def _one_line(exc: Exception) -> str:
     return " ".join(str(exc).split())
 
 
+def _os_failure(exc: OSError) -> str:
+    """The thing an OSError met outside the output folder, named for the failure line:
+    the cache (compiled forms, meshes kept for later runs) or the file itself."""
+    from pipeline.runtime.environment import CACHE_HOME
+    reason = exc.strerror or _one_line(exc)
+    if exc.filename is None:
+        return f"a file operation failed ({reason})"
+    path = Path(os.fsdecode(exc.filename))
+    if CACHE_HOME == path or CACHE_HOME in path.parents:
+        return f"cache: cannot use {path} ({reason}; CROSSHEAD_NO_CACHE=1 runs without the run cache)"
+    return f"{path}: {reason}"
+
+
 def _progress(msg: str) -> None:
     _print(f"[{time.perf_counter() - T_START:7.2f} s] {msg}")
 
 
 def _print(line: str) -> None:
-    """Print a line; a closed stdout (``| head``) silences the rest instead of ending the run."""
+    """Print a line. A closed pipe (``| head``) silences the rest and the run goes on: the
+    reader wanted no more. Any other failure (a full disk, /dev/full) is the command's:
+    StdoutError, and the rest silenced so that the exit does not try again."""
     try:
         print(line, flush=True)
-    except (BrokenPipeError, ValueError):
+    except (BrokenPipeError, ValueError):  # ValueError: a stream closed in this process
+        _silence_stdout()
+    except OSError as exc:
+        _silence_stdout()
+        raise StdoutError(f"stdout: cannot write ({exc.strerror or exc})") from None
+
+
+def _silence_stdout() -> None:
+    """Send the rest of stdout to /dev/null (what is still buffered too)."""
+    with contextlib.suppress(OSError, ValueError, AttributeError):
         devnull = os.open(os.devnull, os.O_WRONLY)
         os.dup2(devnull, sys.stdout.fileno())
         os.close(devnull)

@@ -80,6 +80,13 @@ def stop_outcome(text: str) -> None:
             _WATCHER.outcome = text
 
 
+def declared_outcome() -> str:
+    """What became of the output so far, as the command last declared it
+    (:func:`stop_outcome`), or NOTHING_WRITTEN: the end of a failure line as of a stop's."""
+    with _WATCHER.lock:
+        return _WATCHER.outcome or NOTHING_WRITTEN
+
+
 def new_command() -> None:
     """Forget the outcome a previous command in this process declared (tests call the
     command line several times in one process)."""
@@ -144,16 +151,22 @@ def end_process(code: int, line: str | Callable[[], str] | None, run_cleanups: b
         for stream in (sys.stdout, sys.stderr):
             try:
                 stream.flush()
-            except (OSError, ValueError):  # a closed pipe: the line below still goes out
+            except (OSError, ValueError, AttributeError):  # a closed pipe, or no stream: the line below still goes out
                 pass
     if callable(line):
         line = line()
     if line is not None:
         try:
-            os.write(2, (line + "\n").encode())
-        except OSError:
+            os.write(2, (line + "\n").encode(_stderr_encoding(), errors="replace"))
+        except (OSError, LookupError):
             pass
     os._exit(code)
+
+
+def _stderr_encoding() -> str:
+    """The encoding of stderr's text stream (UTF-8 when there is none): the line is written
+    to the descriptor directly, in the encoding the reader chose (PYTHONIOENCODING)."""
+    return getattr(sys.stderr, "encoding", None) or "utf-8"
 
 
 def _stop(signum: int) -> None:
@@ -210,4 +223,5 @@ def install(speak: bool = True) -> None:
     # raises KeyboardInterrupt in the main thread beside the watcher's stop): make it ours.
     gmsh.oldsig = _noop
     threading.Thread(target=_watch, args=(read_fd,), name="stop-watcher", daemon=True).start()
-    sys.stdout.flush()
+    with contextlib.suppress(OSError, ValueError, AttributeError):  # no stdout, or a full or closed one
+        sys.stdout.flush()
