@@ -70,17 +70,12 @@ sizes: $(SETUP)
 	$(RUN) sweep --sizes all --out results/sizes
 	$(PY) -m pipeline.study.summary results/sizes/variants --all --out results/summary
 
-# Removes the results folders crosshead wrote (those carrying its .crosshead-results marker),
-# staging folders and locks left by killed runs; names and keeps anything else in results/.
+# Removes what crosshead wrote under results/: its results folders (those carrying its
+# .crosshead-results marker, its own JSON), staging folders and the locks of runs that are
+# not running; keeps and names anything else, a user's file inside a results folder too
+# (pipeline/runtime/folders.py, clean). No MPI or numerics: runs before make setup too.
 clean:
-	@for d in results/* results/.[!.]*; do \
-	  [ -e "$$d" ] || continue; \
-	  if [ -d "$$d" ] && [ ! -L "$$d" ] && { [ -e "$$d/.crosshead-results" ] || [ -e "$$d/.crosshead-staging" ]; }; then \
-	    rm -rf "$$d"; \
-	  elif [ -f "$$d" ] && case "$$d" in results/.*.lock) true;; *) false;; esac; then \
-	    rm -f "$$d"; \
-	  else echo "make clean: kept $$d (no .crosshead-results marker: not a run's folder; the outputs of make bench and make reference are kept on purpose, remove them by hand)"; fi; \
-	done; rmdir results 2>/dev/null || true
+	@$(if $(wildcard $(PY)),$(PY),python3) -m pipeline.runtime.folders results
 
 # Meshes and pilot places kept for runs that change only load, E or the allowable.
 clean-cache:

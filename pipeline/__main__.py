@@ -6,7 +6,6 @@ from pipeline.runtime.interrupts import stop_before_start
 from pipeline.runtime.streams import make_safe
 
 
-
 def console() -> None:
     """Run the command line and exit with its status (the ``crosshead`` command)."""
     # Closed or unencodable standard streams made safe before anything is written or

@@ -15,6 +15,33 @@ from typing import Callable
 MARKER = ".crosshead-results"  # written last into every results folder: "this folder is ours"
 STAGING_MARK = ".crosshead-staging"  # written first into every staging folder
 REPOSITORY = Path(__file__).resolve().parents[2]
+# Files a run writes; a folder holding nothing else (and a results.json) is a results folder
+# of a version of the tool that wrote no marker yet, and a marker without its list of files
+# (such a version's too) names these as the tool's.
+RUN_FILES = frozenset({"results.json", "report.md", "report.html", "mesh.msh", "displacement.pvd",
+                       "displacement.vtu", "von_mises.vtu", "fields.vtu", "von_mises.png", "convergence.png",
+                       "sections.png", "peaks.png"})
+
+
+def is_field_part(name: str) -> bool:
+    """A piece of the displacement field a run wrote (one .vtu per rank under MPI)."""
+    return name.startswith("displacement") and name.endswith((".vtu", ".pvtu"))
+
+
+def tool_names(folder: Path, names: set[str]) -> set[str]:
+    """Of ``names`` (the entries of ``folder``, which carries the tool's marker), those the
+    tool wrote: what its marker lists, or for a marker without the list a run's files."""
+    listed = (marker_data(folder) or {}).get("files")
+    if isinstance(listed, list) and all(isinstance(n, str) for n in listed):
+        return (names & set(listed)) | ({MARKER} & names)
+    return {n for n in names if n in RUN_FILES or n == MARKER or is_field_part(n)}
+
+
+def user_names(folder: Path) -> list[str]:
+    """The entries of ``folder`` (the tool's results folder) that the tool did not write,
+    sorted: the user's, which a re-run carries over."""
+    names = {p.name for p in folder.iterdir()}
+    return sorted(names - tool_names(folder, names))
 
 
 def marker_data(folder: Path) -> dict | None:
@@ -140,3 +167,120 @@ def refusal(out: Path, own: frozenset[str], not_mine: Callable[[Path], str | Non
                 reason = not_mine(out)
     return None if reason is None else f"error: out: refusing {out}: {reason}"
 
+
+
+# What a design study and a size summary write besides their marker (pipeline/study/):
+# the names `make clean` may remove from such a folder; a variant's folder is a run's.
+STUDY_FILES = frozenset({"sweep.csv", "sweep.json", "report.md", "variants", ".claims"})
+SUMMARY_FILES = frozenset({"summary.md", "summary.csv", "summary.png"})
+
+
+def _is_study_plot(name: str) -> bool:
+    return name.endswith(".png") and "_vs_" in name
+
+
+def _remove_tree(p: Path) -> None:
+    """Delete a file, a symlink (not its target) or a folder tree."""
+    import shutil
+    if p.is_dir() and not p.is_symlink():
+        shutil.rmtree(p, ignore_errors=True)
+    else:
+        try:
+            p.unlink()
+        except OSError:
+            pass
+
+
+def _clean_results_folder(folder: Path) -> list[str]:
+    """Remove what the tool wrote in ``folder`` (it carries the tool's marker): a run's
+    files as its marker lists them, a study's files and its variants' folders and failure
+    notes, a summary's files; the marker goes last, then the folder if nothing is left.
+    Returns the paths kept (relative to ``folder``): files the tool did not write."""
+    kind = marked_kind(folder)
+    names = {p.name for p in folder.iterdir()}
+    if kind == "run":
+        ours = tool_names(folder, names)
+    elif kind == "summary":
+        ours = names & (SUMMARY_FILES | {MARKER})
+    else:
+        ours = {n for n in names if n in STUDY_FILES or n == MARKER or _is_study_plot(n)}
+    kept = sorted(names - ours)
+    for name in sorted(ours - {MARKER, "variants"}):
+        _remove_tree(folder / name)
+    variants = folder / "variants"
+    if "variants" in ours and variants.is_dir() and not variants.is_symlink():
+        for v in sorted(variants.iterdir()):
+            if v.is_dir() and not v.is_symlink() and marked_kind(v) == "run":
+                kept += [f"variants/{v.name}/{n}" for n in _clean_results_folder(v)]
+            elif v.is_file() and v.name.endswith(".failed.json"):
+                _remove_tree(v)
+            else:
+                kept.append(f"variants/{v.name}")
+        try:
+            variants.rmdir()
+        except OSError:
+            pass
+    if not kept:
+        _remove_tree(folder / MARKER)
+        try:
+            folder.rmdir()
+        except OSError:
+            pass
+    return kept
+
+
+def _lock_is_free(path: Path) -> bool:
+    """True when no running process holds the lock file ``path`` (flock, as
+    pipeline/runtime/outdir.py takes it)."""
+    import fcntl
+    try:
+        fd = os.open(path, os.O_RDONLY)
+    except OSError:
+        return False
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        return True
+    except OSError:
+        return False
+    finally:
+        os.close(fd)
+
+
+def clean(results: Path, say: Callable[[str], None] = print) -> None:
+    """`make clean`: remove from ``results`` what crosshead wrote and name what it keeps.
+
+    Results folders carrying the tool's marker lose the tool's files (a folder is removed
+    when nothing else is left in it); staging folders and lock files of runs that are not
+    running are removed; anything else (a folder without the tool's marker, a user's file
+    in a results folder, the bench tools' outputs) is kept and named. ``results`` itself
+    goes when it is left empty.
+    """
+    if not results.is_dir():
+        return
+    for p in sorted(results.iterdir()):
+        where = f"{results.name}/{p.name}"
+        if p.is_dir() and not p.is_symlink() and p.name.endswith(".partial") and (
+                (p / STAGING_MARK).is_file() or marker_data(p) is not None):
+            _remove_tree(p)  # a staging folder holds only what the tool wrote
+        elif p.is_dir() and not p.is_symlink() and marker_data(p) is not None:
+            kept = _clean_results_folder(p)
+            if kept:
+                say(f"make clean: kept {where}/ with {', '.join(kept[:5])}{', ...' if len(kept) > 5 else ''} "
+                    "(not written by crosshead); its results were removed")
+        elif p.is_file() and not p.is_symlink() and p.name.startswith(".") and p.name.endswith(".lock"):
+            if _lock_is_free(p):
+                _remove_tree(p)
+            else:
+                say(f"make clean: kept {where} (a run is writing beside it)")
+        else:
+            say(f"make clean: kept {where} (no {MARKER} marker of crosshead's: not a run's folder; the outputs "
+                "of make bench and make reference are kept on purpose, remove them by hand)")
+    try:
+        results.rmdir()
+    except OSError:
+        pass
+
+
+if __name__ == "__main__":
+    import sys
+    clean(Path(sys.argv[1] if len(sys.argv) > 1 else "results"))

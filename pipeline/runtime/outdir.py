@@ -41,17 +41,11 @@ from typing import Iterator
 from mpi4py import MPI
 
 from pipeline.errors import InputError
-from pipeline.runtime.folders import (MARKER, REPOSITORY, STAGING_MARK, enclosing_study, marked_kind, marker_data,
-                                      protected_reason)
+from pipeline.runtime.folders import (MARKER, REPOSITORY, RUN_FILES, STAGING_MARK, enclosing_study, is_field_part,
+                                      marked_kind, marker_data, protected_reason, tool_names, user_names)
 from pipeline.runtime.idle import wait_for_ranks
 from pipeline.runtime.interrupts import on_stop, signals_wait, stop_outcome
 
-# Files a run writes; a folder holding nothing else (and a results.json) is a results folder
-# of a version of the tool that wrote no marker yet, and a marker without its list of files
-# (such a version's too) names these as the tool's.
-RUN_FILES = frozenset({"results.json", "report.md", "report.html", "mesh.msh", "displacement.pvd",
-                       "displacement.vtu", "von_mises.vtu", "fields.vtu", "von_mises.png", "convergence.png",
-                       "sections.png", "peaks.png"})
 NAME_ROOM = 200  # bytes of --out's name kept in the names beside it (see module doc)
 HASH_CHARS = 12  # hex digits of the name's hash in a shortened name (48 bits)
 
@@ -63,27 +57,6 @@ class OutputError(OSError):
     def __init__(self, line: str, outcome: str | None = None) -> None:
         super().__init__(line)
         self.outcome = outcome
-
-
-def _is_field_part(name: str) -> bool:
-    """A piece of the displacement field a run wrote (one .vtu per rank under MPI)."""
-    return name.startswith("displacement") and name.endswith((".vtu", ".pvtu"))
-
-
-def tool_names(folder: Path, names: set[str]) -> set[str]:
-    """Of ``names`` (the entries of ``folder``, which carries the tool's marker), those the
-    tool wrote: what its marker lists, or for a marker without the list a run's files."""
-    listed = (marker_data(folder) or {}).get("files")
-    if isinstance(listed, list) and all(isinstance(n, str) for n in listed):
-        return (names & set(listed)) | ({MARKER} & names)
-    return {n for n in names if n in RUN_FILES or n == MARKER or _is_field_part(n)}
-
-
-def user_names(folder: Path) -> list[str]:
-    """The entries of ``folder`` (the tool's results folder) that the tool did not write,
-    sorted: the user's, which a re-run carries over."""
-    names = {p.name for p in folder.iterdir()}
-    return sorted(names - tool_names(folder, names))
 
 
 def default_out(name: str) -> Path:
@@ -123,7 +96,7 @@ def ownership_reason(out: Path, kind: str = "run") -> str | None:
             return (f"its {MARKER} marker is not crosshead's (empty, unreadable, a folder or another "
                     "program's), so the files in it are not the tool's; choose a new or empty folder")
     else:
-        field_parts = {n for n in names if _is_field_part(n)}
+        field_parts = {n for n in names if is_field_part(n)}
         if "results.json" in names and names - field_parts <= RUN_FILES:
             found = "run"  # written by an earlier version of the tool (no marker yet)
     if found is None:
@@ -132,7 +105,7 @@ def ownership_reason(out: Path, kind: str = "run") -> str | None:
     if found != kind:
         return f"it holds {KINDS[found]}, not {KINDS[kind]}; choose another folder"
     if kind == "run":
-        clash = [n for n in user_names(out) if n in RUN_FILES or _is_field_part(n)]
+        clash = [n for n in user_names(out) if n in RUN_FILES or is_field_part(n)]
         if clash:
             return (f"it holds {_named(clash)}, which crosshead did not write and a run would overwrite; "
                     "move or rename them, or choose another folder")
