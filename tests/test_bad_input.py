@@ -384,7 +384,8 @@ def test_geometry_failure_exit_3(monkeypatch, no_stage_left):
     monkeypatch.setattr(pipeline.analysis.level, "make_mesh", fail)
     code, _, err = call_main(["run", "--size", "05", "--levels", "1", "--quiet", "--out", out])
     assert code == 3 and "Traceback" not in err
-    assert err.splitlines() == ["numerical failure: OpenCASCADE could not fuse the journal; nothing written"]
+    assert err.splitlines() == ["numerical failure: OpenCASCADE could not fuse the journal; nothing written, "
+                                "the output folder is as it was"]
     check_clean()
 
 
