@@ -119,6 +119,8 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
+    from pipeline.runtime.streams import make_safe
+    make_safe()  # closed standard streams on /dev/null, before mpirun and its ranks inherit them
     # Until mpirun starts, Ctrl-C or SIGTERM ends the launcher with its one line.
     for s in (signal.SIGINT, signal.SIGTERM):
         signal.signal(s, stop_before_start)
