@@ -229,7 +229,12 @@ class StdoutError(Exception):
 def main(argv: list[str] | None = None, handle_signals: bool = False) -> int:
     """The command line; ``handle_signals`` (the program, not a test calling in) makes
     Ctrl-C and SIGTERM stop a run cleanly with exit 130 / 143 (pipeline.runtime.interrupts)."""
-    args = make_parser().parse_args(argv)
+    try:
+        args = make_parser().parse_args(argv)
+    except OSError as exc:  # --help on a full stdout: argparse lets the write's error through
+        _silence_stdout()
+        sys.stderr.write(f"error: stdout: cannot write the help ({exc.strerror or exc})\n")
+        return 2
     if args.command is None:
         with contextlib.suppress(OSError):  # a full stdout: the error line below still says what to do
             make_parser().print_help()

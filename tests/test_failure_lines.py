@@ -170,3 +170,11 @@ def test_an_ascii_error_line_keeps_its_words(tmp_path):
     assert proc.returncode == 2, proc.stderr
     line = proc.stderr.decode("ascii").strip()
     assert len(line.splitlines()) == 1 and "0x5.toml" in line, line
+
+
+def test_help_on_a_full_stdout_is_one_line(tmp_path):
+    """Before: argparse's write error came through as a traceback, exit 1."""
+    proc = shell("> /dev/full", ["run", "--help"])
+    assert proc.returncode == 2 and "Traceback" not in proc.stderr, proc.stderr
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1 and "stdout" in lines[0] and "No space left" in lines[0], proc.stderr

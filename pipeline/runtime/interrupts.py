@@ -44,6 +44,8 @@ import threading
 import time
 from typing import Callable, Iterator
 
+from pipeline.runtime.streams import ASCII_HANDLER
+
 EXIT_FOR = {signal.SIGINT: 130, signal.SIGTERM: 143}
 QUIET_RANK_WAIT_S = 10.0  # how long a silent rank lets rank 0 finish its stop (see module doc)
 STOPPED = {signal.SIGINT: "interrupted (Ctrl-C)", signal.SIGTERM: "terminated (SIGTERM)"}
@@ -157,7 +159,7 @@ def end_process(code: int, line: str | Callable[[], str] | None, run_cleanups: b
         line = line()
     if line is not None:
         try:
-            os.write(2, (line + "\n").encode(_stderr_encoding(), errors="replace"))
+            os.write(2, (line + "\n").encode(_stderr_encoding(), errors=ASCII_HANDLER))
         except (OSError, LookupError):
             pass
     os._exit(code)
