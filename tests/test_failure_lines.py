@@ -53,7 +53,8 @@ def earlier(tmp_path_factory) -> Path:
 # ------------------------------------------------------------------ stdout on a full device
 
 def test_stdout_on_a_full_device_names_stdout_and_writes_nothing(tmp_path, earlier):
-    """Before: "error: out: cannot write: No space left on device; ..." blamed --out."""
+    """The line names stdout, not --out ("error: out: cannot write: No space left ..." would
+    send the user after the wrong thing), and its "nothing written" holds."""
     out = tmp_path / "res"
     shutil.copytree(earlier, out)
     proc = shell("> /dev/full", FAST + ["--load", "20000", "--out", out])
@@ -83,8 +84,8 @@ class FullAtTheSummary(io.StringIO):
 
 
 def test_stdout_full_after_publication_says_the_results_were_written(tmp_path, earlier, monkeypatch, capsys):
-    """Before: "...; nothing written, the output folder is as it was" after results.json had
-    been replaced (5000 N -> 20000 N)."""
+    """The results are in place (5000 N -> 20000 N) when stdout fails: the line says so, and
+    not "nothing written, the output folder is as it was"."""
     from pipeline import cli
     out = tmp_path / "res"
     shutil.copytree(earlier, out)
@@ -102,7 +103,7 @@ def test_stdout_full_after_publication_says_the_results_were_written(tmp_path, e
 
 def test_a_cache_failure_names_the_cache(tmp_path, earlier, monkeypatch, capsys):
     """A read-only form cache (any OSError on a path under the cache folder): the line names
-    the cache and its path, not --out (before: "out: cannot write <the cache's file>")."""
+    the cache and its path, not --out ("out: cannot write <the cache's file>" is untrue)."""
     import pipeline.commands
     from pipeline import cli
     from pipeline.runtime.environment import CACHE_HOME
@@ -128,7 +129,8 @@ def test_a_cache_failure_names_the_cache(tmp_path, earlier, monkeypatch, capsys)
 
 @pytest.mark.parametrize("quiet", [[], ["--quiet"]], ids=["progress", "quiet"])
 def test_a_closed_stdout_still_writes_the_result(tmp_path, quiet):
-    """Before: AttributeError traceback from pipeline/runtime/interrupts.py, exit 1."""
+    """No traceback (sys.stdout is None when descriptor 1 is closed at start), exit 0, the
+    result written."""
     out = tmp_path / "res"
     proc = shell(">&-", FAST + quiet + ["--out", out])
     assert proc.returncode == 0 and "Traceback" not in proc.stderr, proc.stderr
@@ -137,7 +139,7 @@ def test_a_closed_stdout_still_writes_the_result(tmp_path, quiet):
 
 @pytest.mark.parametrize("redirect", ["2>&-", "2>/dev/full"], ids=["closed", "full"])
 def test_bad_input_with_stderr_closed_or_full_is_still_exit_2(tmp_path, redirect):
-    """The line cannot be written, the status still says bad input (before: exit 1)."""
+    """The line cannot be written; the status still says bad input (2, not 1)."""
     proc = shell(redirect, BAD + ["--out", tmp_path / "res"])
     assert proc.returncode == 2, (proc.returncode, proc.stderr)
     assert os.listdir(tmp_path) == []
@@ -151,8 +153,8 @@ def test_a_run_with_stderr_closed_finishes(tmp_path):
 
 
 def test_an_ascii_stdout_gets_every_line(tmp_path):
-    """Before: with PYTHONIOENCODING=ascii the output stopped at the first "×" (the pilot's
-    "×4"), the rest of the run silent."""
+    """With PYTHONIOENCODING=ascii every line comes out, "×" as "x" (the first "×", the
+    pilot's "×4", must not silence the rest of the run)."""
     out = tmp_path / "res"
     proc = subprocess.run([PY, "-m", "pipeline", *FAST, "--out", str(out)], cwd=ROOT,
                           env=dict(ENV, PYTHONIOENCODING="ascii"), capture_output=True, timeout=300)
@@ -173,7 +175,7 @@ def test_an_ascii_error_line_keeps_its_words(tmp_path):
 
 
 def test_help_on_a_full_stdout_is_one_line(tmp_path):
-    """Before: argparse's write error came through as a traceback, exit 1."""
+    """argparse lets the write's error through: one line naming stdout, exit 2, no traceback."""
     proc = shell("> /dev/full", ["run", "--help"])
     assert proc.returncode == 2 and "Traceback" not in proc.stderr, proc.stderr
     lines = proc.stderr.strip().splitlines()

@@ -68,7 +68,7 @@ def earlier(tmp_path_factory) -> Path:
 # ------------------------------------------------------------------ a re-run keeps the user's files
 
 def test_a_rerun_keeps_the_files_the_user_added(tmp_path, earlier):
-    """Before: the re-run replaced the folder whole, notes.txt and sub/view.pvsm with it."""
+    """notes.txt and sub/view.pvsm survive the re-run and the next one, byte for byte."""
     out = tmp_path / "res"
     shutil.copytree(earlier, out)
     (out / "notes.txt").write_text("my notes\n")
@@ -98,8 +98,8 @@ def test_a_users_file_with_a_name_a_run_writes_is_refused_up_front(tmp_path, ear
 
 @pytest.mark.parametrize("marker", ["", "{}", "not json", '{"tool": "paraview"}', "[1, 2]", "folder"])
 def test_a_marker_that_is_not_the_tools_does_not_make_a_folder_the_tools(tmp_path, marker):
-    """Before: any entry named .crosshead-results made a user's folder replaceable (a folder
-    marker also left .<name>.old-PID behind)."""
+    """An entry named .crosshead-results that is not the tool's JSON leaves the user's folder
+    the user's: refused, every file as it was, nothing (.<name>.old-PID) beside it."""
     out = tmp_path / "mine"
     out.mkdir()
     (out / "thesis.tex").write_text("x\n")
@@ -125,7 +125,7 @@ def _tool_folder(folder: Path, files: dict[str, str], listed: list[str]) -> Path
 
 def test_a_run_killed_after_publishing_gives_the_users_files_to_the_next(tmp_path):
     """Killed between the publication and the carry-over: the earlier folder, set aside as
-    .res.old-PID, still holds the user's notes. Before: the next run deleted it whole."""
+    .res.old-PID, still holds the user's notes: the next run moves them in, not deletes them."""
     from pipeline.runtime.outdir import remove_leftovers
     out = _tool_folder(tmp_path / "res", {"results.json": "new"}, ["results.json"])
     old = _tool_folder(tmp_path / ".res.old-4242", {"results.json": "old", "notes.txt": "mine"}, ["results.json"])
@@ -138,8 +138,8 @@ def test_a_run_killed_after_publishing_gives_the_users_files_to_the_next(tmp_pat
 
 
 def test_a_run_killed_between_its_renames_gets_the_earlier_result_back(tmp_path):
-    """Killed after setting the earlier result aside, before the new one was in place:
-    the next run puts it back (before: it was deleted as a leftover)."""
+    """Killed after setting the earlier result aside, the new one not yet in place: the next
+    run puts it back instead of deleting it as a leftover."""
     from pipeline.runtime.outdir import remove_leftovers
     out = tmp_path / "res"
     _tool_folder(tmp_path / ".res.old-4242", {"results.json": "old", "notes.txt": "mine"}, ["results.json"])
@@ -150,7 +150,7 @@ def test_a_run_killed_between_its_renames_gets_the_earlier_result_back(tmp_path)
 
 def test_another_folders_staging_folder_is_not_a_leftover(tmp_path):
     """``res.x``'s staging folder starts with ``.res.``; a run to ``res`` must not take it for
-    its own (before: ``.res.*`` matched it, and a running run's staging was deleted)."""
+    its own (the glob ``.res.*`` matches it: a running run's staging folder)."""
     from pipeline.runtime.outdir import remove_leftovers
     other = tmp_path / ".res.x.abcd1234.partial"
     other.mkdir()
@@ -166,8 +166,8 @@ def test_another_folders_staging_folder_is_not_a_leftover(tmp_path):
 
 @pytest.mark.parametrize("name", ["L" * 255, "é" * 120 + "L" * 15], ids=["255-ascii", "255-bytes-utf8"])
 def test_a_folder_name_of_255_bytes_can_be_an_output_folder(tmp_path, name):
-    """Before: names of 241-255 bytes were refused (the lock and staging names beside the
-    folder took the name plus up to 18 bytes; the limit is 255)."""
+    """The names beside the folder (lock, staging, set-aside) must fit 255 bytes too: the
+    name plus ".lock" or ".XXXXXXXX.partial" does not for names of 241-255 bytes."""
     assert len(name.encode()) == 255
     out = tmp_path / name
     proc = cli(FAST + ["--out", out, "--quiet"])
@@ -182,8 +182,8 @@ def test_a_folder_name_of_255_bytes_can_be_an_output_folder(tmp_path, name):
 @pytest.mark.parametrize("umask,folder_mode,file_mode", [(0o022, 0o755, 0o644), (0o002, 0o775, 0o664)],
                          ids=["umask-022", "umask-002"])
 def test_results_get_the_modes_the_umask_gives(tmp_path, umask, folder_mode, file_mode):
-    """Like mkdir and any editor: folders 0777, files 0666, less the umask (before: the
-    results folder kept the staging folder's private 0700)."""
+    """Like mkdir and any editor: folders 0777, files 0666, less the umask (not the staging
+    folder's private 0700 from mkdtemp)."""
     out = tmp_path / "a" / "res"
     proc = subprocess.run([PY, "-m", "pipeline", *FAST, "--out", str(out), "--quiet"], cwd=ROOT, env=ENV,
                           capture_output=True, text=True, timeout=300, umask=umask)
@@ -202,8 +202,8 @@ def _can_bind_mount() -> bool:
 
 @pytest.mark.skipif(not _can_bind_mount(), reason="needs unshare -rm (user and mount namespaces)")
 def test_a_bind_mount_on_the_same_file_system_is_a_mount_point(tmp_path):
-    """A bind mount has its parent's device number, so os.path.ismount missed it: the run
-    went on to the end and then failed to rename it (exit 2, "Device or resource busy")."""
+    """A bind mount has its parent's device number, so os.path.ismount misses it: refused
+    before any work, not at the end ("Device or resource busy" when renaming it)."""
     src, dst = tmp_path / "src", tmp_path / "dst"
     src.mkdir()
     dst.mkdir()
@@ -239,8 +239,8 @@ def study(tmp_path, earlier) -> Path:
 
 @pytest.mark.parametrize("inside", ["variants/0123456789ab", "variants/new", "elsewhere/deeper"])
 def test_a_run_inside_a_design_study_is_refused_naming_the_study(study, inside):
-    """Before: a run was accepted in variants/<key> (the variant carries a run marker) and
-    the study's next resume reported that run's numbers for the variant."""
+    """A run in variants/<key> (the variant carries a run marker) would be reported by the
+    study's next resume as that variant's numbers: refused, naming the study."""
     before = snapshot(study)
     for command in (FAST, ["converge", "--size", "05", "--mesh-factor", "3", "--levels", "4"],
                     ["sweep", "--size", "05", "--dim", "rf=1,2", "--mesh-factor", "3", "--levels", "1"]):
@@ -252,9 +252,8 @@ def test_a_run_inside_a_design_study_is_refused_naming_the_study(study, inside):
 # ------------------------------------------------------------------ make clean
 
 def test_make_clean_keeps_what_the_tool_did_not_write(tmp_path, earlier):
-    """Before: any folder holding a .crosshead-results entry was removed whole (a user's
-    folder with an empty marker, a user's notes inside a results folder), and so was the
-    lock of a run still writing."""
+    """Only the tool's JSON marker makes a folder removable, only the files it lists are
+    removed (a user's notes inside stay), and the lock of a run still writing stays."""
     results = tmp_path / "results"
     results.mkdir()
     run = results / "05"

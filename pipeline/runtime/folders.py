@@ -15,9 +15,9 @@ from typing import Callable
 MARKER = ".crosshead-results"  # written last into every results folder: "this folder is ours"
 STAGING_MARK = ".crosshead-staging"  # written first into every staging folder
 REPOSITORY = Path(__file__).resolve().parents[2]
-# Files a run writes; a folder holding nothing else (and a results.json) is a results folder
-# of a version of the tool that wrote no marker yet, and a marker without its list of files
-# (such a version's too) names these as the tool's.
+# Files a run writes. A folder holding nothing else (and a results.json) is a run's results
+# folder in the format without a marker, and a marker without a list of files names these
+# as the tool's.
 RUN_FILES = frozenset({"results.json", "report.md", "report.html", "mesh.msh", "displacement.pvd",
                        "displacement.vtu", "von_mises.vtu", "fields.vtu", "von_mises.png", "convergence.png",
                        "sections.png", "peaks.png"})
