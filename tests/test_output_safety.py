@@ -6,7 +6,9 @@
   leave the earlier result as it was, with one process and under MPI (pipeline.runtime.launch);
 - a staging folder left by a killed run is removed by the next run to the same folder;
 - a second run to a folder that is being written stops with exit 2 naming the other run;
-- a closed stdout does not lose the result; a full disk is exit 2 with nothing written;
+- a closed stdout does not lose the result; a full disk is exit 2 with nothing written
+  (closed, full and ASCII-only streams in detail: tests/test_failure_lines.py; a user's
+  files in results folders, markers, names, modes, mounts: tests/test_user_files.py);
 - a failure on one MPI rank alone ends every rank with one line (no hang), nothing written.
 
 The runs are real subprocesses on coarse meshes (mesh factor 3, one level: a few seconds).
