@@ -12,6 +12,7 @@ import math
 import os
 import signal
 import sys
+import threading
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -522,6 +523,8 @@ def _print(line: str) -> None:
     except (BrokenPipeError, ValueError):  # ValueError: a stream closed in this process
         _silence_stdout()
     except OSError as exc:
+        if threading.current_thread() is not threading.main_thread():
+            return  # the meshing heartbeat's: the main thread's next line meets the failure and reports it
         _silence_stdout()
         raise StdoutError(f"stdout: cannot write ({exc.strerror or exc})") from None
 

@@ -180,3 +180,24 @@ def test_help_on_a_full_stdout_is_one_line(tmp_path):
     assert proc.returncode == 2 and "Traceback" not in proc.stderr, proc.stderr
     lines = proc.stderr.strip().splitlines()
     assert len(lines) == 1 and "stdout" in lines[0] and "No space left" in lines[0], proc.stderr
+
+
+def test_a_full_stdout_met_by_the_meshing_heartbeat_is_reported_by_the_main_thread(monkeypatch):
+    """The heartbeat (pipeline/fe/meshing.py) prints from its own thread: an error there must
+    not end that thread with a traceback and be lost; the main thread's next line reports it."""
+    import threading
+
+    from pipeline import cli
+
+    class Full(io.StringIO):
+        def write(self, text: str) -> int:
+            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+    monkeypatch.setattr(sys, "stdout", Full())
+    died = []
+    monkeypatch.setattr(threading, "excepthook", died.append)
+    beat = threading.Thread(target=cli._print, args=("meshing: still working (10 s so far)",))
+    beat.start()
+    beat.join()
+    assert died == []
+    with pytest.raises(cli.StdoutError, match="stdout: cannot write .No space left"):
+        cli._print("the next progress line")
