@@ -75,7 +75,7 @@ sizes: $(SETUP)
 # not running; keeps and names anything else, a user's file inside a results folder too
 # (pipeline/runtime/folders.py, clean). No MPI or numerics: runs before make setup too.
 clean:
-	@$(if $(wildcard $(PY)),$(PY),python3) -m pipeline.runtime.folders results
+	@if [ -d results ]; then $(if $(wildcard $(PY)),$(PY),python3) -m pipeline.runtime.folders results; fi
 
 # Meshes and pilot places kept for runs that change only load, E or the allowable.
 clean-cache:
