@@ -1,8 +1,10 @@
 """Command line: crosshead {run,converge,sweep} ... (units: mm, N, MPa).
 
 Exit status (docs/design.md §8): 0 done; 2 bad input or an output folder that cannot be
-used; 3 the computation failed; 130 / 143 stopped by Ctrl-C / SIGTERM. One line on stderr,
-nothing written, an earlier result left as it was.
+used; 3 the computation failed; 130 / 143 stopped by Ctrl-C / SIGTERM. One line on stderr
+naming what failed (the input, --out, stdout, the cache) and what became of the output:
+nothing written and an earlier result left as it was, unless the results were already in
+place (pipeline.runtime.interrupts.declared_outcome).
 """
 from __future__ import annotations
 
@@ -506,7 +508,9 @@ def _os_failure(exc: OSError) -> str:
         return f"a file operation failed ({reason})"
     path = Path(os.fsdecode(exc.filename))
     if CACHE_HOME == path or CACHE_HOME in path.parents:
-        return f"cache: cannot use {path} ({reason}; CROSSHEAD_NO_CACHE=1 runs without the run cache)"
+        runs = CACHE_HOME / "runs"  # the run cache can be turned off; the form compiler's cannot
+        hint = "; CROSSHEAD_NO_CACHE=1 runs without it" if runs == path or runs in path.parents else ""
+        return f"cache: cannot use {path} ({reason}{hint})"
     return f"{path}: {reason}"
 
 

@@ -285,3 +285,29 @@ def test_make_clean_keeps_what_the_tool_did_not_write(tmp_path, earlier):
     assert held.exists()
     for name in ("05", "fake", "dirmark", ".busy.lock"):
         assert f"results/{name}" in proc.stdout, proc.stdout
+
+
+def test_clean_removes_a_studys_files_and_keeps_a_users_file_among_its_variants(tmp_path):
+    """A design study's folder (docs/design.md §8: its marker says "sweep": true): its table,
+    report, plots, variants' run folders and failure notes go; a user's file in variants/
+    stays, named, with the folders that hold it."""
+    from pipeline.runtime.folders import clean
+    results = tmp_path / "results"
+    study = results / "study"
+    variant = study / "variants" / "0123456789ab"
+    variant.mkdir(parents=True)
+    (variant / "results.json").write_text("{}\n")
+    (variant / MARKER).write_text('{"tool": "crosshead", "files": ["results.json"]}\n')
+    (study / "variants" / "fedcba987654.failed.json").write_text("{}\n")
+    (study / "variants" / "notes.txt").write_text("mine\n")
+    for name in ("sweep.csv", "sweep.json", "report.md", "peak_vs_rf.png"):
+        (study / name).write_text("x\n")
+    (study / MARKER).write_text('{"tool": "crosshead", "sweep": true}\n')
+    said = []
+    clean(results, said.append)
+    assert snapshot(results) == {"study": None, f"study/{MARKER}": b'{"tool": "crosshead", "sweep": true}\n',
+                                 "study/variants": None, "study/variants/notes.txt": b"mine\n"}
+    assert len(said) == 1 and "results/study" in said[0] and "variants/notes.txt" in said[0], said
+    (study / "variants" / "notes.txt").unlink()
+    clean(results, said.append)
+    assert not results.exists()
