@@ -176,6 +176,7 @@ SUMMARY_FILES = frozenset({"summary.md", "summary.csv", "summary.png"})
 
 
 def _is_study_plot(name: str) -> bool:
+    """A plot a study draws: peak_vs_rf.png, critical_peak_vs_dj.png (pipeline/study/table.py)."""
     return name.endswith(".png") and "_vs_" in name
 
 

@@ -70,6 +70,7 @@ KINDS = {"run": "a run's results", "sweep": "a design study's results", "summary
 
 
 def _named(names: list[str], most: int = 3) -> str:
+    """The first ``most`` names for a one-line message, "..." for the rest."""
     return ", ".join(names[:most]) + (", ..." if len(names) > most else "")
 
 

@@ -94,6 +94,7 @@ def make_safe() -> None:
 
 
 def _fileno(stream: io.TextIOWrapper) -> int | None:
+    """The descriptor under ``stream``, or None (a stream of a test's capture has none)."""
     try:
         return stream.fileno()
     except (OSError, ValueError):
