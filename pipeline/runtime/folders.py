@@ -1,6 +1,9 @@
-"""Folders the tool must never write into, and the marks by which it knows its own.
+"""Folders the tool must never write into, the marks by which it knows its own, and
+``make clean`` (``python -m pipeline.runtime.folders results``).
 
-No MPI here (pipeline/runtime/outdir.py, which imports this, does the writing under MPI): the
+A folder is the tool's only when its marker is the tool's JSON (``"tool": "crosshead"``); a
+run's marker lists the files the run wrote, and everything else in the folder is the
+user's. No MPI here (pipeline/runtime/outdir.py, which imports this, does the writing under MPI): the
 bench tools check their output folders with it without starting MPI in their parent
 process, whose children would inherit MPI's environment.
 """
@@ -172,7 +175,7 @@ def refusal(out: Path, own: frozenset[str], not_mine: Callable[[Path], str | Non
 # What a design study and a size summary write besides their marker (pipeline/study/):
 # the names `make clean` may remove from such a folder; a variant's folder is a run's.
 STUDY_FILES = frozenset({"sweep.csv", "sweep.json", "report.md", "variants", ".claims"})
-SUMMARY_FILES = frozenset({"summary.md", "summary.csv", "summary.png"})
+SUMMARY_FILES = frozenset({"summary.md", "summary.csv", "summary.png"})  # as pipeline/study/summary.py's
 
 
 def _is_study_plot(name: str) -> bool:
