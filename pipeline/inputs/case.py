@@ -338,6 +338,33 @@ def check_bearing(case: Case) -> None:
                          f"({where}), got {centre:g}")
 
 
+# Poisson's ratios from which a nearly incompressible material defeats the element or the
+# solver, measured on No. 05 (docs/accuracy.md, "Nearly incompressible material"):
+# from NU_P1_LOCKS P1 locks (its peaks fall with nu and its error bar no longer covers the
+# P2/P3 value); from NU_ITERATIVE_STALLS the Krylov solvers (pmg, gamg, hypre) need hundreds
+# of iterations and stop at their limit on the default meshes, while MUMPS solves them.
+NU_P1_LOCKS = 0.45
+NU_ITERATIVE_STALLS = 0.4995
+
+
+def check_incompressibility(case: Case) -> None:
+    """Refuse (InputError) an element order or a solver that fails near nu = 0.5: P1 from
+    NU_P1_LOCKS (volumetric locking makes its peaks read low, outside their own error bar),
+    an iterative solver from NU_ITERATIVE_STALLS (it does not converge). The line says what
+    to use instead."""
+    nu = case.nu
+    direct = case.solver == "mumps" or nu < NU_ITERATIVE_STALLS
+    if case.order == 1 and nu >= NU_P1_LOCKS:
+        instead = "--order 2" + ("" if direct else " --solver mumps")
+        raise InputError(f"nu: P1 elements lock at Poisson's ratio {nu:g} (>= {NU_P1_LOCKS:g}, nearly "
+                         "incompressible): their peaks read too low, outside their own error bar "
+                         f"(docs/accuracy.md); use {instead}")
+    if not direct:
+        raise InputError(f"nu: at Poisson's ratio {nu:g} (>= {NU_ITERATIVE_STALLS:g}, nearly incompressible) "
+                         f"the iterative solver {case.solver} does not converge on the default meshes "
+                         "(docs/accuracy.md); use --solver mumps")
+
+
 def check(case: Case) -> Case:
     """Return case if every field is usable, else raise InputError for the first bad one."""
     validate(case.dims)
@@ -358,6 +385,7 @@ def check(case: Case) -> Case:
         raise InputError(f"solver: must be one of {', '.join(SOLVERS)}, got {case.solver!r}")
     if isinstance(case.order, bool) or case.order not in (1, 2, 3):
         raise InputError(f"order: element order must be 1, 2 or 3, got {case.order!r}")
+    check_incompressibility(case)
     _finite_positive("rtol", case.rtol)
     if case.rtol >= 1e-3:
         raise InputError(f"rtol: solver tolerance must be below 1e-3, got {case.rtol:g}")
