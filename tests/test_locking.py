@@ -22,8 +22,9 @@ import pytest
 from mpi4py import MPI
 
 from pipeline import cli
-from pipeline.inputs.case import NU_ITERATIVE_STALLS, NU_P1_LOCKS, resolve
+from pipeline.inputs.case import NU_ITERATIVE_STALLS, NU_P1_LOCKS, SMALL_FEATURE, resolve, small_features
 from pipeline.errors import InputError
+from pipeline.fe.solve import failure_advice
 
 COARSE = ["--size", "05", "--mesh-factor", "3", "--levels", "1", "--no-fields", "--quiet"]
 
@@ -108,3 +109,49 @@ def test_p1_band_misses_the_p3_value_and_p2_covers_it(nu):
         v2, band2 = _estimate(p2, 3, which)
         assert abs(v1 - ref) > (band1 or 0.0), (which, nu, v1, band1, ref)
         assert band2 is not None and abs(v2 - ref) <= band2, (which, nu, v2, band2, ref)
+
+
+# --------------------------------------------------------------------------- extreme geometry
+
+
+def test_small_features_name_the_tiny_length():
+    d = resolve("05").dims
+    assert small_features(d) == []     # No. 05 as the paper gives it: nothing extreme
+    gap = 1e-4                          # seat inner diameter 1e-4 mm above the bore's
+    tiny = replace(d, seat_inner=d.d2 + gap)
+    names = small_features(tiny)
+    assert len(names) == 1 and names[0].startswith("the seat's inner edge to the bore")
+    assert f"{gap / 2:.3g} mm" in names[0]
+    journal = replace(d, dj=0.01)
+    assert small_features(journal)[0].startswith("the journal diameter dj = 0.01 mm")
+    # Just above the threshold is not extreme.
+    assert small_features(replace(d, seat_inner=d.d2 + 2.01 * SMALL_FEATURE * d.b6)) == []
+
+
+def test_failure_advice_says_what_to_try():
+    small = ["the journal diameter dj = 0.01 mm (1.4e-04 of b6 = 70 mm)"]
+    text = failure_advice("pmg", 0.3, small)
+    assert "tiny relative to its size (the journal diameter dj = 0.01 mm" in text and "--solver mumps" in text
+    assert "mumps" not in failure_advice("mumps", 0.3, small) and "check that dimension" in failure_advice(
+        "mumps", 0.3, small)
+    assert "nearly incompressible" in failure_advice("gamg", 0.495, [])
+    assert "nearly incompressible" not in failure_advice("gamg", 0.3, [])
+
+
+@pytest.mark.parametrize("solver", ["gamg", pytest.param("pmg", marks=pytest.mark.slow)])
+def test_extreme_geometry_failure_names_the_feature_and_the_advice_works(tmp_path, solver):
+    """A seat edge 5e-5 mm from the bore (a seat inner diameter 1e-4 mm above the bore's):
+    gamg stops at once (an indefinite preconditioner), pmg at its iteration limit (about a
+    minute on a loaded machine: slow); exit 3 with one line naming the gap and --solver
+    mumps; MUMPS then solves the same part (exit 0)."""
+    argv = ["run", *COARSE, "--dim", "seat_inner=21.0001"]
+    code, _, err = call_main([*argv, "--solver", solver, "--out", tmp_path / solver])
+    assert code == 3, err
+    line, = err.splitlines()
+    assert line.startswith(f"numerical failure: solver {solver} did not converge") and line.endswith("nothing written")
+    assert "the seat's inner edge to the bore, (seat_inner - d2)/2 = 5e-05 mm" in line
+    assert "try --solver mumps" in line
+    assert not (tmp_path / solver).exists()
+    code, _, err = call_main([*argv, "--solver", "mumps", "--out", tmp_path / "mumps"])
+    assert code == 0, err
+    assert (tmp_path / "mumps" / "results.json").exists()

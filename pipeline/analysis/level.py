@@ -10,7 +10,7 @@ import numpy as np
 from dolfinx import fem
 from mpi4py import MPI
 
-from pipeline.inputs.case import BearingBand, Case, formula_bands
+from pipeline.inputs.case import BearingBand, Case, formula_bands, small_features
 from pipeline.fe.elasticity import Material, Traction
 from pipeline.errors import NumericalError
 from pipeline.post.features import critical_region, fillet_region
@@ -21,7 +21,7 @@ from pipeline.post import formulas
 from pipeline.post.sections import formula_load_sections, section_results
 from pipeline.cache import runs as runcache
 from pipeline.cache import solutions as solvecache
-from pipeline.fe.solve import Solution, solve
+from pipeline.fe.solve import Solution, failure_advice, solve
 
 Progress = Callable[[str], None]
 Hotspots = Sequence[tuple[float, float, float]]
@@ -147,8 +147,11 @@ def solve_or_scale(case: Case, prob: Problem, reuse: bool = True,
                     sol.timings[k] += extra.timings[k]
             return sol
     t_key = time.perf_counter() - t0
-    sol = solve(m.mesh, m.facet_tags, case.order, prob.material, lc.tractions, lc.constraints,
-                solver=case.solver, rtol=case.rtol, V=V, more=more)
+    try:
+        sol = solve(m.mesh, m.facet_tags, case.order, prob.material, lc.tractions, lc.constraints,
+                    solver=case.solver, rtol=case.rtol, V=V, more=more)
+    except NumericalError as exc:  # the one line says what to try, from what this case makes hard
+        raise NumericalError(f"{exc}; {failure_advice(case.solver, case.nu, small_features(case.dims))}") from None
     if keep:
         t0 = time.perf_counter()
         solvecache.store(name, sol, ids, case)

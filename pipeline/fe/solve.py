@@ -293,6 +293,32 @@ def _check(uh: fem.Function, reason: int, its: int, res_rel: float, solver: str,
         raise NumericalError(f"true residual {res_rel:.3g} above {limit:.1g} after solve")
 
 
+# Poisson's ratio from which an iterative solver's iterations grow towards its limit
+# (about 17·sqrt(lambda/mu) for P2 with pmg on No. 05, docs/accuracy.md): a failure there
+# is named as the material's.
+NU_NEARLY_INCOMPRESSIBLE = 0.49
+
+
+def failure_advice(solver: str, nu: float, small: Sequence[str]) -> str:
+    """What to try after a solve failed, in words for the failure's one line: the part's
+    extreme lengths (``small``, mm, see pipeline.inputs.case.small_features) and a nearly
+    incompressible material (``nu``) make the stiffness matrix ill-conditioned; MUMPS, a
+    direct solver, copes with more of it than the Krylov solvers. A finer mesh is not
+    offered: at a seat edge 5e-5 mm from the bore pmg stops at its limit on the default
+    mesh as on a coarse one (docs/accuracy.md)."""
+    tips = []
+    if small:
+        tips.append(f"the part has a feature tiny relative to its size ({small[0]}"
+                    + (f"; {len(small) - 1} more below 1e-3 of b6" if len(small) > 1 else "") + ")")
+    if nu >= NU_NEARLY_INCOMPRESSIBLE and solver != "mumps":
+        tips.append(f"Poisson's ratio {nu:g} is nearly incompressible")
+    if solver != "mumps":
+        todo = "try --solver mumps" + (", or check that dimension" if small else "")
+    else:
+        todo = "check that dimension" if small else "check the dimensions and the material (E, nu)"
+    return "; ".join(tips + [todo])
+
+
 def _reactions(system: _System, uh: fem.Function, mat: Material) -> tuple[list[np.ndarray], np.ndarray]:
     """Per constraint the summed reaction force (N, 3 components), and R = K u − f at this
     rank's owned DOFs (N): the residual of the unconstrained system at the fixed DOFs."""

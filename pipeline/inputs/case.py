@@ -367,6 +367,33 @@ def check_incompressibility(case: Case) -> None:
                          "(docs/accuracy.md); use --solver mumps")
 
 
+# A length of the part below this fraction of its tip-to-tip length b6 passes the rules of
+# docs/design.md §2 but is extreme: the mesh must resolve it with elements this much smaller
+# than the rest, and the stiffness matrix grows ill-conditioned (a seat edge 5e-5 mm from the
+# bore stops pmg; a 0.01 mm journal stops MUMPS too). Named when a solve fails.
+SMALL_FEATURE = 1e-3
+
+
+def small_features(dims: Dimensions) -> list[str]:
+    """The lengths of the part (mm) below SMALL_FEATURE × b6, smallest first, each named in
+    words with its value and its fraction of b6: what a failed solve's line points at."""
+    d = dims
+    lengths = {
+        "the seat's inner edge to the bore, (seat_inner - d2)/2": (d.seat_inner - d.d2) / 2,
+        "the seat's outer edge to the body's side, (b1 - seat_outer)/2": (d.b1 - d.seat_outer) / 2,
+        "the seat's width, (seat_outer - seat_inner)/2": (d.seat_outer - d.seat_inner) / 2,
+        "the ligament beside the bore, (b1 - d2)/2": (d.b1 - d.d2) / 2,
+        "the journal diameter dj": d.dj,
+        "the journal's bearing length, b2 - rf": d.b2 - d.rf,
+        "the fillet's edge to the top and bottom faces, h3/2 - dj/2 - rf": d.h3 / 2 - d.dj / 2 - d.rf,
+        "the fillet's edge to the body's sides, b1/2 - dj/2 - rf": d.b1 / 2 - d.dj / 2 - d.rf,
+        "the body height h3": d.h3,
+        **({"the fillet radius rf": d.rf} if d.rf > 0 else {}),
+    }
+    small = sorted((v, k) for k, v in lengths.items() if v < SMALL_FEATURE * d.b6)
+    return [f"{k} = {v:.3g} mm ({v / d.b6:.1e} of b6 = {d.b6:g} mm)" for v, k in small]
+
+
 def check(case: Case) -> Case:
     """Return case if every field is usable, else raise InputError for the first bad one."""
     validate(case.dims)
