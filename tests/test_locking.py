@@ -22,7 +22,8 @@ import pytest
 from mpi4py import MPI
 
 from pipeline import cli
-from pipeline.inputs.case import NU_ITERATIVE_STALLS, NU_P1_LOCKS, SMALL_FEATURE, resolve, small_features
+from pipeline.inputs.case import (NU_DISPLACEMENT_LIMIT, NU_ITERATIVE_STALLS, NU_P1_LOCKS, SMALL_FEATURE, resolve,
+                                  small_features)
 from pipeline.errors import InputError
 from pipeline.fe.solve import failure_advice
 
@@ -60,6 +61,16 @@ def test_p1_below_the_locking_ratio_and_p2_at_it_are_accepted():
     assert below.order == 1
     assert resolve("05", overrides={"order": 2, "nu": 0.49}).nu == 0.49
     assert resolve("05", overrides={"order": 3, "nu": 0.4999, "solver": "mumps"}).nu == 0.4999
+
+
+@pytest.mark.parametrize("order", [2, 3])
+def test_every_order_is_refused_above_the_displacement_limit(tmp_path, order):
+    code, _, err = call_main(["run", *COARSE, "--order", order, "--nu", 0.49999, "--solver", "mumps",
+                              "--out", tmp_path / "out"])
+    assert code == 2, err
+    line, = err.splitlines()
+    assert line.startswith("error: nu: Poisson's ratio 0.49999 is above 0.4999") and "P2 locks" in line
+    assert list(tmp_path.iterdir()) == []
 
 
 @pytest.mark.parametrize("solver", ["pmg", "gamg", "hypre"])
@@ -109,6 +120,23 @@ def test_p1_band_misses_the_p3_value_and_p2_covers_it(nu):
         v2, band2 = _estimate(p2, 3, which)
         assert abs(v1 - ref) > (band1 or 0.0), (which, nu, v1, band1, ref)
         assert band2 is not None and abs(v2 - ref) <= band2, (which, nu, v2, band2, ref)
+
+
+@pytest.mark.slow
+def test_p2_misses_the_p3_value_above_the_displacement_limit():
+    """About 20 s: above NU_DISPLACEMENT_LIMIT P2's critical peak (MUMPS, three coarse
+    meshes) misses P3's, while at the limit it covers it. P3 cannot be solved above the
+    limit (MUMPS misses its residual check), so its value at the limit is the reference;
+    P3 moves between nu = 0.3 and the limit by less than P2's miss beyond its band, so the
+    miss is not P3's value moving with nu."""
+    base = resolve("05", overrides={"mesh_factor": 3.0, "solver": "mumps"})
+    ref, _ = _estimate(replace(base, order=3, nu=NU_DISPLACEMENT_LIMIT), 1)
+    at_03, _ = _estimate(replace(base, order=3, nu=0.3), 1)
+    v_at, band_at = _estimate(replace(base, order=2, nu=NU_DISPLACEMENT_LIMIT), 3)
+    v_above, band_above = _estimate(replace(base, order=2, nu=0.49999), 3)
+    assert abs(v_at - ref) <= band_at, (v_at, band_at, ref)
+    miss = abs(v_above - ref) - band_above
+    assert miss > 0 and abs(ref - at_03) < miss, (v_above, band_above, ref, at_03)
 
 
 # --------------------------------------------------------------------------- extreme geometry
