@@ -8,6 +8,8 @@ answer with a confident error bar (units mm, N, MPa).
   misses the P3 value, while the recommended P2 with MUMPS covers it.
 - The Krylov solvers stop at their iteration limit near nu = 0.5: refused from
   NU_ITERATIVE_STALLS with the line naming --solver mumps.
+- Above NU_DISPLACEMENT_LIMIT P2 locks too: every order is refused; the slow test shows
+  P2's band covering P3's value at the limit and missing it above.
 - A part with a feature tiny relative to its size passes the dimension rules but can stop
   the solver: the failure's one line names that feature and what to try, and what it says
   to try works.
