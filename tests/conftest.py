@@ -24,8 +24,3 @@ def gmsh_session():
     gmsh.option.setNumber("General.Terminal", 0)
     yield
     gmsh.finalize()
-
-
-def pytest_configure(config):
-    """The marks these tests use (pytest warns on an unknown one)."""
-    config.addinivalue_line("markers", "slow: real solves taking more than ~20 s (deselect with -m 'not slow')")

@@ -178,7 +178,7 @@ def test_extreme_geometry_failure_names_the_feature_and_the_advice_works(tmp_pat
     code, _, err = call_main([*argv, "--solver", solver, "--out", tmp_path / solver])
     assert code == 3, err
     line, = err.splitlines()
-    assert line.startswith(f"numerical failure: solver {solver} did not converge") and line.endswith("nothing written")
+    assert line.startswith(f"numerical failure: solver {solver} did not converge") and "; nothing written" in line
     assert "the seat's inner edge to the bore, (seat_inner - d2)/2 = 5e-05 mm" in line
     assert "try --solver mumps" in line
     assert not (tmp_path / solver).exists()
