@@ -218,7 +218,7 @@ def test_summary_leaves_out_a_peak_the_runs_were_not_asked_for(tmp_path):
     assert "120.00" not in md and "49.40" not in md and "⚠" not in md
     assert "*not asked*" in md and "Global peak at" not in md and "Critical peak at" in md
     rows = list(csv.DictReader(io.StringIO((tmp_path / "sum" / "summary.csv").read_text())))
-    assert all(r["fe_peak_MPa"] == "" and r["fe_peak_status"] == "not asked" for r in rows)
+    assert all(r["peak_MPa"] == "" and r["peak_status"] == "not asked" for r in rows)
     assert (tmp_path / "sum" / "summary.png").stat().st_size > 10_000
 
 
@@ -492,8 +492,9 @@ def test_rounded_row_matches_no05_within_its_rounding(size):
 
 def _plot_row(size: str, peak: float) -> dict:
     return {"size": size, "load_N": 10_000.0, "dimensions": "table row", "warnings": "",
-            "fe_peak_MPa": peak, "fe_peak_band_MPa": 1.0, "fe_peak_status": "converged",
-            "fe_critical_MPa": 66.0, "fe_critical_band_MPa": 0.1, "fe_critical_status": "settled",
+            "peak_MPa": peak, "peak_reading_MPa": peak, "peak_band_MPa": 1.0, "peak_status": "converged",
+            "critical_peak_MPa": 66.0, "critical_reading_MPa": 66.0, "critical_band_MPa": 0.1,
+            "critical_status": "settled",
             "exact_MPa": 44.0, "approximate_MPa": 38.0, "allowable_MPa": 80.0}
 
 

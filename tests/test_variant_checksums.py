@@ -165,7 +165,7 @@ def test_an_edited_or_truncated_variant_is_analysed_again_and_never_summarised(t
     assert p.returncode == 0, p.stderr
     with open(out / "summary" / "summary.csv", newline="") as f:
         rows = list(csv.DictReader(f))
-    assert len(rows) == 1 and float(rows[0]["fe_peak_MPa"]) == pytest.approx(
+    assert len(rows) == 1 and float(rows[0]["peak_MPa"]) == pytest.approx(
         next(r["peak_MPa"] for r in first if r["dims.rf"] == 1.5))
     md = (out / "summary" / "summary.md").read_text(encoding="utf-8")
     assert f"{by_rf[1.0]} (results.json does not match its checksum; not summarised)" in md

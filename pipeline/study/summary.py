@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import argparse
 import csv
-import functools
 import io
 import json
 import math
@@ -19,30 +18,29 @@ import re
 import signal
 import sys
 import tempfile
-from dataclasses import asdict
 from pathlib import Path
 
 from geometry.table import is_scaled_row
 
 from pipeline.errors import OneLineParser
+from pipeline.output import flat
+from pipeline.output.flat import NOT_ASKED, PEAKS, SINGULAR
 from pipeline.runtime.interrupts import EXIT_FOR, NOTHING_WRITTEN, STOPPED
 
 _S_RE = re.compile(r"s = sqrt\(Q/1000 kg\) = ([0-9.]+)")
 
-CSV_COLUMNS = (
-    "size", "dimensions", "scale_s", "load_N", "approximate_MPa", "exact_MPa",
-    "fe_peak_MPa", "fe_peak_band_MPa", "fe_peak_status", "fe_peak_extrapolated_MPa",
-    "fe_peak_last_change_MPa", "fe_peak_feature",
-    "fe_critical_MPa", "fe_critical_band_MPa", "fe_critical_status", "fe_critical_extrapolated_MPa",
-    "fe_critical_last_change_MPa", "fe_critical_feature", "allowable_MPa", "safety_factor", "critical_safety_factor",
-    "mesh_min_jacobian_ratio", "mesh_factor", "meshes", "dofs", "time_s", "warnings", "source", "changed_dims")
+# The summary's own columns; the rest are those of a run's row (pipeline.output.flat).
+OWN_COLUMNS = {
+    "dimensions": "where the row's dimensions come from: the size table's row, or scaled from No. 05 (not DIN)",
+    "scale_s": "the scale s = sqrt(Q/1000 kg) of a scaled row's lengths from No. 05; 1 for No. 05",
+    "warnings": "why the row's FE numbers need a look first (nearly inverted element, wide error bar)",
+}
+CSV_COLUMNS = ("size", "dimensions", "scale_s", *(c for c in flat.COLUMNS if c != "size"), "warnings")
 
 SUMMARY_FILES = frozenset({"summary.md", "summary.csv", "summary.png"})
 TITLE = "# Crosshead stresses across hook sizes"  # summary.md's first line
 JACOBIAN_SUSPECT = 0.01   # worst det J ratio of a curved tet below this: nearly inverted
 BAND_TOO_WIDE = 0.25      # error bar above this fraction of the value: not usable
-NOT_ASKED = "not asked"   # the status of a peak the run did not resolve (--want): no value
-STATUS_OF = {"fe_peak_MPa": "fe_peak_status", "fe_critical_MPa": "fe_critical_status"}  # a peak's status column
 
 
 def hook_value(size: str) -> float:
@@ -55,72 +53,21 @@ def hook_value(size: str) -> float:
         return math.inf
 
 
-def _estimate(block: dict) -> tuple[float | None, str, float | None, float | None]:
-    """(band MPa or None, status, extrapolated MPa or None, change finest − next mesh MPa
-    or None) of one peak block."""
-    if block.get("not_wanted"):
-        return None, NOT_ASKED, None, None
-    est = block.get("error_estimate")
-    if est is None:
-        return None, "single mesh", None, None
-    band = est.get("band") if est["status"] != "singular" else None  # singular: no finite value
-    ext = est.get("extrapolated") if est["status"] in ("converged", "scattered") else None
-    vals = est.get("values") or []
-    change = vals[0] - vals[1] if len(vals) >= 2 else None
-    return band, est["status"], ext, change
-
-
-@functools.cache
-def _table() -> dict:
-    """The size table (geometry/sizes.csv), read once per process."""
-    from geometry.table import load_table
-    return load_table()
-
-
-def changed_dims(case: dict) -> str:
-    """The dimensions (mm) in which a run's case differs from its size's row of the table,
-    as "rf = 2 mm (table 1.5)", comma-separated; '' when none does or the size is not in
-    the table (a design study's variants are rows with changed dimensions)."""
-    row = _table().get(str(case.get("size")))
-    dims = case.get("dims")
-    if row is None or not isinstance(dims, dict):
-        return ""
-    table = asdict(row.dims)
-    return ", ".join(f"{k} = {v:g} mm (table {table[k]:g})" for k, v in dims.items()
-                     if k in table and not math.isclose(v, table[k], rel_tol=1e-12, abs_tol=1e-12))
-
-
 def row_of(folder: Path, res: dict) -> dict:
-    """One summary row (flat dict, CSV_COLUMNS) from one results.json."""
-    case, fe, an = res["case"], res["fe"], res["analytic"]
-    src = case.get("source", "")
+    """One summary row (CSV_COLUMNS and the folder) from one results.json: the run's row
+    at the case's own load (pipeline.output.flat), with where its dimensions come from."""
+    row = flat.rows(res)[0]  # the case's own load comes first in a load sweep
+    src = row["source"]
     m = _S_RE.search(src)
     scaled = is_scaled_row(src)
-    pb, ps, pe, pd = _estimate(fe["peak"])
-    cb, cs, ce, cd = _estimate(fe["critical"])
-    return {
-        "size": case.get("size", folder.name), "folder": folder.name,
-        "dimensions": "scaled (not DIN)" if scaled else "table row (see source)",
-        "scale_s": float(m.group(1)) if (scaled and m) else (1.0 if case.get("size") == "05" else None),
-        "load_N": case["load_N"],
-        "approximate_MPa": an["approximate_MPa"], "exact_MPa": an["exact_MPa"],
-        "fe_peak_MPa": None if ps == NOT_ASKED else fe["peak_MPa"], "fe_peak_band_MPa": pb, "fe_peak_status": ps,
-        "fe_peak_extrapolated_MPa": pe, "fe_peak_last_change_MPa": pd, "fe_peak_feature": fe["peak"].get("feature", ""),
-        "fe_critical_MPa": None if cs == NOT_ASKED else fe["critical_peak_MPa"], "fe_critical_band_MPa": cb,
-        "fe_critical_status": cs, "fe_critical_extrapolated_MPa": ce, "fe_critical_last_change_MPa": cd,
-        "fe_critical_feature": fe["critical"].get("feature", ""),
-        "allowable_MPa": case.get("allowable_MPa"),
-        "safety_factor": fe["safety_factor"], "critical_safety_factor": fe["critical_safety_factor"],
-        "mesh_min_jacobian_ratio": fe.get("mesh_min_jacobian_ratio"),
-        "mesh_factor": case.get("mesh_factor"), "meshes": len(fe.get("levels", [])) or None,
-        "dofs": fe.get("dofs"), "time_s": res.get("timings_s", {}).get("total"),
-        "source": src, "changed_dims": changed_dims(case),
-    }
+    return {**row, "size": row["size"] if row["size"] is not None else folder.name, "folder": folder.name,
+            "dimensions": "scaled (not DIN)" if scaled else "table row (see source)",
+            "scale_s": float(m.group(1)) if (scaled and m) else (1.0 if row["size"] == "05" else None)}
 
 
-TEXT_COLUMNS = frozenset({"size", "folder", "dimensions", "fe_peak_status", "fe_peak_feature", "fe_critical_status",
-                          "fe_critical_feature", "source", "changed_dims"})
-NEEDED_COLUMNS = frozenset({"load_N", "approximate_MPa", "exact_MPa", "fe_peak_MPa", "fe_critical_MPa"})
+TEXT_COLUMNS = flat.TEXT_COLUMNS | {"folder", "dimensions"}
+NEEDED_COLUMNS = frozenset({"load_N", "approximate_MPa", "exact_MPa",
+                            *(c for p in PEAKS.values() for c in (p.value, p.reading))})
 
 
 def checked(row: dict) -> dict:
@@ -131,12 +78,18 @@ def checked(row: dict) -> dict:
         if k in TEXT_COLUMNS:
             ok = isinstance(v, str)
         else:
-            not_asked = k in STATUS_OF and row.get(STATUS_OF[k]) == NOT_ASKED
-            ok = (v is None and (k not in NEEDED_COLUMNS or not_asked)) or (
+            ok = (v is None and (k not in NEEDED_COLUMNS or _may_lack(row, k))) or (
                 isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v))
         if not ok:
             raise ValueError(f"{k} = {v!r}")
     return row
+
+
+def _may_lack(row: dict, column: str) -> bool:
+    """Whether a needed peak column may be empty: the value of a peak with none to design
+    with (flat.has_value), or the reading of a peak the run was not asked for."""
+    return any((column == p.value and not flat.has_value(row, p))
+               or (column == p.reading and row.get(p.status) == NOT_ASKED) for p in PEAKS.values())
 
 
 def warnings_of(r: dict) -> list[str]:
@@ -145,8 +98,8 @@ def warnings_of(r: dict) -> list[str]:
     jac = r.get("mesh_min_jacobian_ratio")
     if jac is not None and jac < JACOBIAN_SUSPECT:
         out.append(f"nearly inverted curved element on the finest mesh (det J ratio {jac:.2g})")
-    for key, name in (("peak", "global"), ("critical", "critical")):
-        band, value = r[f"fe_{key}_band_MPa"], r[f"fe_{key}_MPa"]
+    for p, name in ((PEAKS["peak"], "global"), (PEAKS["critical"], "critical")):
+        band, value = r[p.band], r[p.value]
         if band is not None and value and band > BAND_TOO_WIDE * abs(value):
             out.append(f"{name} error bar {100 * band / abs(value):.0f} % of the value")
     return out
@@ -159,7 +112,7 @@ def collect(results_dir: Path, take_all: bool = False) -> tuple[list[dict], list
     checksums (pipeline.study.manifest): one edited or cut short is named, not summarised."""
     from pipeline.runtime.folders import marked_kind
     from pipeline.study.manifest import MANIFEST, VariantFault, folder_fault, read_failure
-    sizes = None if take_all else set(_table())
+    sizes = None if take_all else set(flat.size_table())
     in_study = results_dir.name == "variants" and marked_kind(results_dir.parent) == "sweep"
     rows, skipped, unnamed = [], [], []
     for sub in sorted(p for p in results_dir.iterdir() if p.is_dir()):
@@ -199,14 +152,17 @@ def _n(v: float | None, digits: int = 2) -> str:
 
 
 def _fe_cell(r: dict, key: str) -> str:
-    """FE peak with its error bar, or why it has none (MPa)."""
-    value, band, status = r[f"fe_{key}_MPa"], r[f"fe_{key}_band_MPa"], r[f"fe_{key}_status"]
+    """FE peak with its error bar, or why it has none (MPa); a singular peak's reading
+    with why it is no value (``key``: the peak's fe block, peak or critical)."""
+    p = PEAKS[key]
+    value, band, status = r[p.value], r[p.band], r[p.status]
     if status == NOT_ASKED:
         return "–"
-    change = r[f"fe_{key}_last_change_MPa"]
-    last = "" if change is None else f"; last refinement {change:+.2f}"
-    if status == "singular":
-        return f"{value:.2f} (NOT CONVERGED: grows{last})"
+    change = r[p.last_change]
+    if status == SINGULAR:
+        if change is None:  # found by its place, on one mesh
+            return f"{r[p.reading]:.2f} (NOT CONVERGED: singular feature)"
+        return f"{r[p.reading]:.2f} (NOT CONVERGED: grows; last refinement {change:+.2f})"
     if band is None:
         return f"{value:.2f} (no error bar)"
     return f"{value:.2f} ± {band:.2f}"
@@ -232,10 +188,10 @@ def markdown(rows: list[dict], skipped: list[str], png_name: str | None) -> str:
         lines.append("No results found.")
     notes = _source_notes(rows)
     places = []
-    for name, key in (("Global", "fe_peak"), ("Critical", "fe_critical")):
-        asked = [r for r in rows if r[f"{key}_status"] != NOT_ASKED]
+    for name, p in (("Global", PEAKS["peak"]), ("Critical", PEAKS["critical"])):
+        asked = [r for r in rows if r[p.status] != NOT_ASKED]
         if asked:
-            places.append(f"{name} peak at: {_peak_places(asked, key)}.")
+            places.append(f"{name} peak at: {_peak_places(asked, p.feature)}.")
     if places:
         notes.append(" ".join(places))
     notes += _status_notes(rows)
@@ -273,9 +229,9 @@ def _table_lines(rows: list[dict]) -> list[str]:
         lines.append(
             f"| {r['size']}{flag} | {dims} | {r['load_N']:.0f} | {_n(r['approximate_MPa'])} | "
             f"{_n(r['exact_MPa'])} | {_fe_cell(r, 'peak')} | "
-            f"{r['fe_peak_status']} | "
+            f"{r['peak_status']} | "
             f"{_fe_cell(r, 'critical')} | "
-            f"{r['fe_critical_status']} | {_n(r['safety_factor'])} | {_n(r['critical_safety_factor'])} | "
+            f"{r['critical_status']} | {_n(r['safety_factor'])} | {_n(r['critical_safety_factor'])} | "
             f"{r['dofs'] if r['dofs'] is not None else '–'} | {_n(r['time_s'], 1)} |")
     return lines
 
@@ -317,13 +273,12 @@ def _source_notes(rows: list[dict]) -> list[str]:
     return notes
 
 
-def _peak_places(rows: list[dict], key: str) -> str:
-    """The features a peak sits at (``key``: the peak's column prefix, fe_peak or
-    fe_critical) with the hook numbers at each, the most common first; one feature is said
-    once for every row."""
+def _peak_places(rows: list[dict], column: str) -> str:
+    """The features a peak sits at (``column``: the peak's feature column) with the hook
+    numbers at each, the most common first; one feature is said once for every row."""
     by: dict[str, list[str]] = {}
     for r in rows:
-        by.setdefault(r[f"{key}_feature"] or "?", []).append(r["size"])
+        by.setdefault(r[column] or "?", []).append(r["size"])
     if len(by) == 1:
         return f"{next(iter(by))} (every row)"
     return "; ".join(f"{f} (No. {', '.join(s)})" for f, s in sorted(by.items(), key=lambda kv: -len(kv[1])))
@@ -332,7 +287,7 @@ def _peak_places(rows: list[dict], key: str) -> str:
 def _status_notes(rows: list[dict]) -> list[str]:
     """What each error-bar status that occurs in the rows means for its bar."""
     notes = []
-    statuses = {s for r in rows for s in (r["fe_peak_status"], r["fe_critical_status"])}
+    statuses = {r[p.status] for r in rows for p in PEAKS.values()}
     if "oscillatory" in statuses:
         notes.append("*oscillatory*: the peak moved up and down between the meshes; the "
                      "bar is the largest change, not a Richardson estimate.")
@@ -340,10 +295,15 @@ def _status_notes(rows: list[dict]) -> list[str]:
         notes.append("*scattered*: the peak scatters between meshes (unstructured meshes move nodal "
                      "peaks by ~1 %); the bar is from a least-squares fit over the meshes with safety "
                      "factor 3.")
-    if "singular" in statuses:
+    singular = [r[p.last_change] is None for r in rows for p in PEAKS.values() if r[p.status] == SINGULAR]
+    if not all(singular):  # read on several meshes
         notes.append("*singular*: the peak grows under refinement by 0.5 % or more at every step (observed "
                      "order < 0.5); it sits "
                      "at a singular feature, has no finite value and is not a number to design with.")
+    if any(singular):
+        notes.append("*singular* on one mesh: the peak sits at a singular feature found by its place (a "
+                     "re-entrant corner, a rigid support's edge), has no finite value and is not a number "
+                     "to design with.")
     if "settled" in statuses:
         notes.append("*settled*: the peak is the same on every mesh to within 0.1 %, the noise of a "
                      "nodal peak; the bar is that 0.1 %, no order is fitted.")
@@ -389,39 +349,35 @@ def plot(rows: list[dict], path: Path) -> bool:
         return False
     x = list(range(len(rows)))
     # A mesh artefact can be 20× the rest (see warnings_of): clip the axis and label it.
-    glob = sorted(r["fe_peak_MPa"] for r in rows if r["fe_peak_MPa"] is not None) or [0.0]
+    glob = sorted(v for r in rows if (v := _drawn(r, PEAKS["peak"])) is not None) or [0.0]
     cap = max(2.5 * glob[len(glob) // 2], *(1.3 * (r["allowable_MPa"] or 0) for r in rows),
-              *(1.2 * (r["fe_critical_MPa"] or 0.0) for r in rows))
+              *(1.2 * (_drawn(r, PEAKS["critical"]) or 0.0) for r in rows))
     # The axis ends just above what is drawn; at the cap only when something is clipped.
-    tops = [r[k] + (r[b] or 0.0) for r in rows for k, b in (("fe_peak_MPa", "fe_peak_band_MPa"),
-                                                             ("fe_critical_MPa", "fe_critical_band_MPa"))
-            if r[k] is not None]
+    tops = [_drawn(r, p) + (r[p.band] or 0.0) for r in rows for p in PEAKS.values() if _drawn(r, p) is not None]
     tops += [r["exact_MPa"] for r in rows] + [r["allowable_MPa"] or 0.0 for r in rows]
     ylim_top = 1.05 * cap if max(tops) > cap else 1.08 * max(tops)
     fig, ax = plt.subplots(figsize=(min(16.0, max(7.0, 0.42 * len(rows) + 3) + 3.0), 6.0))
 
-    def series(key: str, band_key: str, status_key: str, fmt: str, color: str, label: str):
-        have = [(xi, r) for xi, r in zip(x, rows) if r[key] is not None]  # not asked (--want): none
+    def series(p: flat.PeakColumns, fmt: str, color: str, label: str):
+        have = [(xi, r, v) for xi, r in zip(x, rows) if (v := _drawn(r, p)) is not None]  # not asked: none
         if not have:
             return
-        xs = [xi for xi, _ in have]
-        vals = [min(r[key], cap) for _, r in have]
-        for xi, r in have:
-            if r[key] > cap:
+        xs = [xi for xi, _, _ in have]
+        vals = [min(v, cap) for _, _, v in have]
+        for xi, _, v in have:
+            if v > cap:
                 ax.plot([xi], [cap], "^", color=color, ms=10)
-                ax.annotate(f"{r[key]:.0f} MPa\n(off scale)", (xi, cap), textcoords="offset points",
+                ax.annotate(f"{v:.0f} MPa\n(off scale)", (xi, cap), textcoords="offset points",
                             xytext=(6, -22), fontsize=7, color=color)
-        bars = [r[band_key] if r[band_key] is not None else 0.0 for _, r in have]
+        bars = [r[p.band] if r[p.band] is not None else 0.0 for _, r, _ in have]
         ax.errorbar(xs, vals, yerr=bars, fmt=fmt, color=color, capsize=3, lw=1.2, ms=5, label=label)
-        bad = [i for i, (_, r) in enumerate(have) if r[status_key] == "singular"]
+        bad = [i for i, (_, r, _) in enumerate(have) if r[p.status] == SINGULAR]
         if bad:
             ax.plot([xs[i] for i in bad], [vals[i] for i in bad], "x", color="k", ms=9,
                     label=f"{label.split(' (')[0].split(' ±')[0]}: no error bar (not converged)")
 
-    series("fe_critical_MPa", "fe_critical_band_MPa", "fe_critical_status", "o-", "C3",
-           "FE critical peak (bore ligament) ± error bar")
-    series("fe_peak_MPa", "fe_peak_band_MPa", "fe_peak_status", "s--", "C0",
-           "FE global peak ± error bar")
+    series(PEAKS["critical"], "o-", "C3", "FE critical peak (bore ligament) ± error bar")
+    series(PEAKS["peak"], "s--", "C0", "FE global peak ± error bar")
     ax.plot(x, [r["exact_MPa"] for r in rows], "^-", color="C2", label="exact formula (curved bar)")
     ax.plot(x, [r["approximate_MPa"] for r in rows], "v-", color="C1", label="approximate formula")
     allow = {r["allowable_MPa"] for r in rows}
@@ -442,6 +398,12 @@ def plot(rows: list[dict], path: Path) -> bool:
     fig.savefig(path, dpi=110)
     plt.close(fig)
     return True
+
+
+def _drawn(r: dict, p: flat.PeakColumns) -> float | None:
+    """The value the plot draws for peak ``p`` of a row (MPa): its reading, marked when
+    singular; none for a peak the run was not asked for."""
+    return None if r[p.status] == NOT_ASKED else r[p.reading]
 
 
 def default_out(results: Path) -> Path:

@@ -9,23 +9,29 @@ import json
 from collections.abc import Iterable
 from pathlib import Path
 
+from pipeline.output import flat
 from pipeline.runtime.atomicfile import replacing, write_text
 from pipeline.post.errorbar import verdict_against
 from pipeline.output.report import pm
 from pipeline.study.manifest import VariantFault, read_failure, read_results
 from pipeline.study.plan import Task, failure_file, variant_folder
 
-COLUMNS = ("variant", "status", "size", "load_N", "parameters", "peak_MPa", "peak_band_MPa", "critical_peak_MPa",
-           "critical_band_MPa", "critical_section_nominal_MPa", "safety_factor", "critical_safety_factor",
-           "verdict", "critical_verdict", "time_s", "note")
-# Each peak of results.json's fe block: its name and its row fields (value, band, safety
-# factor) and verdict field (pass, fail or undecided against the allowable).
-PEAK_FIELDS = {"peak": ("global peak", ("peak_MPa", "peak_band_MPa", "safety_factor"), "verdict"),
-               "critical": ("critical peak", ("critical_peak_MPa", "critical_band_MPa", "critical_safety_factor"),
-                            "critical_verdict")}
-# The same, per peak: (value, band, name) and (value, band, verdict) fields of a row.
-PEAKS = tuple((fields[0], fields[1], name) for name, fields, _ in PEAK_FIELDS.values())
-VERDICT_KEYS = tuple((fields[0], fields[1], verdict) for _, fields, verdict in PEAK_FIELDS.values())
+# The study's own columns; the rest are those of a run's row (pipeline.output.flat).
+OWN_COLUMNS = {
+    "variant": "the variant's key: its folder variants/<key>/",
+    "status": "done, invalid (breaks a rule of the size table: not analysed), failed, or not run",
+    "parameters": "the variant's swept inputs as JSON (mm; size as text)",
+    "verdict": "the global peak against the allowable, its error bar included: pass, fail, undecided; "
+               "none at a singular feature; empty when not asked for",
+    "critical_verdict": "the same for the critical peak",
+    "note": "why a variant is invalid, failed or not read, or why a peak has no value",
+}
+COLUMNS = ("variant", "status", "parameters", *flat.COLUMNS, "verdict", "critical_verdict", "note")
+# Each peak's verdict column (pass, fail or undecided against the allowable).
+VERDICT_OF = {"peak": "verdict", "critical": "critical_verdict"}
+# Per peak: (value, band, name) and (value, band, verdict) columns of a row.
+PEAKS = tuple((p.value, p.band, p.name) for p in flat.PEAKS.values())
+VERDICT_KEYS = tuple((p.value, p.band, VERDICT_OF[b]) for b, p in flat.PEAKS.items())
 # The statuses of variants with no peak, as a study's plots name them.
 UNANALYSED = {"invalid": "invalid geometry, not analysed", "failed": "analysis failed"}
 
@@ -48,32 +54,24 @@ def rows_of(tasks: list[Task], out: Path) -> list[dict]:
             note = {} if why is None else {"note": f"{why}: not read (the same command analyses it again)"}
             rows += [dict(base, status="not run", load_N=q, **note) for q in t.loads]
             continue
-        fe = res["fe"]
-        nominal = ((fe.get("sections") or {}).get("critical_section") or {}).get("nominal_MPa")
-        per_load = res.get("load_sweep") or [{
-            "load_N": res["case"]["load_N"], "peak_MPa": fe["peak_MPa"], "critical_peak_MPa": fe["critical_peak_MPa"],
-            "peak_band_MPa": (fe["peak"].get("error_estimate") or {}).get("band"),
-            "critical_band_MPa": (fe["critical"].get("error_estimate") or {}).get("band"),
-            "safety_factor": fe["safety_factor"], "critical_safety_factor": fe["critical_safety_factor"]}]
-        q0 = res["case"]["load_N"]
-        # A peak with no value to design with is left out of the study (no value, verdict,
-        # side, crossing or plot), and the row says why, as the run's report does: one the
-        # run was not asked for (--want: not resolved), or one at a singular feature (it
-        # grows without bound under refinement: the rigid support's edges).
-        unusable = [(fields, verdict_key, *_unusable(fe[block], name))
-                    for block, (name, fields, verdict_key) in PEAK_FIELDS.items()]
-        unusable = [u for u in unusable if u[2] is not None]
-        for r in per_load:
-            row = dict(base, status="done", time_s=res["timings_s"]["total"],
-                       critical_section_nominal_MPa=None if nominal is None else nominal * r["load_N"] / q0,
-                       **{k: r.get(k) for k in ("load_N", "peak_MPa", "peak_band_MPa", "critical_peak_MPa",
-                                                "critical_band_MPa", "safety_factor", "critical_safety_factor")})
-            for fields, verdict_key, _, verdict in unusable:
-                row.update(dict.fromkeys(fields), **{verdict_key: verdict})
-            if unusable:
-                row["note"] = "; ".join(why for _, _, why, _ in unusable)
-            rows.append(row)
+        rows += [_done_row(base, r) for r in flat.rows(res)]
     return rows
+
+
+def _done_row(base: dict, r: dict) -> dict:
+    """A finished variant's row at one load: its inputs ``base`` and the run's row ``r``
+    (pipeline.output.flat). A peak with no value to design with is left out of the study
+    (no value, side, crossing or plot; flat decides which), and the row's note says why,
+    as the run's report does; one at a singular feature gets the verdict "none", as in the
+    run's verdict table (the case cannot pass)."""
+    row = dict(base, **r, status="done")
+    for block, p in flat.PEAKS.items():
+        if r[p.status] == flat.SINGULAR:
+            row[VERDICT_OF[block]] = "none"
+    notes = [r[p.note] for p in flat.PEAKS.values() if r[p.note]]
+    if notes:
+        row["note"] = "; ".join(notes)
+    return row
 
 
 def variant_files(out: Path, key: str) -> tuple[dict | None, str | None, str | None]:
@@ -94,17 +92,6 @@ def variant_files(out: Path, key: str) -> tuple[dict | None, str | None, str | N
         except VariantFault as exc:
             why = str(exc)
     return None, None, why
-
-
-def _unusable(block: dict, name: str) -> tuple[str | None, str | None]:
-    """(why a peak block of results.json has no value a study can use, or None; its
-    verdict then): not asked for has none (the case is judged on the peaks it asked for);
-    a singular peak's is "none", as in the run's verdict table (the case cannot pass)."""
-    if block.get("not_wanted"):
-        return block["not_wanted"].replace("; shown for orientation only", ""), None
-    if block.get("singular_feature"):
-        return f"{name} at a singular feature ({block['singular_feature']}): no finite value", "none"
-    return None, None
 
 
 def series(rows: list[dict], axis: str, status: str = "done") -> dict[tuple, list[dict]]:
@@ -428,7 +415,8 @@ def _report(summary: dict, swept: list[str], plots: list[str]) -> str:
             return "" if v is None else pm(v, band)
         verdicts = " / ".join(r.get(k) or "–" for k in ("verdict", "critical_verdict")) if r["status"] == "done" else ""
         L.append(f"| {r['variant']} | {r['status']} | {parameters_text(r)} | {_n0(r.get('load_N'))} | "
-                 f"{f(r.get('peak_MPa'), r.get('peak_band_MPa'))} | {f(r.get('critical_peak_MPa'), r.get('critical_band_MPa'))} | "
+                 f"{f(r.get('peak_MPa'), r.get('peak_band_MPa'))} | "
+                 f"{f(r.get('critical_peak_MPa'), r.get('critical_band_MPa'))} | "
                  f"{verdicts} | {r.get('note') or ''} |")
     L.append("")
     for p in plots:
