@@ -293,6 +293,18 @@ def test_small_sweep_contract_invalid_variant_and_resume(tmp_path):
     assert status == {1.0: "done", 1.5: "done", 2.5: "invalid"}
     bad = next(r for r in rows if r["status"] == "invalid")
     assert "rf" in bad["note"] and bad["peak_MPa"] == ""
+    # The size summary of the study's variants reads each variant as the study did: one
+    # name per quantity, the same text in both CSV files on every column they share.
+    from pipeline.study import summary
+    assert summary.main([str(out / "variants"), "--all", "--out", str(tmp_path / "sum")]) == 0
+    with open(tmp_path / "sum" / "summary.csv", newline="") as f:
+        summarised = list(csv.DictReader(f))
+    shared = set(summarised[0]) & set(rows[0])
+    assert {"peak_MPa", "critical_peak_MPa", "peak_status", "critical_band_MPa", "safety_factor",
+            "critical_section_nominal_MPa", "dofs", "changed_dims"} <= shared
+    for r in (r for r in rows if r["status"] == "done"):
+        s = next(s for s in summarised if s["changed_dims"] == r["changed_dims"])
+        assert {c: s[c] for c in shared} == {c: r[c] for c in shared}
     data = json.loads((out / "sweep.json").read_text())
     assert data["units"]["stress"] == "MPa" and data["counts"]["done"] == 2
     assert all(r["peak_MPa"] > r["critical_peak_MPa"] > 0 for r in data["rows"] if r["status"] == "done")
