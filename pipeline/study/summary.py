@@ -56,7 +56,8 @@ def hook_value(size: str) -> float:
 def row_of(folder: Path, res: dict) -> dict:
     """One summary row (CSV_COLUMNS and the folder) from one results.json: the run's row
     at the case's own load (pipeline.output.flat), with where its dimensions come from."""
-    row = flat.rows(res)[0]  # the case's own load comes first in a load sweep
+    rows = flat.rows(res)
+    row = next((r for r in rows if r["load_N"] == res["case"]["load_N"]), rows[0])
     src = row["source"]
     m = _S_RE.search(src)
     scaled = is_scaled_row(src)
