@@ -80,11 +80,9 @@ def a_study(out: Path, variants: dict[str, dict]) -> list[Task]:
 
 
 def test_the_summary_and_the_study_read_a_variant_alike(tmp_path):
-    """summary.csv wrote fe_peak_MPa, fe_critical_MPa, ... and sweep.csv peak_MPa,
-    critical_peak_MPa, ... for the same numbers, each from its own reading of the file. Now
-    the summary's row of each variant and the study's row at the case's load agree column
-    by column on every column they share, and those are the peaks, bands and safety
-    factors under one name each."""
+    """The summary's row of each variant and the study's row at the case's load agree
+    column by column on every column they share, and those include the peaks, bands,
+    statuses and safety factors: one name per quantity in both tables."""
     study = tmp_path / "study"
     tasks = a_study(study, {"a1": a_results(1.0, loads=(Q0, 2 * Q0)),
                             "b2": a_results(1.5, critical="singular"),
@@ -124,11 +122,10 @@ def test_a_load_sweep_is_one_row_per_load_scaled_by_the_load():
 
 
 def test_a_peak_with_no_value_is_decided_once_for_both_tables(tmp_path):
-    """A global peak at a singular feature read on one mesh (no error estimate): the
-    summary showed it as a value with status "single mesh" ("120.00 (no error bar)") while
-    the study left it out with verdict "none". Now both leave its value out and call it
-    singular; the summary shows its reading marked NOT CONVERGED, the study's verdict is
-    "none" and its note says why. A peak not asked for (--want) has no value in either."""
+    """A global peak at a singular feature read on one mesh (no error estimate) has no
+    value in either table and is called singular, not "single mesh": the summary shows its
+    reading marked NOT CONVERGED, the study gives it the verdict "none" and its note says
+    why. A peak not asked for (--want) has no value in either, and no verdict."""
     res = a_results(1.0, peak_feature="the rigid support's edge", levels=1)
     wanted = a_results(1.5)
     wanted["fe"]["peak"]["not_wanted"] = ("want = critical: the run did not refine for the global peak; "

@@ -128,7 +128,8 @@ def _own_row(res: dict) -> dict:
 
 
 def _peak(fe: dict, p: PeakColumns) -> dict:
-    """One peak's columns from its fe block (MPa), before :func:`_decided`."""
+    """One peak's columns as its fe block gives them (MPa); :func:`_decided` then applies
+    what a peak with no value shows."""
     block = fe[p.block]
     reading = fe["peak_MPa" if p.block == "peak" else "critical_peak_MPa"]
     out = {p.value: reading, p.reading: reading, p.band: None, p.extrapolated: None, p.last_change: None,
