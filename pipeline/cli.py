@@ -515,7 +515,12 @@ def _os_failure(exc: OSError) -> str:
 
 
 def _progress(msg: str) -> None:
-    _print(f"[{time.perf_counter() - T_START:7.2f} s] {msg}")
+    """A progress line on stderr, stamped with the seconds since the program started: stdout
+    carries only the results, so ``crosshead run ... > results.txt`` keeps them apart. A
+    stderr that cannot take it loses the line, never the run (pipeline.runtime.streams)."""
+    with contextlib.suppress(OSError, ValueError):
+        sys.stderr.write(f"[{time.perf_counter() - T_START:7.2f} s] {msg}\n")
+        sys.stderr.flush()
 
 
 def _print(line: str) -> None:
@@ -569,6 +574,8 @@ def _summary(out: Path) -> None:
     named = res.get("files") or {"results": "results.json"}
     files = [named[k] for k in ("report", "results") if k in named] + \
         [f for k, f in named.items() if k not in ("report", "results")]
+    # The seconds since the program started, as the progress lines count them (the run's own
+    # total in results.json starts after the imports).
     _print(f"written to {out}/ ({', '.join(files[:4])}{', ...' if len(files) > 4 else ''}) "
-           f"in {res['timings_s']['total']:.1f} s")
+           f"in {time.perf_counter() - T_START:.1f} s")
 

@@ -71,9 +71,9 @@ def test_report_mentions_inputs_formulas_and_units(coarse_run):
 
 def test_progress_lines(coarse_run):
     _, p = coarse_run
-    assert p.stdout.count("] solve") == 3 and "output:" in p.stdout
+    assert p.stderr.count("] solve") == 3 and "output:" in p.stderr and "] " not in p.stdout
     # README, Known limits: meshes coarser than 1.3 misjudge the global peak; the run says so.
-    assert "note: mesh factor 2 > 1.3" in p.stdout
+    assert "note: mesh factor 2 > 1.3" in p.stderr
 
 
 @pytest.mark.parametrize("args,field", [

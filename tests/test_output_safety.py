@@ -215,7 +215,7 @@ def test_staging_left_by_sigkill_is_removed_by_the_next_run(tmp_path, earlier):
     assert any(n.endswith(".partial") for n in debris(tmp_path, "res"))
     again = cli(FAST + ["--out", out])
     assert again.returncode == 0, again.stderr
-    assert "removed" in again.stdout
+    assert "removed" in (again.stdout + again.stderr)
     assert debris(tmp_path, "res") == []
 
 

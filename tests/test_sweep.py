@@ -284,7 +284,7 @@ def test_only_results_of_other_variants_are_removed(tmp_path):
 def test_small_sweep_contract_invalid_variant_and_resume(tmp_path):
     out = tmp_path / "study"
     first = sweep(out, *GRID)
-    assert "3 variants (2 valid, 1 invalid)" in first.stdout
+    assert "3 variants (2 valid, 1 invalid)" in (first.stdout + first.stderr)
     assert "2 done, 1 invalid, 0 failed; 0 of 2 pass 80 MPa with every peak" in first.stdout
     with open(out / "sweep.csv", newline="") as f:
         rows = list(csv.DictReader(f))
@@ -320,13 +320,13 @@ def test_small_sweep_contract_invalid_variant_and_resume(tmp_path):
     assert "load =" not in report  # one load (the invalid variant's missing one is not a second)
     assert "| rf = 1 mm |" in report and "| rf = 2.5 mm |" in report
     again = sweep(out, *GRID)
-    assert "2 already done" in again.stdout
+    assert "2 already done" in (again.stdout + again.stderr)
     assert json.loads((out / "sweep.json").read_text())["rows"] == data["rows"]
     changed = sweep(out, *GRID, "--E", "200000")  # another input: not mistaken for a finished variant
-    assert "0 already done" in changed.stdout
+    assert "0 already done" in (changed.stdout + changed.stderr)
     # The first run's two variants are gone once the study is done: only this study's remain
     # (a summary of variants/ listed both before).
-    assert "removed the results of 2 variants that this study does not have" in changed.stdout
+    assert "removed the results of 2 variants that this study does not have" in (changed.stdout + changed.stderr)
     keys = {r["variant"] for r in json.loads((out / "sweep.json").read_text())["rows"] if r["status"] == "done"}
     assert {p.name for p in (out / "variants").iterdir()} == keys and len(keys) == 2
 
@@ -369,7 +369,7 @@ def test_one_and_two_ranks_give_the_same_rows(tmp_path):
     strip = lambda rows: [{k: v for k, v in r.items() if k != "time_s"} for r in rows]  # noqa: E731
     assert strip(one["rows"]) == strip(two["rows"])
     # The ranks speak through rank 0: each line once (the plan's line came from every rank).
-    assert p2.stdout.count("3 variants (2 valid, 1 invalid)") == 1, p2.stdout
+    assert (p2.stdout + p2.stderr).count("3 variants (2 valid, 1 invalid)") == 1, (p2.stdout + p2.stderr)
     assert p2.stdout.count("written to") == 1, p2.stdout
 
 
@@ -399,7 +399,7 @@ def test_a_study_at_several_loads_counts_variants_and_cases_apart(tmp_path):
     unnamed: "2 variants (1 valid, 1 invalid)" and then "2 done, 2 invalid"."""
     p = sweep(tmp_path / "s", "--size", "05", "--dim", "rf=1,3", "--load", "5000,10000", "--mesh-factor", "3",
               "--levels", "1")
-    assert "sweep: 2 variants at 2 loads each (1 valid, 1 invalid), 0 already done" in p.stdout, p.stdout
+    assert "sweep: 2 variants at 2 loads each (1 valid, 1 invalid), 0 already done" in (p.stdout + p.stderr), (p.stdout + p.stderr)
     assert "sweep: 4 cases (2 variants at 2 loads): 2 done, 2 invalid, 0 failed; " in p.stdout, p.stdout
 
 

@@ -152,8 +152,8 @@ def test_an_edited_or_truncated_variant_is_analysed_again_and_never_summarised(t
     again = sweep(out, *STUDY)
     for rf, text in ((1.0, "rf = 1 mm"), (1.5, "rf = 1.5 mm")):
         line = f"sweep: variant {by_rf[rf]} ({text}): results.json does not match its checksum; analysed again"
-        assert again.stdout.count(line) == 1, again.stdout
-    assert "0 already done" in again.stdout
+        assert (again.stdout + again.stderr).count(line) == 1, (again.stdout + again.stderr)
+    assert "0 already done" in (again.stdout + again.stderr)
     strip = lambda rows: [{k: v for k, v in r.items() if k != "time_s"} for r in rows]  # noqa: E731
     assert strip(json.loads((out / "sweep.json").read_text())["rows"]) == strip(first)
     # The size summary of the study's variants: an edited one is named, not a row.
