@@ -23,7 +23,8 @@ from mpi4py import MPI
 def analyse_both(size: str, comm, want: str = "both") -> dict:
     """Both analyses of one size for the peaks ``want`` asks for (the case's scene): peaks
     and bands (MPa), finest DOFs, places, wall time (s)."""
-    from pipeline.analysis.analyse import analyse, estimate_levels
+    from pipeline.analysis.analyse import analyse
+    from pipeline.post.errorbar import estimate_levels
     from pipeline.inputs.case import resolve
     from pipeline.analysis.pilot import known_places, pilot
 
@@ -39,7 +40,7 @@ def analyse_both(size: str, comm, want: str = "both") -> dict:
         wall = comm.allreduce(time.perf_counter() - t0, op=MPI.MAX)
         out = {"places": len(pl.hotspots), "source": pl.source, "dofs": levels[0].dofs, "wall_s": wall}
         for key in ("peak", "critical"):
-            est = estimate_levels(levels, case, key)
+            est = estimate_levels(levels, case.order, key)
             out[key] = {"value_MPa": getattr(levels[0], key).value_MPa, "band_MPa": est.band, "status": est.status}
         row[name] = out
     return row

@@ -112,16 +112,16 @@ def _levels(uppers, lowers, dofs, rule):
 def test_studies_of_four_meshes_fit_a_midpoint_by_both_readings():
     """estimate_levels: a midpoint over four meshes gets the two-reading fit (and at least
     its bracket); over three meshes, or read unaveraged, the values' own fit."""
-    from pipeline.analysis.analyse import estimate_levels
+    from pipeline.post.errorbar import estimate_levels
     from pipeline.post.peaks import MIDPOINT, UNAVERAGED
     case = resolve("05")
     dofs = [int(round((1.0 / h) ** 3 * 1e5)) for h in H4]
     upper, lower = [113.8 + 0.9 * h ** 2 for h in H4], [113.8 - 0.5 * h ** 2 for h in H4]
-    four = estimate_levels(_levels(upper, lower, dofs, MIDPOINT), case, "peak")
+    four = estimate_levels(_levels(upper, lower, dofs, MIDPOINT), case.order, "peak")
     assert four.method == TWO_READINGS and four.extrapolated == pytest.approx(113.8, abs=0.01)
     assert four.band >= (upper[0] - lower[0]) / 2 == four.bracket
-    assert estimate_levels(_levels(upper[:3], lower[:3], dofs[:3], MIDPOINT), case, "peak").method != TWO_READINGS
-    assert estimate_levels(_levels(upper, lower, dofs, UNAVERAGED), case, "peak").method != TWO_READINGS
+    assert estimate_levels(_levels(upper[:3], lower[:3], dofs[:3], MIDPOINT), case.order, "peak").method != TWO_READINGS
+    assert estimate_levels(_levels(upper, lower, dofs, UNAVERAGED), case.order, "peak").method != TWO_READINGS
 
 
 def test_two_readings_need_four_meshes():

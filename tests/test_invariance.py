@@ -32,7 +32,7 @@ import pytest
 
 from geometry.table import lookup
 from pipeline.inputs.case import resolve
-from pipeline.analysis.analyse import estimate_levels
+from pipeline.post.errorbar import estimate_levels
 from pipeline.analysis.level import solve_level
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -132,7 +132,7 @@ def test_quarter_and_full_model_agree_within_discretisation_error(base):
     x, y, z = full.critical.location_mm   # at the bore's edge, both halves of the full part alike
     assert abs(math.hypot(x, y) - ROW.dims.d2 / 2) < 1e-3 * ROW.dims.d2 and abs(x) < 0.1 * ROW.dims.d2
     assert min(abs(z), abs(z - ROW.dims.h3)) < 1e-6 * ROW.dims.h3
-    est = estimate_levels(levels, case(), "critical")
+    est = estimate_levels(levels, case().order, "critical")
     q, f = levels[0].critical.value_MPa, full.critical.value_MPa
     print(f"critical: quarter {q:.3f} MPa ({est.status}, GCI {100 * (est.gci_fine or 0):.2f} %), "
           f"full {f:.3f} MPa, difference {100 * rel(f, q):.2f} %; global peak (not compared): "

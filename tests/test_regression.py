@@ -31,7 +31,8 @@ numbers and docs/accuracy.md together.
 import pytest
 
 from pipeline.post import formulas
-from pipeline.analysis.analyse import analyse, estimate_levels
+from pipeline.analysis.analyse import analyse
+from pipeline.post.errorbar import estimate_levels
 from pipeline.inputs.case import resolve
 from pipeline.analysis.pilot import pilot
 from pipeline.analysis.level import solve_level
@@ -73,12 +74,12 @@ def test_default_run_error_bar_covers_the_reference():
     covers the P3 solutions' 66.27 MPa."""
     case = resolve("05")
     levels, _ = analyse(case, levels=3)
-    est = estimate_levels(levels, case, "peak")
+    est = estimate_levels(levels, case.order, "peak")
     value = levels[0].peak.value_MPa
     print(f"global peak {value:.3f} ± {est.band:.3f} MPa ({est.status}); reference {GLOBAL_LIMIT} MPa")
     assert abs(value - GLOBAL_LIMIT) <= est.band, (value, est)
     assert abs(value - GLOBAL_LIMIT) <= GLOBAL_BAND
-    crit = estimate_levels(levels, case, "critical")
+    crit = estimate_levels(levels, case.order, "critical")
     assert abs(levels[0].critical.value_MPa - CRITICAL_LIMIT) <= crit.band, (levels[0].critical.value_MPa, crit)
 
 
@@ -100,7 +101,7 @@ def test_default_run_error_bar_covers_other_parts_references(size, dims, referen
     No. 1.6 read +3.1 % and rf = 0.3 mm +4.0 %)."""
     case = resolve(size, overrides=dims)
     levels, _ = analyse(case, levels=3)
-    est = estimate_levels(levels, case, "peak")
+    est = estimate_levels(levels, case.order, "peak")
     value = levels[0].peak.value_MPa
     print(f"{size} {dims}: global peak {value:.3f} ± {est.band:.3f} MPa ({est.status}); reference {reference} MPa")
     assert abs(value - reference) <= est.band, (value, est)

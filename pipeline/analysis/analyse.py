@@ -10,29 +10,11 @@ from typing import Callable, Sequence
 from mpi4py import MPI
 
 from pipeline.inputs.case import Case
-from pipeline.post.errorbar import Estimate, estimate, representative_size, two_reading_estimate, with_bracket
 from pipeline.cache import levels as levelcache
 from pipeline.runtime.idle import wait_for_ranks
 from pipeline.analysis.level import Level, Progress, solve_level
 from pipeline.fe.meshing import ImportedMesh, Mesher, given_or_new, make_meshes, owners
-from pipeline.post.peaks import MIDPOINT
 from pipeline.analysis.pilot import KNOWN, Pilot, inside_refinement, pilot, refinement_places
-
-
-def estimate_levels(levels: list[Level], case: Case, attr: str) -> Estimate:
-    """Error estimate of one peak ("peak" or "critical") over levels given finest first: the
-    trend of its values over the meshes; a midpoint's band is at least its own half-width.
-    With four or more meshes a midpoint's two readings are fitted to one limit
-    (errorbar.two_reading_estimate): the midpoint alone scatters more than it changes."""
-    peaks = [getattr(lv, attr) for lv in levels]
-    h = [representative_size(lv.dofs) for lv in levels]
-    fine = peaks[0]
-    if fine.rule == MIDPOINT and len(levels) >= 4:
-        est = two_reading_estimate([p.unaveraged.value_MPa for p in peaks], [p.averaged.value_MPa for p in peaks],
-                                   h, p_formal=float(case.order))
-    else:
-        est = estimate([p.value_MPa for p in peaks], h, p_formal=float(case.order))
-    return with_bracket(est, fine.half_width_MPa) if fine.rule == MIDPOINT else est
 
 
 def analyse(case: Case, levels: int = 3, ratio: float = 1.3, msh_path: Path | None = None,

@@ -6,9 +6,8 @@ from mpi4py import MPI
 from geometry.table import published
 
 from pipeline.post import formulas
-from pipeline.analysis.analyse import estimate_levels
 from pipeline.inputs.case import Case
-from pipeline.post.errorbar import Estimate, verdict_against
+from pipeline.post.errorbar import METHOD_TEXT, Estimate, estimate_levels, singular_override, verdict_against
 from pipeline.post.features import describe_location, singular_feature
 from pipeline.analysis.level import Level
 from pipeline.post.peaks import MIDPOINT, UNAVERAGED, NodalPeak
@@ -23,14 +22,7 @@ DEFINITION = {
     UNAVERAGED: "the largest element-node von Mises value without averaging (unaveraged_MPa); the largest "
                 "value of the nodal-averaged stress over the same region is shown beside it (averaged_MPa)",
 }
-ERROR_BAR_METHOD = {
-    MIDPOINT: "the larger of the trend of the values over the requested mesh and the coarser ones "
-              "(Richardson/GCI, docs/design.md §5; with four or more meshes, as in make converge, a "
-              "least-squares fit of both readings to one common limit) and half the gap between the "
-              "unaveraged and averaged readings on the requested mesh",
-    UNAVERAGED: "the trend of the values over the requested mesh and the coarser ones "
-                "(Richardson/GCI, docs/design.md §5)",
-}
+
 
 
 def pct(a: float, b: float) -> float:
@@ -44,8 +36,8 @@ def build_results(case: Case, levels: list[Level], timings: dict[str, float],
     fine = levels[0]
     hand = formulas.hand_results(case.dims, case.load_N, case.approximate_span_mm,
                                  case.exact_span_mm)
-    est_peak = estimate_levels(levels, case, "peak") if len(levels) >= 3 else None
-    est_crit = estimate_levels(levels, case, "critical") if len(levels) >= 3 else None
+    est_peak = estimate_levels(levels, case.order, "peak") if len(levels) >= 3 else None
+    est_crit = estimate_levels(levels, case.order, "critical") if len(levels) >= 3 else None
     asked = {"global": case.want != "critical", "critical": case.want != "global"}
     peak_b = peak_block(case, fine.peak, est_peak, refined=asked["global"])
     crit_b = peak_block(case, fine.critical, est_crit, refined=asked["critical"])
@@ -86,20 +78,14 @@ def peak_block(case: Case, p: NodalPeak, est: Estimate | None, refined: bool = T
     singular."""
     block = {"value_MPa": p.value_MPa, "location_mm": list(p.location_mm),
              "feature": describe_location(case, p.location_mm),
-             "definition": DEFINITION[p.rule], "error_bar_method": ERROR_BAR_METHOD[p.rule],
+             "definition": DEFINITION[p.rule], "error_bar_method": METHOD_TEXT[p.rule],
              "unaveraged_MPa": p.unaveraged.value_MPa, "averaged_MPa": p.averaged.value_MPa,
              "averaged_location_mm": list(p.averaged.location_mm)}
-    singular = singular_feature(case, p.location_mm)
+    est, singular = singular_override(est, singular_feature(case, p.location_mm), block["feature"], refined)
     if est is not None:
         block["error_estimate"] = est.as_dict()
-        if est.status == "singular" and singular is None and refined:
-            singular = f"{block['feature']} (values do not converge under refinement)"
     if singular is not None:
         block["singular_feature"] = singular
-        if est is not None:
-            # Not a converged number, whatever the fit of a few meshes says.
-            block["error_estimate"].update(status="singular", extrapolated=None, band=None,
-                                           gci_fine=None, error_fine=None)
     return block
 
 

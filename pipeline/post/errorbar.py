@@ -1,13 +1,19 @@
-"""The error bar of a peak from three or more meshes: observed order, Richardson
-extrapolation, grid convergence index (GCI), and the statuses when values do not converge.
+"""The error bar of a peak, in one place: its estimate from three or more meshes (observed
+order, Richardson extrapolation, grid convergence index, and the statuses when values do not
+converge), the band a midpoint reading adds, a singular peak's override, and the verdict of a
+value with its band against an allowable. Its definition: docs/design.md §5; results.json
+and the report only format what this module decides.
 """
 from __future__ import annotations
 
 import math
 from dataclasses import asdict, dataclass, replace
-from typing import Callable, Sequence
+from typing import TYPE_CHECKING, Callable, Sequence
 
 import numpy as np
+
+if TYPE_CHECKING:
+    from pipeline.analysis.level import Level
 
 FS = 1.25          # Roache's safety factor for three or more meshes
 P_SINGULAR = 0.5   # observed order below this: the peak is not converging
@@ -32,19 +38,9 @@ def grows_like_a_singularity(values: Sequence[float]) -> bool:
 
 @dataclass(frozen=True)
 class Estimate:
-    """Discretisation error estimate of one quantity (MPa) on the finest mesh.
-
-    status: "converged" (monotone, p >= 0.5), "oscillatory" (three meshes, differences
-    change sign; band = largest difference), "scattered" (four or more meshes whose values
-    scatter about the fit by more than the data range per step; band with Fs = 3),
-    "singular" (growing with refinement by at least SINGULAR_MIN_STEP at every step, p < 0.5:
-    no finite limit), "unsettled" (p < 0.5, falling or growing by less: not in the
-    asymptotic range; band = largest change), "exact"
-    (no change between meshes), "settled" (every mesh within 0.1 % of the others: band =
-    0.1 % of the value, no order).
-    p_used is min(p, p_formal): the order used for extrapolation and GCI, never above
-    the element's formal order for stress so the band is not optimistic.
-    """
+    """Discretisation error estimate of one quantity (MPa) on the finest mesh; its statuses
+    and bands are those of docs/design.md §5. p_used is min(p, p_formal): the order used for
+    extrapolation and GCI, never above the element's formal order for stress."""
 
     values: tuple[float, ...]       # finest first
     h: tuple[float, ...]            # representative sizes, finest first
@@ -76,6 +72,49 @@ def with_bracket(est: Estimate, half_width_MPa: float) -> Estimate:
     band = max(est.band, half_width_MPa)
     scale = max(abs(est.values[0]), 1e-300)
     return replace(est, band=band, gci_fine=band / scale, bracket=half_width_MPa, band_trend=est.band)
+
+
+# The error bar's method in one sentence per reading rule (pipeline.post.peaks: MIDPOINT,
+# UNAVERAGED), for results.json and the report; the definition itself: docs/design.md §5.
+# Kept free of DOLFINx (no import of pipeline.post.peaks) for the processes that only judge.
+METHOD_TEXT = {
+    "midpoint": "the larger of the trend of the values over the requested mesh and the coarser ones "
+              "and half the gap between the unaveraged and averaged readings on the requested mesh "
+              "(docs/design.md §5)",
+    "unaveraged": "the trend of the values over the requested mesh and the coarser ones (docs/design.md §5)",
+}
+
+
+def estimate_levels(levels: Sequence[Level], order: int, attr: str) -> Estimate:
+    """The error estimate of one peak ("peak" or "critical") over the solved ``levels``
+    (finest first) of an element ``order``: the trend of its values over the meshes; a
+    midpoint's band is at least its own half-width. With four or more meshes a midpoint's
+    two readings are fitted to one limit (:func:`two_reading_estimate`): the midpoint alone
+    scatters more than it changes."""
+    from pipeline.post.peaks import MIDPOINT
+    peaks = [getattr(lv, attr) for lv in levels]
+    h = [representative_size(lv.dofs) for lv in levels]
+    fine = peaks[0]
+    if fine.rule == MIDPOINT and len(levels) >= 4:
+        est = two_reading_estimate([p.unaveraged.value_MPa for p in peaks], [p.averaged.value_MPa for p in peaks],
+                                   h, p_formal=float(order))
+    else:
+        est = estimate([p.value_MPa for p in peaks], h, p_formal=float(order))
+    return with_bracket(est, fine.half_width_MPa) if fine.rule == MIDPOINT else est
+
+
+def singular_override(est: Estimate | None, place: str | None, feature: str, refined: bool
+                      ) -> tuple[Estimate | None, str | None]:
+    """(the estimate as reported, the singular feature or None). A peak is singular at a
+    ``place`` known to be singular (a rigid support's edge, named by the caller), or when
+    its values grow like a singularity on meshes refined for it (``refined``; an unrefined
+    peak's growth is the mesh's). A singular peak keeps no converged number, whatever a
+    fit of a few meshes says: no extrapolation, band, GCI or error."""
+    if est is not None and est.status == "singular" and place is None and refined:
+        place = f"{feature} (values do not converge under refinement)"
+    if place is None or est is None:
+        return est, place
+    return replace(est, status="singular", extrapolated=None, band=None, gci_fine=None, error_fine=None), place
 
 
 def observed_order(f: Sequence[float], h: Sequence[float]) -> float | None:
