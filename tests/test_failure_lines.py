@@ -15,6 +15,7 @@ import errno
 import io
 import json
 import os
+import re
 import shutil
 import subprocess
 import sys
@@ -28,6 +29,14 @@ FAST = ["run", "--size", "05", "--mesh-factor", "3", "--levels", "1", "--no-fiel
 ENV = dict(os.environ, PYTHONPATH=str(ROOT), CROSSHEAD_NO_CACHE="1")
 BAD = ["run", "--size", "05", "--levels", "9"]  # levels must lie in 1..8 (docs/design.md §8: exit 2)
 
+
+
+PROGRESS = re.compile(r"^\[\s*[0-9.]+ s\] ")   # a progress line's stamp (they go to stderr too)
+
+
+def failure_lines(stderr: str) -> list[str]:
+    """The lines of stderr that are not progress lines: the failure's own."""
+    return [ln for ln in stderr.strip().splitlines() if not PROGRESS.match(ln)]
 
 def load_of(out: Path) -> float:
     return json.loads((out / "results.json").read_text(encoding="utf-8"))["case"]["load_N"]
@@ -52,23 +61,25 @@ def earlier(tmp_path_factory) -> Path:
 
 # ------------------------------------------------------------------ stdout on a full device
 
-def test_stdout_on_a_full_device_names_stdout_and_writes_nothing(tmp_path, earlier):
+def test_stdout_on_a_full_device_names_stdout_and_says_what_was_written(tmp_path, earlier):
     """The line names stdout, not --out ("error: out: cannot write: No space left ..." would
-    send the user after the wrong thing), and its "nothing written" holds."""
+    send the user after the wrong thing), and says what became of the output: stdout takes
+    only the results (progress goes to stderr), so the run completes, puts its results in
+    place (5000 N -> 20000 N) and the line says they were written."""
     out = tmp_path / "res"
     shutil.copytree(earlier, out)
     proc = shell("> /dev/full", FAST + ["--load", "20000", "--out", out])
     assert proc.returncode == 2 and "Traceback" not in proc.stderr, proc.stderr
-    lines = proc.stderr.strip().splitlines()
+    lines = failure_lines(proc.stderr)
     assert len(lines) == 1 and "stdout" in lines[0] and "No space left" in lines[0], proc.stderr
     assert not lines[0].startswith("error: out:") and "--out" not in lines[0]
-    assert "nothing written" in lines[0] and load_of(out) == 5000.0  # the line is true: the earlier result stays
+    assert "nothing written" not in lines[0] and f"written to {out}" in lines[0] and load_of(out) == 20000.0
     assert sorted(os.listdir(tmp_path)) == ["res"]
 
 
 class FullAtTheSummary(io.StringIO):
-    """A stdout that takes the progress lines and fails (ENOSPC) from the closing summary
-    on: a disk that fills up while the run publishes its result."""
+    """A stdout that fails (ENOSPC) from the closing summary on (the progress lines go to
+    stderr): a disk that fills up while the run publishes its result."""
 
     full = False
 
@@ -94,10 +105,10 @@ def test_stdout_full_after_publication_says_the_results_were_written(tmp_path, e
     code = cli.main([*FAST, "--load", "20000", "--out", str(out)])
     err = capsys.readouterr().err
     assert code == 2, err
-    lines = err.strip().splitlines()
+    lines = failure_lines(err)
     assert len(lines) == 1 and "stdout" in lines[0] and "No space left" in lines[0], err
     assert "nothing written" not in lines[0] and "written to" in lines[0] and str(out) in lines[0], err
-    assert load_of(out) == 20000.0 and "imports" in stdout.getvalue()  # the progress lines went out
+    assert load_of(out) == 20000.0 and "imports" in err  # the progress lines went out
     assert sorted(os.listdir(tmp_path)) == ["res"]
 
 
@@ -159,7 +170,7 @@ def test_an_ascii_stdout_gets_every_line(tmp_path):
     proc = subprocess.run([PY, "-m", "pipeline", *FAST, "--out", str(out)], cwd=ROOT,
                           env=dict(ENV, PYTHONIOENCODING="ascii"), capture_output=True, timeout=300)
     assert proc.returncode == 0, proc.stderr
-    text = proc.stdout.decode("ascii")  # nothing but ASCII
+    text = proc.stdout.decode("ascii") + proc.stderr.decode("ascii")  # nothing but ASCII
     assert "mesh x3:" in text and "global peak" in text and f"written to {out}/" in text, text
 
 
