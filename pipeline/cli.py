@@ -103,6 +103,20 @@ def _dim(text: str) -> tuple[str, float]:
         raise argparse.ArgumentTypeError(f"{k}: {exc}") from None
 
 
+def _vary(text: str) -> tuple[str, list[float]]:
+    """--vary NAME=LOW:HIGH: a sensitivity range in mm (checked with the case: low < high)."""
+    from pipeline.inputs.case import SENSITIVITY_KEYS
+    k, sep, v = text.partition("=")
+    lo, sep2, hi = v.partition(":")
+    if not sep or not sep2 or k not in SENSITIVITY_KEYS:
+        raise argparse.ArgumentTypeError(f"{text!r}: expected NAME=LOW:HIGH in mm with NAME one of "
+                                         f"{', '.join(SENSITIVITY_KEYS)}")
+    try:
+        return k, [_number(lo), _number(hi)]
+    except argparse.ArgumentTypeError as exc:
+        raise argparse.ArgumentTypeError(f"vary {k}: {exc}") from None
+
+
 def _dim_spec(text: str) -> tuple[str, str]:
     """--dim NAME=VALUES for a sweep: VALUES is START:STOP:COUNT or v1,v2,..."""
     from geometry.table import Dimensions
@@ -181,6 +195,13 @@ def make_parser() -> argparse.ArgumentParser:
                      help="meshes solved for the error bar: the requested one and coarser ones (default 3, up to 8; 1 = no error bar; 2 is refused)")
     run.add_argument("--ratio", type=_number, default=1.3, help="mesh-size ratio between those meshes (default 1.3)")
     run.add_argument("--no-fields", action="store_true", help="skip ParaView files, picture and report (benchmarks)")
+    run.add_argument("--no-sensitivity", action="store_true",
+                     help="skip varying the assumed inputs (dj, rf, seat) over their plausible ranges; a run with "
+                          "--want skips it too")
+    run.add_argument("--vary", type=_vary, action="append", default=[], metavar="NAME=LOW:HIGH",
+                     help="the range (mm) over which the sensitivity section varies dimension NAME (dj rf "
+                          "seat_inner seat_outer), instead of its default; varies it even when --dim sets it; "
+                          "repeatable")
     run.add_argument("--quarter-fields", action="store_true",
                      help="picture and both .vtu files of the quarter model only (default: mirrored to the whole part)")
     conv = sub.add_parser("converge", help="mesh convergence study: >= 4 meshes, extrapolation, GCI, plot",
@@ -309,7 +330,7 @@ def _run_or_converge(args: argparse.Namespace, rank0: bool, stack: contextlib.Ex
         from pipeline.commands import execute_run
         execute_run(case, out, levels=args.levels, ratio=args.ratio, progress=say,
                     write_fields=not args.no_fields, loads=loads if len(loads) > 1 else None,
-                    quarter_fields=args.quarter_fields)
+                    quarter_fields=args.quarter_fields, sensitivity=not args.no_sensitivity)
     else:
         from pipeline.commands import execute_converge
         execute_converge(case, out, levels=args.levels, ratio=args.ratio, progress=say)
@@ -328,6 +349,7 @@ def _case_of(args: argparse.Namespace) -> tuple[Case, list[float]]:
     from pipeline.errors import InputError
     overrides = {k: getattr(args, k) for k in CASE_KEYS}
     overrides.update({f"dims.{k}": v for k, v in args.dim})
+    overrides.update({f"sensitivity.{k}": v for k, v in getattr(args, "vary", [])})
     loads = args.loads or []
     if loads:
         overrides["load_N"] = loads[0]

@@ -21,7 +21,8 @@ from pipeline.output.fields import write_fields as write_field_files
 from pipeline.output.report import write_report
 from pipeline.analysis.level import Level, Progress
 from pipeline.analysis.analyse import analyse
-from pipeline.output.results import build_results, load_sweep, sum_timings
+from pipeline.output.results import add_sensitivity, build_results, load_sweep, sum_timings
+from pipeline.analysis.sensitivity import analyse_sensitivity
 from pipeline.output.drawing import Picture, finish_picture, start_picture
 from pipeline.post.features import describe_location
 from pipeline.analysis.pilot import Pilot, refinement_places
@@ -30,7 +31,7 @@ from pipeline.analysis.pilot import Pilot, refinement_places
 def execute_run(case: Case, out_dir: Path, levels: int = 3, ratio: float = 1.3,
                 progress: Progress | None = None, write_fields: bool = True,
                 loads: list[float] | None = None, comm: MPI.Comm = MPI.COMM_WORLD, quarter_fields: bool = False,
-                write_mesh: bool = True) -> dict:
+                write_mesh: bool = True, sensitivity: bool = False) -> dict:
     """Analyse ``case`` and write results.json, report.md, mesh.msh, VTK fields and a PNG
     (without ``write_fields`` only results.json and mesh.msh; without ``write_mesh`` no
     mesh.msh: a design study's variant, whose question is its peaks).
@@ -39,6 +40,8 @@ def execute_run(case: Case, out_dir: Path, levels: int = 3, ratio: float = 1.3,
     linear elastic with traction loads only, every stress scales with Q/case.load_N.
     The picture is drawn (in its own process) while the error-bar meshes are solved: it
     shows the requested mesh's field and peaks, which those solves do not change.
+    ``sensitivity``: vary the assumed inputs (pipeline/analysis/sensitivity.py) after the
+    error bar, when both peaks are wanted (a scene, ``want``, skips it).
     """
     say = progress or (lambda s: None)
     t_all = time.perf_counter()
@@ -52,10 +55,13 @@ def execute_run(case: Case, out_dir: Path, levels: int = 3, ratio: float = 1.3,
             lv, pl = analyse(case, levels=levels, ratio=ratio, msh_path=stage / files["mesh"] if write_mesh else None,
                              progress=say, comm=comm, pl=pl, on_requested=requested.write,
                              mesher=mesher)
+            sens = analyse_sensitivity(case, comm=comm, progress=say) if sensitivity and case.want == "both" else None
         except BaseException:
             requested.abandon()  # the run failed: no picture either
             raise
         res = _run_results(case, lv, pl, comm, loads, write_fields, requested.files, requested.t_output)
+        if sens is not None:
+            add_sensitivity(res, sens, case)
         requested.finish(res)
         res["timings_s"]["total"] = time.perf_counter() - t_all
         write_json(stage / "results.json", res, comm.rank)
@@ -113,7 +119,8 @@ class _RequestedOutput:
             return
         write_json(self.stage / "results.json", res, self.comm.rank)
         res["timings_s"]["picture"] = finish_picture(self.picture, self.stage)
-        for key, name in (("sections_plot", "sections.png"), ("peaks_plot", "peaks.png")):
+        for key, name in (("sections_plot", "sections.png"), ("peaks_plot", "peaks.png"),
+                          ("sensitivity_plot", "sensitivity.png")):
             if (self.stage / name).exists():  # drawn by the plots process
                 self.files[key] = name
 

@@ -18,6 +18,8 @@ from pipeline.inputs.choices import BEARING_AT, BEARING_SHAPES, MODELS, SOLVERS,
 from pipeline.inputs.tomlfile import read_toml
 
 DIMENSION_KEYS = tuple(f.name for f in fields(Dimensions))
+# The inputs a case may give a sensitivity range for ([sensitivity] in a case file, --vary).
+SENSITIVITY_KEYS = ("dj", "rf", "seat_inner", "seat_outer")
 
 
 @dataclass(frozen=True)
@@ -53,6 +55,9 @@ class Case:
     bearing_shape: str = "cosine"
     bearing_length_mm: float | None = None
     bearing_centre_mm: float | None = None
+    # (input, low, high) in the input's unit: the ranges the sensitivity analysis uses
+    # instead of its defaults, and the user-set inputs it varies (docs/design.md §10).
+    sensitivity_ranges: tuple[tuple[str, float, float], ...] = ()
 
     def load_model(self) -> dict[str, Any]:
         """What of the journal load a cache key must hold besides the support: the bearing
@@ -111,6 +116,7 @@ SCHEMA: dict[str, dict[str, tuple[str, tuple[type, ...]]]] = {
     "solver": {"solver": ("solver", (str,)), "rtol": ("rtol", _NUM)},
     "analytic": {"approximate_span_mm": ("approximate_span_mm", _NUM),
                  "exact_span_mm": ("exact_span_mm", _NUM)},
+    "sensitivity": {k: (f"sensitivity.{k}", (list,)) for k in SENSITIVITY_KEYS},
 }
 
 
@@ -253,12 +259,33 @@ def resolve(size: str | None = None, case_file: Path | None = None,
         if k.startswith("dims."):
             del values[k]
     dims = replace(row.dims, **dim_over)
+    ranges = sensitivity_ranges({k: values.pop(k) for k in list(values) if k.startswith("sensitivity.")})
     name = values.pop("name", None) or row.size
     load = values.pop("load_N", row.load_N)
     assumed = tuple(k for k in ("dj", "rf", "seat_inner", "seat_outer") if k not in dim_over)
     case = Case(name=str(name), size=row.size, source=row.source, dims=dims, load_N=load,
-                assumed=assumed, **values)
+                assumed=assumed, sensitivity_ranges=ranges, **values)
     return check(case)
+
+
+def sensitivity_ranges(given: dict[str, Any]) -> tuple[tuple[str, float, float], ...]:
+    """{'sensitivity.<input>': [low, high]} → ((input, low, high), ...) in the input's unit
+    (mm), in SENSITIVITY_KEYS order; InputError unless each is two finite numbers, low <
+    high, low >= 0 (a dimension's range; the geometry rules are checked per variant)."""
+    out = []
+    for name in SENSITIVITY_KEYS:
+        v = given.get(f"sensitivity.{name}")
+        if v is None:
+            continue
+        ok = (isinstance(v, (list, tuple)) and len(v) == 2
+              and all(isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x) for x in v))
+        if not ok:
+            raise InputError(f"sensitivity.{name}: expected [low, high], two numbers in mm, got {v!r}")
+        lo, hi = float(v[0]), float(v[1])
+        if not 0 <= lo < hi:
+            raise InputError(f"sensitivity.{name}: expected 0 <= low < high (mm), got [{lo:g}, {hi:g}]")
+        out.append((name, lo, hi))
+    return tuple(out)
 
 
 def _finite_positive(name: str, v: Any, allow_zero: bool = False) -> None:

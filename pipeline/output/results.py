@@ -234,3 +234,18 @@ def load_sweep(res: dict, case: Case, loads: list[float]) -> list[dict]:
             row[key] = None if fe[key] is None else case.allowable_MPa / row[peak]
         rows.append(row)
     return rows
+
+
+def add_sensitivity(res: dict, sens, case: Case) -> None:
+    """Put the sensitivity analysis (pipeline/analysis/sensitivity.py) into ``res``: the
+    list ``sensitivity`` (per input its range and, at its low and high end, each peak, the
+    critical-section and journal-root nominal stress (MPa), the capacity (N) and the
+    verdicts), ``sensitivity_summary`` (its mesh, noise, what flips, the one sentence) and
+    its wall time under timings_s (s)."""
+    from pipeline.analysis.sensitivity import results_entries, run_values_of, summary
+    vals = run_values_of(res)
+    verdicts = res["fe"].get("verdict") or {}
+    entries = results_entries(sens, vals, verdicts, case)
+    res["sensitivity"] = entries
+    res["sensitivity_summary"] = summary(sens, entries, vals, verdicts)
+    res["timings_s"]["sensitivity"] = sens.time_s

@@ -1,0 +1,375 @@
+"""What a run's answer rests on: the inputs the case assumed, each varied over a stated
+plausible range, and how far that moves the peaks, the critical-section nominal stress and
+the capacity (mm, N, MPa; docs/design.md §10).
+
+Why: the error bar says how far the answer is from the exact solution of *this* model
+(±0.64 % on No. 05); the assumed journal diameter, fillet radius and seat move the global
+peak by −7 % to +31 % over plausible values. A reader must see both.
+
+Each end of a range is one variant: the case with that one input changed, analysed on a
+single mesh coarser than the run's (its own pilot, no error bar) over the MPI ranks, one
+variant per rank. The nominal case is analysed the same way, and its values are the
+baseline the variants are compared with, so the mesh's bias cancels: an end's value is
+the run's value × variant / baseline. The nominal case on a second, slightly coarser mesh
+measures the noise of such single meshes, stated beside the differences.
+"""
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field, replace
+from typing import Callable
+
+from mpi4py import MPI
+
+from geometry.table import Dimensions, InputError, validate
+
+from pipeline.inputs.case import SENSITIVITY_KEYS, Case
+from pipeline.analysis.level import Level, Progress
+from pipeline.fe.meshing import owners
+from pipeline.post.errorbar import verdict_against
+from pipeline.post.sections import journal_nominal
+from pipeline.runtime.idle import wait_for_ranks
+
+# The variants' mesh: the run's mesh factor × this, the coarsest mesh of a default error
+# bar (ratio 1.3, three meshes). On No. 05 its peaks lie within 0.2 % of the run's mesh
+# (113.96 against 113.77 MPa, 66.24 against 66.22 MPa) at a third of its DOFs.
+MESH_RATIO = 1.69
+NOISE_RATIO = 1.1  # the second nominal mesh, × the variants' factor: measures their noise
+# Default ranges stop this far (× h3, mm) inside a geometry rule of geometry/table.py: a
+# fillet that runs out exactly at a face is degenerate geometry (docs/design.md §2).
+RULE_MARGIN = 0.02
+DJ_SPREAD = 0.10  # dj: ± this fraction of the assumed 0.8·h
+RF_SPREAD = 0.20  # rf: ± this fraction of the assumed fillet (r/dj 0.06–0.09 at No. 05)
+SEAT_SPREAD = 0.06  # seat_inner, seat_outer: ± this fraction of Dm
+# The stresses a verdict is given for, and their results.json names (pipeline/output/results.py).
+CHECKED = ("global_peak", "critical_peak", "critical_section_nominal", "journal_root_nominal")
+
+
+@dataclass(frozen=True)
+class Range:
+    """One input varied: its --dim (or load-model option) name, its unit, its value in the
+    case, the ends of its range (in that unit), why that range, and what a geometry rule
+    changed in it (empty when nothing)."""
+
+    input: str
+    kind: str  # "dimension" or "load model"
+    unit: str
+    nominal: float
+    low: float
+    high: float
+    reason: str
+    note: str = ""
+
+    def variant(self, case: Case, value: float) -> Case:
+        """The case with this input at ``value`` (unchecked)."""
+        if self.kind == "dimension":
+            return replace(case, dims=replace(case.dims, **{self.input: value}))
+        raise ValueError(f"unknown kind of input {self.kind!r}")
+
+
+@dataclass(frozen=True)
+class Reading:
+    """One variant analysed on the sensitivity mesh (MPa): both peaks, the critical
+    section's nominal stress (None without the quarter model's section) and the journal
+    root's; or why it has none (``invalid``: the variant breaks a geometry rule;
+    ``failed``: its mesh or solve failed)."""
+
+    peak_MPa: float | None = None
+    critical_MPa: float | None = None
+    section_MPa: float | None = None
+    journal_MPa: float | None = None
+    invalid: str | None = None
+    failed: str | None = None
+
+    @property
+    def ok(self) -> bool:
+        return self.invalid is None and self.failed is None
+
+
+@dataclass
+class Sensitivity:
+    """The sensitivity analysis of a run: each range with the readings at its two ends,
+    the nominal case's reading on the same mesh (the baseline) and on a second mesh (the
+    noise), the variants' mesh factor, which assumed inputs were not varied and why, and
+    its wall time (s)."""
+
+    ranges: list[Range]
+    ends: list[tuple[Reading, Reading]]
+    baseline: Reading
+    second: Reading
+    mesh_factor: float
+    not_varied: dict[str, str] = field(default_factory=dict)
+    time_s: float = 0.0
+
+
+STEP_MM = 0.01  # default range ends are rounded to this (mm): a drawing's precision
+
+
+def _clip_high(value: float, limit: float, rule: str, unit: str) -> tuple[float, str]:
+    """``value`` (rounded to STEP_MM) capped at ``limit`` (rounded down) and a note saying
+    so (empty when not capped)."""
+    value = round(round(value / STEP_MM) * STEP_MM, 9)
+    if value <= limit:
+        return value, ""
+    capped = round(math.floor(limit / STEP_MM + 1e-9) * STEP_MM, 9)
+    return capped, f"high end clipped from {value:.4g} to {capped:.4g} {unit} ({rule})"
+
+
+def _clip_low(value: float, limit: float, rule: str, unit: str) -> tuple[float, str]:
+    """``value`` (rounded to STEP_MM) raised to ``limit`` (rounded up) and a note saying
+    so (empty when not raised)."""
+    value = round(round(value / STEP_MM) * STEP_MM, 9)
+    if value >= limit:
+        return value, ""
+    raised = round(math.ceil(limit / STEP_MM - 1e-9) * STEP_MM, 9)
+    return raised, f"low end clipped from {value:.4g} to {raised:.4g} {unit} ({rule})"
+
+
+def default_range(name: str, d: Dimensions) -> Range:
+    """The plausible range (mm) of an assumed dimension of part ``d``, kept
+    RULE_MARGIN·h3 inside the geometry rules (the note says where it was clipped).
+
+    dj ± 10 %: journals of standard diameters around 0.8·h that still fit the bearing
+    plates; rf ± 20 %: the fillet radii a machinist would turn on this journal (r/dj 0.06 to
+    0.09 at No. 05's 20 mm journal); seat diameters ± 0.06·Dm: another thrust washer on the
+    same track."""
+    m = RULE_MARGIN * d.h3
+    room = min(d.h3, d.b1) / 2 - m  # dj/2 + rf must stay below this
+    if name == "dj":
+        lo, _ = _clip_low(d.dj * (1 - DJ_SPREAD), 0.0, "", "mm")
+        hi, note = _clip_high(d.dj * (1 + DJ_SPREAD), 2 * (room - d.rf), f"dj/2 + rf <= min(h3, b1)/2 - {m:.2g} mm", "mm")
+        return Range("dj", "dimension", "mm", d.dj, lo, hi,
+                     f"±{100 * DJ_SPREAD:.0f} % of the assumed journal diameter: the journal diameters that fit "
+                     "the bearing plates and the geometry rules", note)
+    if name == "rf":
+        lo, hi = _clip_low(d.rf * (1 - RF_SPREAD), 0.0, "", "mm")[0], d.rf * (1 + RF_SPREAD)
+        hi, note = _clip_high(hi, min(room - d.dj / 2, d.b2 - m),
+                              f"dj/2 + rf <= min(h3, b1)/2 - {m:.2g} mm and rf <= b2 - {m:.2g} mm", "mm")
+        return Range("rf", "dimension", "mm", d.rf, lo, hi,
+                     f"±{100 * RF_SPREAD:.0f} % of the assumed fillet radius: the radii a machinist would turn "
+                     f"on this journal (r/dj {lo / d.dj:.3f} to {hi / d.dj:.3f})", note)
+    if name in ("seat_inner", "seat_outer"):
+        v = getattr(d, name)
+        lo, hi = v - SEAT_SPREAD * d.d14, v + SEAT_SPREAD * d.d14  # rounded by the clips below
+        if name == "seat_inner":
+            lo, n1 = _clip_low(lo, d.d2 + m, f"seat_inner >= d2 + {m:.2g} mm", "mm")
+            hi, n2 = _clip_high(hi, d.d14 - m, f"seat_inner <= d14 - {m:.2g} mm", "mm")
+        else:
+            lo, n1 = _clip_low(lo, d.d14 + m, f"seat_outer >= d14 + {m:.2g} mm", "mm")
+            hi, n2 = _clip_high(hi, d.b1 - m, f"seat_outer <= b1 - {m:.2g} mm", "mm")
+        return Range(name, "dimension", "mm", v, lo, hi,
+                     f"±{100 * SEAT_SPREAD:.0f} % of Dm: another thrust washer on the same track (a judgement; "
+                     "the paper gives no seat)", "; ".join(n for n in (n1, n2) if n))
+    raise ValueError(f"no default range for {name!r}")
+
+
+VARIED = SENSITIVITY_KEYS  # the inputs with a default range
+
+
+def ranges_of(case: Case) -> tuple[list[Range], dict[str, str]]:
+    """The ranges a run varies, and the inputs it does not vary with the reason: every
+    assumed input over its default range (or the case's own range for it), and an input
+    the user set only when the case gives a range for it (case file [sensitivity], or
+    --vary)."""
+    given = dict((k, (lo, hi)) for k, lo, hi in case.sensitivity_ranges)
+    out: list[Range] = []
+    skipped: dict[str, str] = {}
+    for name in VARIED:
+        if name in given:
+            lo, hi = given[name]
+            out.append(Range(name, "dimension", "mm", getattr(case.dims, name), lo, hi,
+                             "the range the case gives"))
+        elif name in case.assumed:
+            out.append(default_range(name, case.dims))
+        else:
+            skipped[name] = "set by the user, and no range given for it"
+    return out, skipped
+
+
+def read_level(case: Case, lv: Level) -> Reading:
+    """The values of one analysed variant (MPa)."""
+    sec = lv.sections or {}
+    return Reading(peak_MPa=lv.peak.value_MPa, critical_MPa=lv.critical.value_MPa,
+                   section_MPa=(sec.get("critical_section") or {}).get("nominal_MPa"),
+                   journal_MPa=journal_nominal(case.dims, case.load_N)[1])
+
+
+def analyse_variant(case: Case, factor: float) -> Reading:
+    """One variant on this rank alone: its own pilot and a single mesh at ``factor``; a
+    variant that breaks a geometry rule, or whose mesh or solve fails, says so."""
+    from geometry.part import GeometryError
+
+    from pipeline.analysis.analyse import analyse
+    from pipeline.errors import NumericalError
+    try:
+        validate(case.dims)
+    except InputError as exc:
+        return Reading(invalid=" ".join(str(exc).split()))
+    variant = replace(case, mesh_factor=factor)
+    try:
+        lv, _ = analyse(variant, levels=1, comm=MPI.COMM_SELF)
+    except (NumericalError, GeometryError) as exc:
+        return Reading(failed=" ".join(str(exc).split()))
+    return read_level(variant, lv[0])
+
+
+def analyse_sensitivity(case: Case, comm: MPI.Comm = MPI.COMM_WORLD, progress: Progress | None = None,
+                        analyse_one: Callable[[Case, float], Reading] = analyse_variant) -> Sensitivity:
+    """Every range's two ends and the nominal case on two meshes, spread over the ranks
+    (one variant per rank at a time, each on MPI.COMM_SELF), gathered on every rank."""
+    say = progress or (lambda s: None)
+    t0 = time.perf_counter()
+    ranges, skipped = ranges_of(case)
+    factor = case.mesh_factor * MESH_RATIO
+    jobs: list[tuple[Case, float, str]] = [(case, factor, "nominal"), (case, factor * NOISE_RATIO, "nominal, 2nd mesh")]
+    for r in ranges:
+        jobs += [(r.variant(case, r.low), factor, f"{r.input} = {r.low:.4g} {r.unit}"),
+                 (r.variant(case, r.high), factor, f"{r.input} = {r.high:.4g} {r.unit}")]
+    who = owners([1.0] * len(jobs), comm.size)
+    mine: dict[int, Reading] = {}
+    error = None
+    for k, (c, f, label) in enumerate(jobs):
+        if who[k] != comm.rank or error is not None:
+            continue
+        try:
+            mine[k] = analyse_one(c, f)
+        except Exception as exc:  # re-raised on every rank below
+            error = exc
+            continue
+        rd = mine[k]
+        say(f"sensitivity {label} (rank {comm.rank}): " + (
+            f"peak {rd.peak_MPa:.2f} MPa, critical {rd.critical_MPa:.2f} MPa" if rd.ok
+            else f"invalid: {rd.invalid}" if rd.invalid else f"failed: {rd.failed}"))
+    wait_for_ranks(comm)
+    gathered = comm.allgather((mine, error))
+    errors = [e for _, e in gathered if e is not None]
+    if errors:
+        raise errors[0]
+    readings = {k: rd for m, _ in gathered for k, rd in m.items()}
+    ends = [(readings[2 + 2 * i], readings[3 + 2 * i]) for i in range(len(ranges))]
+    return Sensitivity(ranges=ranges, ends=ends, baseline=readings[0], second=readings[1], mesh_factor=factor,
+                       not_varied=skipped, time_s=time.perf_counter() - t0)
+
+
+def scaled(run_value: float | None, variant: float | None, baseline: float | None) -> float | None:
+    """An end's value: the run's value × variant / baseline, both read on the sensitivity
+    mesh, so that the coarser mesh's bias cancels (MPa); None where one is missing."""
+    if run_value is None or variant is None or not baseline:
+        return None
+    return run_value * variant / baseline
+
+
+def capacity(load_N: float, allowable_MPa: float, values: dict[str, float | None]) -> float | None:
+    """The hook load (N) at which the first of the checked stresses (MPa) reaches the
+    allowable: Q·allowable / the largest (linear elasticity, loads only)."""
+    vs = [v for v in values.values() if v is not None and v > 0]
+    return load_N * allowable_MPa / max(vs) if vs else None
+
+
+def results_entries(sens: Sensitivity, run_values: dict[str, float | None], verdicts: dict, case: Case) -> list[dict]:
+    """results.json's ``sensitivity`` list (docs/design.md §7, §10): per input its range and
+    each checked value at the low and the high end, from the run's values (MPa, by
+    results.json's verdict names) scaled by the variants.
+
+    ``verdicts``: results.json's fe.verdict (a stress without a verdict there, a singular
+    or unwanted peak, gets none here either, and is left out of the capacity)."""
+    attrs = {"global_peak": "peak_MPa", "critical_peak": "critical_MPa",
+             "critical_section_nominal": "section_MPa", "journal_root_nominal": "journal_MPa"}
+    checked = [k for k in CHECKED if (verdicts.get(k) or {}).get("verdict") not in (None, "none")]
+    out = []
+    for r, ends in zip(sens.ranges, sens.ends):
+        vals = {}
+        for key, attr in attrs.items():
+            vals[key] = [scaled(run_values.get(key), getattr(e, attr), getattr(sens.baseline, attr))
+                         if e.ok else None for e in ends]
+        # The journal root's nominal stress is statics: its value at each end is exact.
+        vals["journal_root_nominal"] = [
+            journal_nominal(r.variant(case, v).dims, case.load_N)[1] if e.invalid is None else None
+            for v, e in zip((r.low, r.high), ends)]
+        caps = [capacity(case.load_N, case.allowable_MPa, {k: vals[k][i] for k in checked}) if e.ok else None
+                for i, e in enumerate(ends)]
+        out.append({
+            "input": r.input, "kind": r.kind, "unit": r.unit, "nominal": r.nominal, "range": [r.low, r.high],
+            "reason": r.reason, "note": r.note,
+            "peak_MPa": vals["global_peak"], "critical_peak_MPa": vals["critical_peak"],
+            "critical_section_nominal_MPa": vals["critical_section_nominal"],
+            "journal_root_nominal_MPa": vals["journal_root_nominal"], "capacity_N": caps,
+            "verdicts": [_end_verdicts(vals, i, checked, verdicts, case.allowable_MPa) if e.ok else None
+                         for i, e in enumerate(ends)],
+            "invalid": [e.invalid or e.failed for e in ends],
+        })
+    return out
+
+
+def _end_verdicts(vals: dict[str, list], i: int, checked: list[str], verdicts: dict, allowable: float) -> dict:
+    """The verdict of each checked stress at end ``i`` (0 low, 1 high): its value there
+    against the allowable (MPa), with the run's band scaled to that value."""
+    out = {}
+    for key in checked:
+        v = vals[key][i]
+        if v is None:
+            continue
+        run = verdicts[key]
+        band = run.get("band_MPa")
+        out[key] = verdict_against(v, None if band is None else band * v / run["value_MPa"], allowable)
+    return out
+
+
+NAMES = {"global_peak": "global peak", "critical_peak": "critical peak",
+         "critical_section_nominal": "critical-section nominal stress",
+         "journal_root_nominal": "journal-root nominal stress"}
+
+
+def summary(sens: Sensitivity, entries: list[dict], run_values: dict[str, float | None], verdicts: dict) -> dict:
+    """results.json's ``sensitivity_summary``: the variants' mesh factor, the noise of a
+    single such mesh (MPa: the nominal case on two meshes), the inputs not varied, what
+    flips and the one sentence that says whether the verdict holds over every range."""
+    noise = {}
+    for key, attr in (("global_peak", "peak_MPa"), ("critical_peak", "critical_MPa"),
+                      ("critical_section_nominal", "section_MPa")):
+        a, b, run = getattr(sens.baseline, attr), getattr(sens.second, attr), run_values.get(key)
+        noise[key] = abs(a - b) * run / a if sens.baseline.ok and sens.second.ok and None not in (a, b, run) and a \
+            else None
+    flips = []
+    for e in entries:
+        for i, end in enumerate(e["verdicts"]):
+            for key, v in (end or {}).items():
+                if v != verdicts[key]["verdict"]:
+                    flips.append({"input": e["input"], "value": e["range"][i], "unit": e["unit"], "stress": key,
+                                  "from": verdicts[key]["verdict"], "to": v})
+    invalid = [(e["input"], e["range"][i], e["unit"], why) for e in entries for i, why in enumerate(e["invalid"]) if why]
+    return {"mesh_factor": sens.mesh_factor, "noise_MPa": noise, "not_varied": sens.not_varied,
+            "flips": flips, "invalid": [{"input": n, "value": v, "why": w} for n, v, _, w in invalid],
+            "sentence": verdict_sentence(entries, flips, invalid, verdicts), "time_s": sens.time_s}
+
+
+def verdict_sentence(entries: list[dict], flips: list[dict], invalid: list[tuple], verdicts: dict) -> str:
+    """One sentence: the verdict holds over every range, or flips, on which input."""
+    decided = {k: v["verdict"] for k, v in verdicts.items() if v.get("verdict") not in (None, "none")}
+    if not entries:
+        return "Nothing was varied: every assumed input was set by the user without a range."
+    if not decided:
+        return "No stress has a verdict (singular or unwanted peaks), so there is no verdict to hold or flip."
+    tail = ("" if not invalid else " (not checked at " + ", ".join(f"{n} = {v:.4g} {u}" for n, v, u, _ in invalid)
+            + ": invalid or failed variants)")
+    if not flips:
+        ranges = ", ".join(f"{e['input']} {e['range'][0]:.4g}–{e['range'][1]:.4g} {e['unit']}" for e in entries)
+        return (f"The verdict holds over every range ({ranges}): "
+                + ", ".join(f"{NAMES[k]} {v}" for k, v in decided.items()) + f" at both ends{tail}.")
+    by_input: dict[str, list[str]] = {}
+    for f in flips:
+        by_input.setdefault(f["input"], []).append(
+            f"{NAMES[f['stress']]} {f['from']} → {f['to']} at {f['input']} = {f['value']:.4g} {f['unit']}")
+    return (f"The verdict flips on {', '.join(by_input)}: "
+            + "; ".join(s for v in by_input.values() for s in v) + f"{tail}.")
+
+
+def run_values_of(res: dict) -> dict[str, float | None]:
+    """The run's checked values (MPa) from its results.json content, by verdict name."""
+    fe = res["fe"]
+    sec = fe.get("sections") or {}
+    return {"global_peak": fe["peak_MPa"], "critical_peak": fe["critical_peak_MPa"],
+            "critical_section_nominal": (sec.get("critical_section") or {}).get("nominal_MPa"),
+            "journal_root_nominal": (sec.get("journal_root") or {}).get("nominal_MPa")}
+
