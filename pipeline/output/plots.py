@@ -145,6 +145,60 @@ def peaks_plot(path: Path, res: dict) -> bool:
     return True
 
 
+def tornado_plot(path: Path, res: dict) -> bool:
+    """The tornado chart of the sensitivity analysis: for each varied input, the global and
+    the critical peak (MPa) at the low and the high end of its range as bars from the run's
+    value, the inputs ordered by the global peak's swing; the allowable and the single-mesh
+    noise drawn beside them. False (nothing drawn) without a sensitivity list."""
+    entries = res.get("sensitivity")
+    if not entries:
+        return False
+    try:
+        import matplotlib
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+    except ImportError:
+        return False
+    fe, summ = res["fe"], res.get("sensitivity_summary") or {}
+    noise = summ.get("noise_MPa") or {}
+    allowable = float(res["case"]["allowable_MPa"])
+
+    def swing(e: dict) -> float:
+        return max((abs(v - fe["peak_MPa"]) for v in e["peak_MPa"] if v is not None), default=0.0)
+    order = sorted(entries, key=swing)  # the largest swing on top
+    fig, axes = plt.subplots(1, 2, figsize=(11, 0.9 + 0.55 * len(order) + 1.2))
+    for ax, key, label, nkey in ((axes[0], "peak_MPa", "global peak", "global_peak"),
+                                 (axes[1], "critical_peak_MPa", "critical-region peak", "critical_peak")):
+        base = fe[key]
+        for i, e in enumerate(order):
+            for v, colour, end in ((e[key][0], "C0", "low"), (e[key][1], "C3", "high")):
+                if v is None:
+                    ax.text(base, i, "  invalid" if end == "high" else "invalid  ", va="center",
+                            ha="left" if end == "high" else "right", fontsize=8, color="0.4")
+                    continue
+                ax.barh(i, v - base, left=base, height=0.6, color=colour, alpha=0.8,
+                        label=f"{end} end of the range" if i == 0 else None)
+        ax.axvline(base, color="k", lw=1, label=f"this run {base:.1f} MPa")
+        if noise.get(nkey):
+            ax.axvspan(base - noise[nkey], base + noise[nkey], color="0.85", zorder=0,
+                       label=f"single-mesh noise ±{noise[nkey]:.2g} MPa")
+        lo, hi = ax.get_xlim()
+        if lo <= allowable <= hi or abs(allowable - base) < 0.5 * base:
+            ax.axvline(allowable, color="C1", ls="--", lw=1.5, label=f"allowable {allowable:g} MPa")
+        ax.set_yticks(range(len(order)))
+        ax.set_yticklabels([f"{e['input']} {e['range'][0]:.4g}–{e['range'][1]:.4g} {e['unit']}"
+                            if isinstance(e["range"][0], (int, float)) else f"{e['input']} {e['range'][0]}–{e['range'][1]}"
+                            for e in order], fontsize=9)
+        ax.set_xlabel("von Mises (MPa)")
+        ax.set_title(f"No. {res['case']['size']}: {label}")
+        ax.grid(alpha=0.3, axis="x")
+        ax.legend(fontsize=7, loc="best")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return True
+
+
 def draw_plots(folder: Path, wait_s: float = 3600.0) -> None:
     """A run's plots from folder/results.json: sections.png when the results carry section
     stresses, and peaks.png once the run has written the results of every mesh (at most
@@ -157,6 +211,7 @@ def draw_plots(folder: Path, wait_s: float = 3600.0) -> None:
     final = _all_levels(folder, wait_s)
     if final is not None:
         peaks_plot(folder / "peaks.png", final)
+        tornado_plot(folder / "sensitivity.png", final)
 
 
 def _all_levels(folder: Path, wait_s: float) -> dict | None:

@@ -233,6 +233,68 @@ def verdict_section(res: dict) -> str:
     return "\n".join(L)
 
 
+SENSITIVITY_COLUMNS = (("peak_MPa", "global peak (MPa)", 2), ("critical_peak_MPa", "critical peak (MPa)", 2),
+                       ("critical_section_nominal_MPa", "critical-section nominal (MPa)", 2),
+                       ("capacity_N", "capacity (N)", 0))
+
+
+def _ends(values: list, nominal: float | None, nd: int) -> str:
+    """'low → high' of one quantity over a range, with each end's change from the run's
+    value in %."""
+    def one(v):
+        if v is None:
+            return "—"
+        return _f(v, nd) + (f" ({100 * (v / nominal - 1):+.1f} %)" if nominal else "")
+    return f"{one(values[0])} → {one(values[1])}"
+
+
+def sensitivity_section(res: dict) -> str:
+    """What the answer rests on: each assumed input (and load-model choice) over its range,
+    how far it moves the peaks, the critical-section nominal stress and the capacity, the
+    single-mesh noise beside those changes, the tornado chart and the one verdict sentence."""
+    entries, summ = res.get("sensitivity"), res.get("sensitivity_summary")
+    if entries is None or summ is None:
+        return ""
+    fe = res["fe"]
+    sec = (fe.get("sections") or {}).get("critical_section") or {}
+    caps = [r["capacity_N"] for r in (fe.get("verdict") or {}).values()
+            if r.get("verdict") not in (None, "none") and r.get("capacity_N") is not None]
+    nominal = {"peak_MPa": fe["peak_MPa"], "critical_peak_MPa": fe["critical_peak_MPa"],
+               "critical_section_nominal_MPa": sec.get("nominal_MPa"), "capacity_N": min(caps) if caps else None}
+    L = ["## What the answer rests on (sensitivity)\n",
+         f"**{summ['sentence']}**\n",
+         "The error bar above is the mesh's error for *this* model. The inputs below are assumed (the "
+         "paper does not give them) or are choices of the load model; each is varied alone over the range "
+         "stated, the others kept. Each end of a range is analysed on one mesh at mesh factor "
+         f"{summ['mesh_factor']:.3g} with its own pilot; the nominal case on the same mesh is the baseline, "
+         "so an end's value is this run's value × end / baseline. Capacity: the hook load at which the "
+         "first checked stress reaches the allowable.\n",
+         "| input | range | why this range | " + " | ".join(h for _, h, _ in SENSITIVITY_COLUMNS) + " |",
+         "|---|---|---|" + "---|" * len(SENSITIVITY_COLUMNS)]
+    for e in entries:
+        lo, hi = e["range"]
+        rng = (f"{lo:.4g} – {hi:.4g} {e['unit']}" if isinstance(lo, (int, float)) else f"{lo} – {hi}")
+        why = e["reason"] + (f"; {e['note']}" if e.get("note") else "")
+        bad = [f"{'low' if i == 0 else 'high'} end invalid: {w}" for i, w in enumerate(e["invalid"]) if w]
+        if bad:
+            why += "; " + "; ".join(bad)
+        L.append(f"| {e['input']} | {rng} | {why} | "
+                 + " | ".join(_ends(e[k], nominal[k], nd) for k, _, nd in SENSITIVITY_COLUMNS) + " |")
+    noise = summ.get("noise_MPa") or {}
+    L.append("")
+    L.append("Noise of one such mesh (the nominal case on a second mesh, × 1.1): "
+             + ", ".join(f"{label} ± {_f(noise.get(k))} MPa" for k, label in
+                         (("global_peak", "global peak"), ("critical_peak", "critical peak"),
+                          ("critical_section_nominal", "critical-section nominal")))
+             + "; a change smaller than that is not a finding.\n")
+    if summ.get("not_varied"):
+        L.append("Not varied: " + "; ".join(f"{k} ({why})" for k, why in summ["not_varied"].items()) + ".\n")
+    if (res.get("files") or {}).get("sensitivity_plot"):
+        L.append(f"![sensitivity: tornado chart]({res['files']['sensitivity_plot']})\n")
+    L.append(f"Sensitivity time: {summ.get('time_s', 0):.1f} s (`--no-sensitivity` skips it).\n")
+    return "\n".join(L)
+
+
 def _summary_lines(res: dict) -> list[str]:
     """Title, the summary table, the like-with-like and verdict sections, warnings, safety factors, the picture."""
     L: list[str] = []
@@ -257,6 +319,7 @@ def _summary_lines(res: dict) -> list[str]:
     add("")
     add(comparison_section(res))
     add(verdict_section(res))
+    add(sensitivity_section(res))
     for key in ("peak", "critical"):
         where = fe[key].get("singular_feature")
         if where:
