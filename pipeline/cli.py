@@ -593,6 +593,9 @@ def _summary(out: Path) -> None:
             texts = texts[:LOADS_SHOWN] + [f"… {len(rows) - 2 * LOADS_SHOWN} more in results.json …"] + texts[-LOADS_SHOWN:]
         _print(f"the lines above are at Q = {res['case']['load_N']:g} N; {f'{len(rows)} loads' if long else 'every load'} "
                "(global / critical peak, MPa): " + "; ".join(texts))
+    summ = res.get("sensitivity_summary")
+    if summ:
+        _print(f"sensitivity: {summ['sentence']}")
     named = res.get("files") or {"results": "results.json"}
     files = [named[k] for k in ("report", "results") if k in named] + \
         [f for k, f in named.items() if k not in ("report", "results")]
