@@ -67,7 +67,7 @@ $(SIZES): $(SETUP)
 # Every size as one sweep over the MPI ranks (dynamic: a slow size holds one rank; a re-run
 # skips finished sizes), then the batch summary in results/summary/.
 sizes: $(SETUP)
-	$(RUN) sweep --sizes all --out results/sizes
+	$(RUN) sweep --sizes all --out results/sizes $(SIZES_OPTIONS)
 	$(PY) -m pipeline.study.summary results/sizes/variants --all --out results/summary
 
 # Removes what crosshead wrote under results/: its results folders (those carrying its

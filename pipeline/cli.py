@@ -220,6 +220,9 @@ def make_parser() -> argparse.ArgumentParser:
     sweep.add_argument("--study", type=Path, help="a study file (TOML with a [sweep] table), e.g. cases/sweep-rf.toml")
     sweep.add_argument("--levels", type=int, help="meshes per variant for its error bar (default 3; 1 = none; 2 is refused)")
     sweep.add_argument("--ratio", type=_number, help="mesh-size ratio between them (default 1.3)")
+    sweep.add_argument("--sensitivity", action="store_true",
+                       help="each variant also varies its assumed inputs (dj, rf, seat) over their ranges, and the "
+                            "table says which verdicts depend on one (about doubles a variant's time)")
     return parser
 
 
@@ -504,7 +507,7 @@ def _sweep(args, rank0: bool) -> int:
     out = args.out or (Path(study["out"]) if "out" in study else default_out(f"sweep-{size or Path(case_file).stem}"))
     say = (lambda s: None) if args.quiet else _progress
     res = execute_sweep(size, case_file, base, axes, loads, out, levels, ratio, say, sizes=sizes,
-                        memory_limit_gb=args.memory_limit)
+                        memory_limit_gb=args.memory_limit, sensitivity=args.sensitivity)
     if rank0 and res is not None and not args.quiet:
         from pipeline.study.table import passing_count
         c = res["counts"]

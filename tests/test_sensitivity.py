@@ -207,3 +207,37 @@ def test_the_critical_peak_is_robust_to_dj_and_rf(fe_sensitivity):
             assert 65.0 < rd.critical_MPa < 67.5
     # the noise of one sensitivity mesh on the global peak is well below the rf and dj effects
     assert abs(sens.baseline.peak_MPa - sens.second.peak_MPa) < 0.1 * (_ratio(sens, "rf")[1] - 1) * sens.baseline.peak_MPa
+
+
+def test_a_run_carries_the_sensitivity_list_and_a_scene_skips_it(tmp_path):
+    """End to end on a coarse mesh: results.json's ``sensitivity`` has one entry per assumed
+    input with [low, high] pairs; --want and --no-sensitivity leave it out."""
+    import json
+
+    from pipeline.cli import main
+    common = ["run", "--size", "05", "--mesh-factor", "3", "--levels", "1", "--no-fields", "--quiet"]
+    assert main(common + ["--out", str(tmp_path / "a"), "--dim", "seat_inner=25", "--dim", "seat_outer=37"]) == 0
+    res = json.loads((tmp_path / "a" / "results.json").read_text())
+    assert [e["input"] for e in res["sensitivity"]] == ["dj", "rf"]
+    for e in res["sensitivity"]:
+        for key in ("range", "peak_MPa", "critical_peak_MPa", "capacity_N"):
+            assert len(e[key]) == 2 and all(isinstance(v, float) for v in e[key]), (e["input"], key)
+    assert set(res["sensitivity_summary"]["not_varied"]) == {"seat_inner", "seat_outer"}
+    for extra in (["--want", "critical"], ["--no-sensitivity"]):
+        out = tmp_path / extra[-1].strip("-")
+        assert main(common + ["--out", str(out)] + extra) == 0
+        assert "sensitivity" not in json.loads((out / "results.json").read_text())
+
+
+def test_study_tables_name_the_verdicts_that_depend_on_an_assumption():
+    from pipeline.study import summary, table
+    holds = "The verdict holds over every range (rf 1.2–1.8 mm): global peak pass at both ends."
+    flips = "The verdict flips on rf: global peak pass → fail at rf = 1.2 mm."
+    rows = [{"status": "done", "variant": "a", "verdict_rests_on": holds, "parameters": "{}"},
+            {"status": "done", "variant": "b", "verdict_rests_on": flips, "parameters": "{}", "dims.rf": 1.0}]
+    text = "\n".join(table._rests_on_lines(rows))
+    assert "1 of 2 analysed variants keep their verdict" in text and flips in text and holds not in text
+    lines = "\n".join(summary._rests_on_lines([{"size": "05", "verdict_rests_on": holds},
+                                                {"size": "1", "verdict_rests_on": flips}]))
+    assert "1 of 2 sizes keep their verdict" in lines and f"No. 1: {flips}" in lines
+    assert summary._rests_on_lines([{"size": "05", "verdict_rests_on": ""}]) == []

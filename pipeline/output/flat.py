@@ -82,8 +82,11 @@ COLUMNS: dict[str, str] = {
     "time_s": "the run's total time (s); every load of one run shares it",
     "source": "where the size's dimensions come from (text)",
     "changed_dims": "the dimensions that differ from the size's table row, as 'rf = 2 mm (table 1.5)' (mm)",
+    "verdict_rests_on": "whether the run's verdict holds over its assumed inputs' ranges, the sentence of its "
+                        "sensitivity section (text); empty when it was not analysed (--no-sensitivity, a study "
+                        "without --sensitivity)",
 }
-TEXT_COLUMNS = frozenset({"size", "source", "changed_dims",
+TEXT_COLUMNS = frozenset({"size", "source", "changed_dims", "verdict_rests_on",
                           *(c for p in PEAKS.values() for c in (p.status, p.feature, p.note))})
 # The quantities proportional to the load: scaled from the case's load to another.
 _LINEAR = ("critical_section_nominal_MPa",
@@ -123,7 +126,8 @@ def _own_row(res: dict) -> dict:
         "mesh_min_jacobian_ratio": fe.get("mesh_min_jacobian_ratio"), "mesh_factor": case.get("mesh_factor"),
         "meshes": len(fe.get("levels", [])) or None, "dofs": fe.get("dofs"),
         "time_s": (res.get("timings_s") or {}).get("total"),
-        "source": case.get("source", ""), "changed_dims": changed_dims(case)})
+        "source": case.get("source", ""), "changed_dims": changed_dims(case),
+        "verdict_rests_on": (res.get("sensitivity_summary") or {}).get("sentence") or ""})
     return _decided({c: row[c] for c in COLUMNS})
 
 

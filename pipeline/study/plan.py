@@ -36,10 +36,13 @@ class Task:
 
 
 def plan(size: str | None, case_file: Path | None, base: dict, axes: dict[str, list[float]],
-         loads: list[float], levels: int, ratio: float, sizes: list[str] | None = None) -> list[Task]:
+         loads: list[float], levels: int, ratio: float, sizes: list[str] | None = None,
+         sensitivity: bool = False) -> list[Task]:
     """The grid's tasks: the product of ``axes`` (``dims.<name>`` or case fields, values),
     each at every load of ``loads`` (or the case's own load); with ``sizes``, that grid for
-    every hook number (each at its own rated load unless loads are given)."""
+    every hook number (each at its own rated load unless loads are given). ``sensitivity``:
+    each variant also varies its assumed inputs (part of its key, so a study without it is
+    not taken for one with it)."""
     names = list(axes)
     tasks = []
     for hook, combo in itertools.product(sizes or [size], itertools.product(*(axes[n] for n in names))):
@@ -54,7 +57,7 @@ def plan(size: str | None, case_file: Path | None, base: dict, axes: dict[str, l
         except InputError as exc:
             case, qs, note = None, tuple(loads), " ".join(str(exc).split())
         ident = {"case": None if case is None else case.as_dict(), "loads": qs, "levels": levels,
-                 "ratio": ratio, "params": params, "code": code_key()}
+                 "ratio": ratio, "params": params, "code": code_key(), **({"sensitivity": True} if sensitivity else {})}
         key = hashlib.sha1(json.dumps(ident, sort_keys=True, default=str).encode()).hexdigest()[:12]
         tasks.append(Task(key=key, params=params, case=case, loads=qs, note=note))
     valid = [t.case for t in tasks if t.case is not None]

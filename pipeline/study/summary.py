@@ -185,6 +185,7 @@ def markdown(rows: list[dict], skipped: list[str], png_name: str | None) -> str:
     lines = _table_lines(rows)
     lines.append("")
     lines += _warning_lines(rows)
+    lines += _rests_on_lines(rows)
     if not rows:
         lines.append("No results found.")
     notes = _source_notes(rows)
@@ -201,6 +202,20 @@ def markdown(rows: list[dict], skipped: list[str], png_name: str | None) -> str:
     if png_name:
         lines += ["", f"![stresses against hook number]({png_name})"]
     return "\n".join(lines) + "\n"
+
+
+def _rests_on_lines(rows: list[dict]) -> list[str]:
+    """Which sizes' verdicts depend on an assumed input (from each run's sensitivity
+    sentence; the study ran with --sensitivity); nothing when no row has one."""
+    told = [r for r in rows if r.get("verdict_rests_on")]
+    if not told:
+        return []
+    flips = [r for r in told if not r["verdict_rests_on"].startswith("The verdict holds")]
+    lines = [f"**What the verdicts rest on:** {len(told) - len(flips)} of {len(told)} sizes keep their verdict over "
+             "every assumed input's range (dj, rf, seat, the bearing load model; each run's report gives the "
+             "ranges)" + (". These depend on an assumption:" if flips else "."), ""]
+    lines += [f"- No. {r['size']}: {r['verdict_rests_on']}" for r in flips]
+    return lines + ([""] if flips else [])
 
 
 def _table_lines(rows: list[dict]) -> list[str]:

@@ -118,7 +118,7 @@ def _remove(path: Path) -> None:
         path.unlink(missing_ok=True)
 
 
-def run_task(task: Task, out: Path, levels: int, ratio: float) -> None:
+def run_task(task: Task, out: Path, levels: int, ratio: float, sensitivity: bool = False) -> None:
     """Analyse one task on this rank alone, then write the checksums of its files; a
     failure is written beside (with its own checksum), never raised. What the task left
     before (files that failed their checksums) is removed first, so that only this run's
@@ -132,14 +132,16 @@ def run_task(task: Task, out: Path, levels: int, ratio: float) -> None:
     _remove(failed)
     try:
         execute_run(case, folder, levels=levels, ratio=ratio, write_fields=False,
-                    write_mesh=False, loads=list(task.loads) if len(task.loads) > 1 else None, comm=MPI.COMM_SELF)
+                    write_mesh=False, loads=list(task.loads) if len(task.loads) > 1 else None, comm=MPI.COMM_SELF,
+                    sensitivity=sensitivity)
     except (NumericalError, GeometryError, InputError) as exc:
         write_failure(failed, {"error": " ".join(str(exc).split()), "size": case.size, "parameters": task.params})
         return
     write_manifest(folder)
 
 
-def work(tasks: list[Task], out: Path, levels: int, ratio: float, say: Progress, before: int) -> None:
+def work(tasks: list[Task], out: Path, levels: int, ratio: float, say: Progress, before: int,
+         sensitivity: bool = False) -> None:
     """Every rank takes the next unclaimed, unfinished task until none is left; ``before``
     tasks had finished when the study started (the pace counts only this run's)."""
     todo = [t for t in tasks if t.case is not None]
@@ -150,7 +152,7 @@ def work(tasks: list[Task], out: Path, levels: int, ratio: float, say: Progress,
         # A variant says nothing until it ends: a large one (a fine mesh, a small fillet)
         # is heard from every HEARTBEAT_S while it runs.
         with heartbeat(say, f"sweep: variant {inputs_text(task.params)}"):
-            run_task(task, out, levels, ratio)
+            run_task(task, out, levels, ratio, sensitivity)
         finished = sum(_ended(out, t.key) for t in todo)
         say(f"sweep: {finished}/{len(todo)} variants done; "
             f"about {time_left_s(time.perf_counter() - t0, finished - before, len(todo) - finished):.0f} s left")
@@ -202,13 +204,14 @@ def remove_earlier_variants(out: Path, tasks: list[Task], say: Progress) -> None
 def execute_sweep(size: str | None, case_file: Path | None, base: dict, axes: dict[str, list[float]],
                   loads: list[float], out: Path, levels: int, ratio: float, say: Progress,
                   comm: MPI.Comm = MPI.COMM_WORLD, sizes: list[str] | None = None,
-                  memory_limit_gb: float | None = None) -> dict | None:
+                  memory_limit_gb: float | None = None, sensitivity: bool = False) -> dict | None:
     """Plan, check memory and the output folder, work on every rank, summarise on rank 0.
-    Only rank 0 calls ``say``."""
+    Only rank 0 calls ``say``. ``sensitivity``: each variant varies its assumed inputs too
+    (pipeline/analysis/sensitivity.py), and the table says whether its verdict holds."""
     from pipeline.runtime.outdir import MARKER, acquire_lock, check_out
     if comm.rank != 0:
         say = lambda s: None  # noqa: E731
-    tasks = plan(size, case_file, base, axes, loads, levels, ratio, sizes)
+    tasks = plan(size, case_file, base, axes, loads, levels, ratio, sizes, sensitivity)
     node = comm.Split_type(MPI.COMM_TYPE_SHARED)
     copies = node.size  # the ranks that share this machine's memory, each with a variant
     node.Free()
@@ -245,7 +248,7 @@ def execute_sweep(size: str | None, case_file: Path | None, base: dict, axes: di
             stack.enter_context(on_stop(lock.release))
         try:
             for round_ in range(REPAIR_ROUNDS + 1):
-                work(tasks, out, levels, ratio, say, before)
+                work(tasks, out, levels, ratio, say, before, sensitivity)
                 request = comm.Ibarrier()
                 while not request.Test():
                     time.sleep(0.05)

@@ -419,9 +419,25 @@ def _report(summary: dict, swept: list[str], plots: list[str]) -> str:
                  f"{f(r.get('critical_peak_MPa'), r.get('critical_band_MPa'))} | "
                  f"{verdicts} | {r.get('note') or ''} |")
     L.append("")
+    L += _rests_on_lines(summary["rows"])
     for p in plots:
         L.append(f"![{p}]({p})\n")
     return "\n".join(L) + "\n"
+
+
+def _rests_on_lines(rows: list[dict]) -> list[str]:
+    """What each variant's verdict rests on (sweep --sensitivity): the variants whose verdict
+    flips over an assumed input's range, after how many keep theirs; nothing without it."""
+    told = [r for r in rows if r["status"] == "done" and r.get("verdict_rests_on")]
+    if not told:
+        return []
+    flips = [r for r in told if not r["verdict_rests_on"].startswith("The verdict holds")]
+    L = ["## What the verdicts rest on\n",
+         f"{len(told) - len(flips)} of {len(told)} analysed variants keep their verdict over every assumed "
+         "input's range (each variant's report.md and results.json: the ranges and values)"
+         + (": the others depend on an assumption:\n" if flips else ".\n")]
+    L += [f"- {r['variant']} ({parameters_text(r)}): {r['verdict_rests_on']}" for r in flips]
+    return L + ([""] if flips else [])
 
 
 def _n0(v: float | None) -> str:
