@@ -55,7 +55,7 @@ def execute_run(case: Case, out_dir: Path, levels: int = 3, ratio: float = 1.3,
             lv, pl = analyse(case, levels=levels, ratio=ratio, msh_path=stage / files["mesh"] if write_mesh else None,
                              progress=say, comm=comm, pl=pl, on_requested=requested.write,
                              mesher=mesher)
-            sens = analyse_sensitivity(case, comm=comm, progress=say) if sensitivity and case.want == "both" else None
+            sens = analyse_sensitivity(case, comm=comm, progress=say, levels=lv) if sensitivity and case.want == "both" else None
         except BaseException:
             requested.abandon()  # the run failed: no picture either
             raise

@@ -10,7 +10,8 @@ Each end of a range is one variant: the case with that one input changed, analys
 single mesh coarser than the run's (its own pilot, no error bar) over the MPI ranks, one
 variant per rank. The nominal case is analysed the same way, and its values are the
 baseline the variants are compared with, so the mesh's bias cancels: an end's value is
-the run's value × variant / baseline. The nominal case on a second, slightly coarser mesh
+the run's value × variant / baseline. The nominal case on a second mesh (the run's own
+error-bar mesh of the same size, refined at the run's places, or one slightly coarser)
 measures the noise of such single meshes, stated beside the differences.
 """
 from __future__ import annotations
@@ -18,7 +19,7 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass, field, replace
-from typing import Callable
+from typing import Callable, Sequence
 
 from mpi4py import MPI
 
@@ -101,6 +102,7 @@ class Sensitivity:
     mesh_factor: float
     not_varied: dict[str, str] = field(default_factory=dict)
     time_s: float = 0.0
+    second_mesh: str = ""  # which mesh the noise was measured on, in words
 
 
 STEP_MM = 0.01  # default range ends are rounded to this (mm): a drawing's precision
@@ -215,14 +217,23 @@ def analyse_variant(case: Case, factor: float) -> Reading:
 
 
 def analyse_sensitivity(case: Case, comm: MPI.Comm = MPI.COMM_WORLD, progress: Progress | None = None,
-                        analyse_one: Callable[[Case, float], Reading] = analyse_variant) -> Sensitivity:
-    """Every range's two ends and the nominal case on two meshes, spread over the ranks
-    (one variant per rank at a time, each on MPI.COMM_SELF), gathered on every rank."""
+                        analyse_one: Callable[[Case, float], Reading] = analyse_variant,
+                        levels: Sequence[Level] = ()) -> Sensitivity:
+    """Every range's two ends and the nominal case, spread over the ranks (one variant per
+    rank at a time, each on MPI.COMM_SELF), gathered on every rank.
+
+    The noise is the nominal case's value on a second mesh at the same factor: the run's
+    own error-bar mesh there, if ``levels`` (the run's) has one (its places come from the
+    run's pilot, so it is another mesh of the same part: no solve needed), else a mesh
+    NOISE_RATIO coarser, solved here."""
     say = progress or (lambda s: None)
     t0 = time.perf_counter()
     ranges, skipped = ranges_of(case)
     factor = case.mesh_factor * MESH_RATIO
-    jobs: list[tuple[Case, float, str]] = [(case, factor, "nominal"), (case, factor * NOISE_RATIO, "nominal, 2nd mesh")]
+    same = next((lv for lv in levels if math.isclose(lv.factor, factor, rel_tol=1e-9)), None)
+    jobs: list[tuple[Case, float, str]] = [(case, factor, "nominal")]
+    if same is None:
+        jobs.append((case, factor * NOISE_RATIO, "nominal, 2nd mesh"))
     for r in ranges:
         jobs += [(r.variant(case, r.low), factor, f"{r.input} = {r.low:.4g} {r.unit}"),
                  (r.variant(case, r.high), factor, f"{r.input} = {r.high:.4g} {r.unit}")]
@@ -237,19 +248,31 @@ def analyse_sensitivity(case: Case, comm: MPI.Comm = MPI.COMM_WORLD, progress: P
         except Exception as exc:  # re-raised on every rank below
             error = exc
             continue
-        rd = mine[k]
-        say(f"sensitivity {label} (rank {comm.rank}): " + (
-            f"peak {rd.peak_MPa:.2f} MPa, critical {rd.critical_MPa:.2f} MPa" if rd.ok
-            else f"invalid: {rd.invalid}" if rd.invalid else f"failed: {rd.failed}"))
+        if comm.rank == 0:
+            say(_line(label, 0, mine[k]))
     wait_for_ranks(comm)
     gathered = comm.allgather((mine, error))
     errors = [e for _, e in gathered if e is not None]
     if errors:
         raise errors[0]
     readings = {k: rd for m, _ in gathered for k, rd in m.items()}
-    ends = [(readings[2 + 2 * i], readings[3 + 2 * i]) for i in range(len(ranges))]
-    return Sensitivity(ranges=ranges, ends=ends, baseline=readings[0], second=readings[1], mesh_factor=factor,
-                       not_varied=skipped, time_s=time.perf_counter() - t0)
+    for k, (_, _, label) in enumerate(jobs):
+        if who[k] != 0:  # rank 0 said its own
+            say(_line(label, who[k], readings[k]))
+    second = read_level(case, same) if same is not None else readings[1]
+    first = 1 if same is not None else 2
+    ends = [(readings[first + 2 * i], readings[first + 1 + 2 * i]) for i in range(len(ranges))]
+    how = (f"the run's error-bar mesh ×{factor:.3g}, refined at the run's places" if same is not None
+           else f"a mesh ×{factor * NOISE_RATIO:.3g}, refined at its own pilot's places")
+    return Sensitivity(ranges=ranges, ends=ends, baseline=readings[0], second=second, mesh_factor=factor,
+                       not_varied=skipped, time_s=time.perf_counter() - t0, second_mesh=how)
+
+
+def _line(label: str, rank: int, rd: Reading) -> str:
+    """The progress line of one variant."""
+    return f"sensitivity {label} (rank {rank}): " + (
+        f"peak {rd.peak_MPa:.2f} MPa, critical {rd.critical_MPa:.2f} MPa" if rd.ok
+        else f"invalid: {rd.invalid}" if rd.invalid else f"failed: {rd.failed}")
 
 
 def scaled(run_value: float | None, variant: float | None, baseline: float | None) -> float | None:
@@ -339,7 +362,8 @@ def summary(sens: Sensitivity, entries: list[dict], run_values: dict[str, float 
                     flips.append({"input": e["input"], "value": e["range"][i], "unit": e["unit"], "stress": key,
                                   "from": verdicts[key]["verdict"], "to": v})
     invalid = [(e["input"], e["range"][i], e["unit"], why) for e in entries for i, why in enumerate(e["invalid"]) if why]
-    return {"mesh_factor": sens.mesh_factor, "noise_MPa": noise, "not_varied": sens.not_varied,
+    return {"mesh_factor": sens.mesh_factor, "noise_MPa": noise, "noise_mesh": sens.second_mesh,
+            "not_varied": sens.not_varied,
             "flips": flips, "invalid": [{"input": n, "value": v, "why": w} for n, v, _, w in invalid],
             "sentence": verdict_sentence(entries, flips, invalid, verdicts), "time_s": sens.time_s}
 

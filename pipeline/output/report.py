@@ -282,7 +282,7 @@ def sensitivity_section(res: dict) -> str:
                  + " | ".join(_ends(e[k], nominal[k], nd) for k, _, nd in SENSITIVITY_COLUMNS) + " |")
     noise = summ.get("noise_MPa") or {}
     L.append("")
-    L.append("Noise of one such mesh (the nominal case on a second mesh, × 1.1): "
+    L.append(f"Noise of one such mesh (the nominal case's change to {summ.get('noise_mesh') or 'a second mesh'}): "
              + ", ".join(f"{label} ± {_f(noise.get(k))} MPa" for k, label in
                          (("global_peak", "global peak"), ("critical_peak", "critical peak"),
                           ("critical_section_nominal", "critical-section nominal")))
