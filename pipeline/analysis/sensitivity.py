@@ -28,7 +28,6 @@ from geometry.table import Dimensions, InputError, validate
 from pipeline.inputs.case import SENSITIVITY_KEYS, Case
 from pipeline.analysis.level import Level, Progress
 from pipeline.fe.meshing import owners
-from pipeline.post.errorbar import verdict_against
 from pipeline.post.sections import journal_nominal
 from pipeline.runtime.idle import wait_for_ranks
 
@@ -194,7 +193,13 @@ def read_level(case: Case, lv: Level) -> Reading:
     sec = lv.sections or {}
     return Reading(peak_MPa=lv.peak.value_MPa, critical_MPa=lv.critical.value_MPa,
                    section_MPa=(sec.get("critical_section") or {}).get("nominal_MPa"),
-                   journal_MPa=journal_nominal(case.dims, case.load_N)[1])
+                   journal_MPa=journal_root(case))
+
+
+def journal_root(case: Case) -> float:
+    """The journal root's nominal bending stress 32·M/(π·dj³) of a case (MPa), M from Q/2 at
+    the middle of its bearing length (statics, docs/design.md §5)."""
+    return journal_nominal(case.dims, case.load_N)[1]
 
 
 def analyse_variant(case: Case, factor: float) -> Reading:
@@ -273,127 +278,3 @@ def _line(label: str, rank: int, rd: Reading) -> str:
     return f"sensitivity {label} (rank {rank}): " + (
         f"peak {rd.peak_MPa:.2f} MPa, critical {rd.critical_MPa:.2f} MPa" if rd.ok
         else f"invalid: {rd.invalid}" if rd.invalid else f"failed: {rd.failed}")
-
-
-def scaled(run_value: float | None, variant: float | None, baseline: float | None) -> float | None:
-    """An end's value: the run's value × variant / baseline, both read on the sensitivity
-    mesh, so that the coarser mesh's bias cancels (MPa); None where one is missing."""
-    if run_value is None or variant is None or not baseline:
-        return None
-    return run_value * variant / baseline
-
-
-def capacity(load_N: float, allowable_MPa: float, values: dict[str, float | None]) -> float | None:
-    """The hook load (N) at which the first of the checked stresses (MPa) reaches the
-    allowable: Q·allowable / the largest (linear elasticity, loads only)."""
-    vs = [v for v in values.values() if v is not None and v > 0]
-    return load_N * allowable_MPa / max(vs) if vs else None
-
-
-def results_entries(sens: Sensitivity, run_values: dict[str, float | None], verdicts: dict, case: Case) -> list[dict]:
-    """results.json's ``sensitivity`` list (docs/design.md §7, §10): per input its range and
-    each checked value at the low and the high end, from the run's values (MPa, by
-    results.json's verdict names) scaled by the variants.
-
-    ``verdicts``: results.json's fe.verdict (a stress without a verdict there, a singular
-    or unwanted peak, gets none here either, and is left out of the capacity)."""
-    attrs = {"global_peak": "peak_MPa", "critical_peak": "critical_MPa",
-             "critical_section_nominal": "section_MPa", "journal_root_nominal": "journal_MPa"}
-    checked = [k for k in CHECKED if (verdicts.get(k) or {}).get("verdict") not in (None, "none")]
-    out = []
-    for r, ends in zip(sens.ranges, sens.ends):
-        vals = {}
-        for key, attr in attrs.items():
-            vals[key] = [scaled(run_values.get(key), getattr(e, attr), getattr(sens.baseline, attr))
-                         if e.ok else None for e in ends]
-        # The journal root's nominal stress is statics: its value at each end is exact.
-        vals["journal_root_nominal"] = [
-            journal_nominal(r.variant(case, v).dims, case.load_N)[1] if e.invalid is None else None
-            for v, e in zip((r.low, r.high), ends)]
-        caps = [capacity(case.load_N, case.allowable_MPa, {k: vals[k][i] for k in checked}) if e.ok else None
-                for i, e in enumerate(ends)]
-        out.append({
-            "input": r.input, "kind": r.kind, "unit": r.unit, "nominal": r.nominal, "range": [r.low, r.high],
-            "reason": r.reason, "note": r.note,
-            "peak_MPa": vals["global_peak"], "critical_peak_MPa": vals["critical_peak"],
-            "critical_section_nominal_MPa": vals["critical_section_nominal"],
-            "journal_root_nominal_MPa": vals["journal_root_nominal"], "capacity_N": caps,
-            "verdicts": [_end_verdicts(vals, i, checked, verdicts, case.allowable_MPa) if e.ok else None
-                         for i, e in enumerate(ends)],
-            "invalid": [e.invalid or e.failed for e in ends],
-        })
-    return out
-
-
-def _end_verdicts(vals: dict[str, list], i: int, checked: list[str], verdicts: dict, allowable: float) -> dict:
-    """The verdict of each checked stress at end ``i`` (0 low, 1 high): its value there
-    against the allowable (MPa), with the run's band scaled to that value."""
-    out = {}
-    for key in checked:
-        v = vals[key][i]
-        if v is None:
-            continue
-        run = verdicts[key]
-        band = run.get("band_MPa")
-        out[key] = verdict_against(v, None if band is None else band * v / run["value_MPa"], allowable)
-    return out
-
-
-NAMES = {"global_peak": "global peak", "critical_peak": "critical peak",
-         "critical_section_nominal": "critical-section nominal stress",
-         "journal_root_nominal": "journal-root nominal stress"}
-
-
-def summary(sens: Sensitivity, entries: list[dict], run_values: dict[str, float | None], verdicts: dict) -> dict:
-    """results.json's ``sensitivity_summary``: the variants' mesh factor, the noise of a
-    single such mesh (MPa: the nominal case on two meshes), the inputs not varied, what
-    flips and the one sentence that says whether the verdict holds over every range."""
-    noise = {}
-    for key, attr in (("global_peak", "peak_MPa"), ("critical_peak", "critical_MPa"),
-                      ("critical_section_nominal", "section_MPa")):
-        a, b, run = getattr(sens.baseline, attr), getattr(sens.second, attr), run_values.get(key)
-        noise[key] = abs(a - b) * run / a if sens.baseline.ok and sens.second.ok and None not in (a, b, run) and a \
-            else None
-    flips = []
-    for e in entries:
-        for i, end in enumerate(e["verdicts"]):
-            for key, v in (end or {}).items():
-                if v != verdicts[key]["verdict"]:
-                    flips.append({"input": e["input"], "value": e["range"][i], "unit": e["unit"], "stress": key,
-                                  "from": verdicts[key]["verdict"], "to": v})
-    invalid = [(e["input"], e["range"][i], e["unit"], why) for e in entries for i, why in enumerate(e["invalid"]) if why]
-    return {"mesh_factor": sens.mesh_factor, "noise_MPa": noise, "noise_mesh": sens.second_mesh,
-            "not_varied": sens.not_varied,
-            "flips": flips, "invalid": [{"input": n, "value": v, "why": w} for n, v, _, w in invalid],
-            "sentence": verdict_sentence(entries, flips, invalid, verdicts), "time_s": sens.time_s}
-
-
-def verdict_sentence(entries: list[dict], flips: list[dict], invalid: list[tuple], verdicts: dict) -> str:
-    """One sentence: the verdict holds over every range, or flips, on which input."""
-    decided = {k: v["verdict"] for k, v in verdicts.items() if v.get("verdict") not in (None, "none")}
-    if not entries:
-        return "Nothing was varied: every assumed input was set by the user without a range."
-    if not decided:
-        return "No stress has a verdict (singular or unwanted peaks), so there is no verdict to hold or flip."
-    tail = ("" if not invalid else " (not checked at " + ", ".join(f"{n} = {v:.4g} {u}" for n, v, u, _ in invalid)
-            + ": invalid or failed variants)")
-    if not flips:
-        ranges = ", ".join(f"{e['input']} {e['range'][0]:.4g}–{e['range'][1]:.4g} {e['unit']}" for e in entries)
-        return (f"The verdict holds over every range ({ranges}): "
-                + ", ".join(f"{NAMES[k]} {v}" for k, v in decided.items()) + f" at both ends{tail}.")
-    by_input: dict[str, list[str]] = {}
-    for f in flips:
-        by_input.setdefault(f["input"], []).append(
-            f"{NAMES[f['stress']]} {f['from']} → {f['to']} at {f['input']} = {f['value']:.4g} {f['unit']}")
-    return (f"The verdict flips on {', '.join(by_input)}: "
-            + "; ".join(s for v in by_input.values() for s in v) + f"{tail}.")
-
-
-def run_values_of(res: dict) -> dict[str, float | None]:
-    """The run's checked values (MPa) from its results.json content, by verdict name."""
-    fe = res["fe"]
-    sec = fe.get("sections") or {}
-    return {"global_peak": fe["peak_MPa"], "critical_peak": fe["critical_peak_MPa"],
-            "critical_section_nominal": (sec.get("critical_section") or {}).get("nominal_MPa"),
-            "journal_root_nominal": (sec.get("journal_root") or {}).get("nominal_MPa")}
-

@@ -159,6 +159,7 @@ def tornado_plot(path: Path, res: dict) -> bool:
         import matplotlib.pyplot as plt
     except ImportError:
         return False
+    from pipeline.output.report import range_text
     fe, summ = res["fe"], res.get("sensitivity_summary") or {}
     noise = summ.get("noise_MPa") or {}
     allowable = float(res["case"]["allowable_MPa"])
@@ -186,9 +187,7 @@ def tornado_plot(path: Path, res: dict) -> bool:
         if lo <= allowable <= hi or abs(allowable - base) < 0.5 * base:
             ax.axvline(allowable, color="C1", ls="--", lw=1.5, label=f"allowable {allowable:g} MPa")
         ax.set_yticks(range(len(order)))
-        ax.set_yticklabels([f"{e['input']} {e['range'][0]:.4g}–{e['range'][1]:.4g} {e['unit']}"
-                            if isinstance(e["range"][0], (int, float)) else f"{e['input']} {e['range'][0]}–{e['range'][1]}"
-                            for e in order], fontsize=9)
+        ax.set_yticklabels([f"{e['input']} {range_text(e['range'], e['unit'])}" for e in order], fontsize=9)
         ax.set_xlabel("von Mises (MPa)")
         ax.set_title(f"No. {res['case']['size']}: {label}")
         ax.grid(alpha=0.3, axis="x")

@@ -233,6 +233,17 @@ def verdict_section(res: dict) -> str:
     return "\n".join(L)
 
 
+def value_text(value: float | str, unit: str) -> str:
+    """An input's value with its unit: '1.2 mm', or a choice as it is ('uniform')."""
+    return value if isinstance(value, str) else f"{value:.4g} {unit}".rstrip()
+
+
+def range_text(rng: list, unit: str) -> str:
+    """A range: '1.2–1.8 mm', or the two choices ('cosine / uniform')."""
+    lo, hi = rng
+    return f"{lo} / {hi}" if isinstance(lo, str) else f"{lo:.4g}–{hi:.4g} {unit}".rstrip()
+
+
 SENSITIVITY_COLUMNS = (("peak_MPa", "global peak (MPa)", 2), ("critical_peak_MPa", "critical peak (MPa)", 2),
                        ("critical_section_nominal_MPa", "critical-section nominal (MPa)", 2),
                        ("capacity_N", "capacity (N)", 0))
@@ -272,8 +283,7 @@ def sensitivity_section(res: dict) -> str:
          "| input | range | why this range | " + " | ".join(h for _, h, _ in SENSITIVITY_COLUMNS) + " |",
          "|---|---|---|" + "---|" * len(SENSITIVITY_COLUMNS)]
     for e in entries:
-        lo, hi = e["range"]
-        rng = (f"{lo:.4g} – {hi:.4g} {e['unit']}" if isinstance(lo, (int, float)) else f"{lo} – {hi}")
+        rng = range_text(e["range"], e["unit"])
         why = e["reason"] + (f"; {e['note']}" if e.get("note") else "")
         bad = [f"{'low' if i == 0 else 'high'} end invalid: {w}" for i, w in enumerate(e["invalid"]) if w]
         if bad:
