@@ -249,14 +249,21 @@ SENSITIVITY_COLUMNS = (("peak_MPa", "global peak (MPa)", 2), ("critical_peak_MPa
                        ("capacity_N", "capacity (N)", 0))
 
 
-def _ends(values: list, nominal: float | None, nd: int) -> str:
+def _ends(values: list, nominal: float | None, nd: int, noise: float | None = None) -> str:
     """'low → high' of one quantity over a range, with each end's change from the run's
-    value in %."""
+    value in %; a change smaller than ``noise`` (the single mesh's, same unit) is marked."""
     def one(v):
         if v is None:
             return "—"
-        return _f(v, nd) + (f" ({100 * (v / nominal - 1):+.1f} %)" if nominal else "")
+        small = noise is not None and nominal is not None and abs(v - nominal) < noise
+        return _f(v, nd) + (f" ({100 * (v / nominal - 1):+.1f} %{', within noise' if small else ''})"
+                            if nominal else "")
     return f"{one(values[0])} → {one(values[1])}"
+
+
+# The noise of a single sensitivity mesh that each table column is compared with.
+NOISE_OF = {"peak_MPa": "global_peak", "critical_peak_MPa": "critical_peak",
+            "critical_section_nominal_MPa": "critical_section_nominal"}
 
 
 def sensitivity_section(res: dict) -> str:
@@ -282,6 +289,7 @@ def sensitivity_section(res: dict) -> str:
          "first checked stress reaches the allowable.\n",
          "| input | range | why this range | " + " | ".join(h for _, h, _ in SENSITIVITY_COLUMNS) + " |",
          "|---|---|---|" + "---|" * len(SENSITIVITY_COLUMNS)]
+    noise = summ.get("noise_MPa") or {}
     for e in entries:
         rng = range_text(e["range"], e["unit"])
         why = e["reason"] + (f"; {e['note']}" if e.get("note") else "")
@@ -289,8 +297,9 @@ def sensitivity_section(res: dict) -> str:
         if bad:
             why += "; " + "; ".join(bad)
         L.append(f"| {e['input']} | {rng} | {why} | "
-                 + " | ".join(_ends(e[k], nominal[k], nd) for k, _, nd in SENSITIVITY_COLUMNS) + " |")
-    noise = summ.get("noise_MPa") or {}
+                 + " | ".join(_ends(e[k], nominal[k], nd, noise.get(NOISE_OF.get(k, ""))
+                                    if e.get("kind", "dimension") == "dimension" else None)
+                              for k, _, nd in SENSITIVITY_COLUMNS) + " |")
     L.append("")
     L.append(f"Noise of one such mesh (the nominal case's change to {summ.get('noise_mesh') or 'a second mesh'}): "
              + ", ".join(f"{label} ± {_f(noise.get(k))} MPa" for k, label in
