@@ -241,3 +241,19 @@ def test_study_tables_name_the_verdicts_that_depend_on_an_assumption():
                                                 {"size": "1", "verdict_rests_on": flips}]))
     assert "1 of 2 sizes keep their verdict" in lines and f"No. 1: {flips}" in lines
     assert summary._rests_on_lines([{"size": "05", "verdict_rests_on": ""}]) == []
+
+
+def test_critical_section_nominal_at_each_end_is_statics(fe_sensitivity):
+    """The critical section's nominal stress of every dj and rf variant against the statics
+    of its loads on the half x >= 0: Q/2 up at the middle of the bearing length, Q/2 down
+    spread over the half seat annulus (its centroid 4(R2³ − R1³)/(3π(R2² − R1²)) from x = 0),
+    no axial force; nominal 6|M|/(w·h²), w = b1 − d2 (docs/design.md §5)."""
+    case, sens = fe_sensitivity
+    for r, ends in zip(sens.ranges, sens.ends):
+        for value, rd in zip((r.low, r.high), ends):
+            d = r.variant(case, value).dims
+            R1, R2 = d.seat_inner / 2, d.seat_outer / 2
+            seat_x = 4 * (R2 ** 3 - R1 ** 3) / (3 * math.pi * (R2 ** 2 - R1 ** 2))
+            bearing_x = (d.b1 / 2 + d.rf + d.b6 / 2) / 2
+            M = case.load_N / 2 * (bearing_x - seat_x)
+            assert rd.section_MPa == pytest.approx(6 * M / ((d.b1 - d.d2) * d.h3 ** 2), rel=2e-3), (r.input, value)
