@@ -257,3 +257,25 @@ def test_critical_section_nominal_at_each_end_is_statics(fe_sensitivity):
             bearing_x = (d.b1 / 2 + d.rf + d.b6 / 2) / 2
             M = case.load_N / 2 * (bearing_x - seat_x)
             assert rd.section_MPa == pytest.approx(6 * M / ((d.b1 - d.d2) * d.h3 ** 2), rel=2e-3), (r.input, value)
+
+
+def test_the_noise_is_never_measured_on_the_baselines_own_mesh():
+    """The run's error-bar mesh at the variants' factor serves as the second mesh only when
+    the run's pilot refined other places than the baseline's: at mesh factor 2 both pilots
+    run at factor 4 (docs/design.md §9), the meshes are one and the same, and the noise
+    must come from a mesh of its own (a noise of 5e-12 MPa was reported there)."""
+    from types import SimpleNamespace
+    calls = []
+
+    def one(case, factor):
+        calls.append(round(factor, 9))
+        return _closed_form(case, factor)
+
+    for mf, own_mesh in ((1.0, False), (2.0, True)):
+        calls.clear()
+        case = _seats_given(mesh_factor=mf, **{"dims.dj": 20.0, "dims.rf": 1.5})  # nothing to vary
+        coarsest = SimpleNamespace(factor=mf * 1.69, peak=SimpleNamespace(value_MPa=101.0),
+                                   critical=SimpleNamespace(value_MPa=60.0), sections=None)
+        sens = analyse_sensitivity(case, comm=MPI.COMM_SELF, analyse_one=one, levels=[coarsest])
+        assert (round(mf * 1.69 * 1.1, 9) in calls) == own_mesh, mf
+        assert sens.second.peak_MPa == (sens.baseline.peak_MPa if own_mesh else 101.0)

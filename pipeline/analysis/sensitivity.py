@@ -27,6 +27,7 @@ from geometry.table import Dimensions, InputError, validate
 
 from pipeline.inputs.case import SENSITIVITY_KEYS, Case
 from pipeline.analysis.level import Level, Progress
+from pipeline.analysis.pilot import pilot_factor
 from pipeline.fe.meshing import owners
 from pipeline.post.sections import journal_nominal
 from pipeline.runtime.idle import wait_for_ranks
@@ -228,14 +229,16 @@ def analyse_sensitivity(case: Case, comm: MPI.Comm = MPI.COMM_WORLD, progress: P
     rank at a time, each on MPI.COMM_SELF), gathered on every rank.
 
     The noise is the nominal case's value on a second mesh at the same factor: the run's
-    own error-bar mesh there, if ``levels`` (the run's) has one (its places come from the
-    run's pilot, so it is another mesh of the same part: no solve needed), else a mesh
-    NOISE_RATIO coarser, solved here."""
+    own error-bar mesh there, if ``levels`` (the run's) has one and the run's pilot ran at
+    another factor than the variants' (other refined places: another mesh of the same part,
+    no solve needed), else a mesh NOISE_RATIO coarser, solved here."""
     say = progress or (lambda s: None)
     t0 = time.perf_counter()
     ranges, skipped = ranges_of(case)
     factor = case.mesh_factor * MESH_RATIO
     same = next((lv for lv in levels if math.isclose(lv.factor, factor, rel_tol=1e-9)), None)
+    if math.isclose(pilot_factor(case), pilot_factor(replace(case, mesh_factor=factor)), rel_tol=1e-9):
+        same = None  # the same pilot, the same places: the very mesh of the baseline
     jobs: list[tuple[Case, float, str]] = [(case, factor, "nominal")]
     if same is None:
         jobs.append((case, factor * NOISE_RATIO, "nominal, 2nd mesh"))

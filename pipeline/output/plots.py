@@ -167,7 +167,7 @@ def tornado_plot(path: Path, res: dict) -> bool:
     def swing(e: dict) -> float:
         return max((abs(v - fe["peak_MPa"]) for v in e["peak_MPa"] if v is not None), default=0.0)
     order = sorted(entries, key=swing)  # the largest swing on top
-    fig, axes = plt.subplots(1, 2, figsize=(11, 0.9 + 0.55 * len(order) + 1.2))
+    fig, axes = plt.subplots(1, 2, figsize=(11, 2.6 + 0.5 * len(order)))
     for ax, key, label, nkey in ((axes[0], "peak_MPa", "global peak", "global_peak"),
                                  (axes[1], "critical_peak_MPa", "critical-region peak", "critical_peak")):
         base = fe[key]
@@ -183,7 +183,10 @@ def tornado_plot(path: Path, res: dict) -> bool:
         if noise.get(nkey):
             ax.axvspan(base - noise[nkey], base + noise[nkey], color="0.85", zorder=0,
                        label=f"single-mesh noise ±{noise[nkey]:.2g} MPa")
+        # At least ±5 % of the run's value: a change of 1 % must not fill the panel.
         lo, hi = ax.get_xlim()
+        lo, hi = min(lo, 0.95 * base), max(hi, 1.05 * base)
+        ax.set_xlim(lo, hi)
         if lo <= allowable <= hi or abs(allowable - base) < 0.5 * base:
             ax.axvline(allowable, color="C1", ls="--", lw=1.5, label=f"allowable {allowable:g} MPa")
         ax.set_yticks(range(len(order)))
@@ -191,7 +194,8 @@ def tornado_plot(path: Path, res: dict) -> bool:
         ax.set_xlabel("von Mises (MPa)")
         ax.set_title(f"No. {res['case']['size']}: {label}")
         ax.grid(alpha=0.3, axis="x")
-        ax.legend(fontsize=7, loc="best")
+        # Below the axes: inside, the legend hid the bars of the widest swing.
+        ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.16), ncol=2, frameon=False)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
