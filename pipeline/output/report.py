@@ -302,9 +302,10 @@ def sensitivity_section(res: dict) -> str:
                               for k, _, nd in SENSITIVITY_COLUMNS) + " |")
     L.append("")
     L.append(f"Noise of one such mesh (the nominal case's change to {summ.get('noise_mesh') or 'a second mesh'}): "
-             + ", ".join(f"{label} ± {_f(noise.get(k))} MPa" for k, label in
+             + ", ".join(f"{label} ± {_f(noise[k])} MPa" for k, label in
                          (("global_peak", "global peak"), ("critical_peak", "critical peak"),
-                          ("critical_section_nominal", "critical-section nominal")))
+                          ("critical_section_nominal", "critical-section nominal"))
+                         if noise.get(k) is not None)
              + "; a change smaller than that is not a finding.\n")
     if summ.get("not_varied"):
         L.append("Not varied: " + "; ".join(f"{k} ({why})" for k, why in summ["not_varied"].items()) + ".\n")
