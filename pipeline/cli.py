@@ -199,9 +199,9 @@ def make_parser() -> argparse.ArgumentParser:
                      help="skip varying the assumed inputs (dj, rf, seat) over their plausible ranges; a run with "
                           "--want skips it too")
     run.add_argument("--vary", type=_vary, action="append", default=[], metavar="NAME=LOW:HIGH",
-                     help="the range (mm) over which the sensitivity section varies dimension NAME (dj rf "
-                          "seat_inner seat_outer), instead of its default; varies it even when --dim sets it; "
-                          "repeatable")
+                     help="the range (mm) over which the sensitivity section varies NAME (dj rf seat_inner "
+                          "seat_outer bearing_centre_mm bearing_length_mm), instead of its default; varies it "
+                          "even when --dim or a --bearing option sets it; repeatable")
     run.add_argument("--quarter-fields", action="store_true",
                      help="picture and both .vtu files of the quarter model only (default: mirrored to the whole part)")
     conv = sub.add_parser("converge", help="mesh convergence study: >= 4 meshes, extrapolation, GCI, plot",

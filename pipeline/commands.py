@@ -22,7 +22,7 @@ from pipeline.output.report import write_report
 from pipeline.analysis.level import Level, Progress
 from pipeline.analysis.analyse import analyse
 from pipeline.output.results import add_sensitivity, build_results, load_sweep, sum_timings
-from pipeline.analysis.sensitivity import analyse_sensitivity
+from pipeline.analysis.sensitivity import analyse_sensitivity, load_variant_cases
 from pipeline.output.drawing import Picture, finish_picture, start_picture
 from pipeline.post.features import describe_location
 from pipeline.analysis.pilot import Pilot, refinement_places
@@ -51,11 +51,14 @@ def execute_run(case: Case, out_dir: Path, levels: int = 3, ratio: float = 1.3,
         files = {"results": "results.json", **({"mesh": "mesh.msh"} if write_mesh else {})}
         requested = _RequestedOutput(case=case, stage=stage, comm=comm, write_fields=write_fields,
                                      quarter_fields=quarter_fields, stack=stack, files=files)
+        vary = sensitivity and case.want == "both"
         try:
+            # The load model's variants change only the right-hand side: solved on the
+            # requested mesh's operator as it is solved.
             lv, pl = analyse(case, levels=levels, ratio=ratio, msh_path=stage / files["mesh"] if write_mesh else None,
                              progress=say, comm=comm, pl=pl, on_requested=requested.write,
-                             mesher=mesher)
-            sens = analyse_sensitivity(case, comm=comm, progress=say, levels=lv) if sensitivity and case.want == "both" else None
+                             mesher=mesher, load_variants=load_variant_cases(case) if vary else ())
+            sens = analyse_sensitivity(case, comm=comm, progress=say, levels=lv) if vary else None
         except BaseException:
             requested.abandon()  # the run failed: no picture either
             raise

@@ -114,7 +114,12 @@ def test_verdict_holds_when_every_end_stays_below_the_allowable():
     assert rf["peak_MPa"] == pytest.approx([100 * (1.5 / 1.2) ** 0.5, 100 * (1.5 / 1.8) ** 0.5])
     # capacity Q·allowable / the largest checked stress (the global peak here)
     assert rf["capacity_N"] == pytest.approx([10000 * 200 / p for p in rf["peak_MPa"]])
-    assert s["not_varied"].keys() == {"seat_inner", "seat_outer"}
+    assert {k: v for k, v in s["not_varied"].items() if k.startswith("seat")} == {
+        "seat_inner": "set by the user, and no range given for it",
+        "seat_outer": "set by the user, and no range given for it"}
+    # no requested mesh here (a stand-in): the load model's choices are said to be left out
+    assert {k for k, v in s["not_varied"].items() if v == "no requested mesh to solve it on"} == {
+        "bearing_shape", "bearing_centre_mm", "bearing_length_mm"}
 
 
 def test_verdict_flips_on_the_input_that_crosses_the_allowable():
@@ -218,10 +223,15 @@ def test_a_run_carries_the_sensitivity_list_and_a_scene_skips_it(tmp_path):
     common = ["run", "--size", "05", "--mesh-factor", "3", "--levels", "1", "--no-fields", "--quiet"]
     assert main(common + ["--out", str(tmp_path / "a"), "--dim", "seat_inner=25", "--dim", "seat_outer=37"]) == 0
     res = json.loads((tmp_path / "a" / "results.json").read_text())
-    assert [e["input"] for e in res["sensitivity"]] == ["dj", "rf"]
+    assert [e["input"] for e in res["sensitivity"]] == ["dj", "rf", "bearing_shape", "bearing_centre_mm",
+                                                         "bearing_length_mm"]
     for e in res["sensitivity"]:
-        for key in ("range", "peak_MPa", "critical_peak_MPa", "capacity_N"):
+        assert len(e["range"]) == 2
+        for key in ("peak_MPa", "critical_peak_MPa", "capacity_N"):
             assert len(e[key]) == 2 and all(isinstance(v, float) for v in e[key]), (e["input"], key)
+    # A load-model end that is the run's own model carries the run's values.
+    shape = res["sensitivity"][2]
+    assert shape["range"] == ["cosine", "uniform"] and shape["peak_MPa"][0] == res["fe"]["peak_MPa"]
     assert set(res["sensitivity_summary"]["not_varied"]) == {"seat_inner", "seat_outer"}
     for extra in (["--want", "critical"], ["--no-sensitivity"]):
         out = tmp_path / extra[-1].strip("-")
@@ -273,9 +283,30 @@ def test_the_noise_is_never_measured_on_the_baselines_own_mesh():
 
     for mf, own_mesh in ((1.0, False), (2.0, True)):
         calls.clear()
-        case = _seats_given(mesh_factor=mf, **{"dims.dj": 20.0, "dims.rf": 1.5})  # nothing to vary
+        # nothing to vary: every dimension given, and no bearing pressure to vary
+        case = _seats_given(mesh_factor=mf, support="rigid", **{"dims.dj": 20.0, "dims.rf": 1.5})
         coarsest = SimpleNamespace(factor=mf * 1.69, peak=SimpleNamespace(value_MPa=101.0),
                                    critical=SimpleNamespace(value_MPa=60.0), sections=None)
         sens = analyse_sensitivity(case, comm=MPI.COMM_SELF, analyse_one=one, levels=[coarsest])
         assert (round(mf * 1.69 * 1.1, 9) in calls) == own_mesh, mf
         assert sens.second.peak_MPa == (sens.baseline.peak_MPa if own_mesh else 101.0)
+
+
+def test_a_load_model_variant_on_the_runs_operator_is_its_own_solve():
+    """Each load-model end solved as a new right-hand side on the requested mesh's operator
+    (level.solve_level's load_variants) equals a solve of that case from scratch on the same
+    mesh (its own assembly and preconditioner), to the solver's tolerance."""
+    from pipeline.analysis.level import solve_level
+    from pipeline.analysis.sensitivity import load_variant_cases
+    case = resolve("05", None, {"mesh_factor": 3.0})
+    variants = load_variant_cases(case)
+    # No. 05's bearing surface runs from x = 24 to 35 mm: its quarter-point 26.75 mm, half its length 5.5 mm
+    assert {(v.bearing_shape, v.bearing_centre_mm, v.bearing_length_mm) for v in variants} == {
+        ("uniform", None, None), ("cosine", 26.75, None), ("cosine", None, 5.5)}
+    lv = solve_level(case, 3.0, with_sections=True, comm=MPI.COMM_SELF, load_variants=variants)
+    for v, (pk, crit, sec) in zip(variants, lv.load_variants):
+        own = solve_level(v, 3.0, with_sections=True, comm=MPI.COMM_SELF)
+        assert pk.value_MPa == pytest.approx(own.peak.value_MPa, rel=1e-6)
+        assert crit.value_MPa == pytest.approx(own.critical.value_MPa, rel=1e-6)
+        assert sec["critical_section"]["nominal_MPa"] == pytest.approx(own.sections["critical_section"]["nominal_MPa"],
+                                                                      rel=1e-6)

@@ -21,7 +21,7 @@ def analyse(case: Case, levels: int = 3, ratio: float = 1.3, msh_path: Path | No
             progress: Progress | None = None, comm: MPI.Comm = MPI.COMM_WORLD,
             pl: Pilot | None = None,
             on_requested: Callable[[Level, Pilot], None] | None = None,
-            mesher: Mesher | None = None) -> tuple[list[Level], Pilot]:
+            mesher: Mesher | None = None, load_variants: Sequence[Case] = ()) -> tuple[list[Level], Pilot]:
     """Solve on ``levels`` meshes, the requested one and coarser by ``ratio`` each; finest first.
 
     The refinement goes where the peaks are (:func:`pilot.refinement_places`: a pilot
@@ -33,7 +33,9 @@ def analyse(case: Case, levels: int = 3, ratio: float = 1.3, msh_path: Path | No
     process's meshing.Mesher of the case's part, if it has one (else one for the pilot
     and the meshes). If places known from the dimensions were refined and the critical
     peak of the requested mesh lies outside them, the analysis starts again with the
-    pilot's places, before anything is handed on.
+    pilot's places, before anything is handed on. ``load_variants``: cases that differ only
+    in the journal load model, solved on the requested mesh's operator (its level's
+    ``load_variants``).
     """
     with given_or_new(mesher, case.dims, case.model) as m:
         pl = pl or refinement_places(case, comm=comm, progress=progress, mesher=m)
@@ -48,13 +50,14 @@ def analyse(case: Case, levels: int = 3, ratio: float = 1.3, msh_path: Path | No
     if comm.size > 1 and levels > 1:
         say(f"meshes ×{', ×'.join(f'{f:.3g}' for f in factors)} made on {min(comm.size, levels)} ranks at once "
             f"({time.perf_counter() - t0:.2f} s)")
-    fine = solve_level(case, factors[0], keep_fields=True, with_sections=True, comm=comm, progress=progress, load_mesh=loaders[0])
+    fine = solve_level(case, factors[0], keep_fields=True, with_sections=True, comm=comm, progress=progress,
+                       load_mesh=loaders[0], load_variants=load_variants)
     if pl.source == KNOWN and not inside_refinement(fine.critical.location_mm, pl,
                                                     case.mesh_spec(factors[0]).edge_hotspot_radius):
         say(f"the critical peak at ({', '.join(f'{c:.2f}' for c in fine.critical.location_mm)}) mm lies outside "
             f"the known places' refinement: finding the places by a pilot solve instead")
         return analyse(case, levels, ratio, msh_path, progress, comm,
-                       pilot(case, comm=comm, progress=progress, mesher=mesher), on_requested, mesher)
+                       pilot(case, comm=comm, progress=progress, mesher=mesher), on_requested, mesher, load_variants)
     if on_requested is not None:
         on_requested(fine, pl)
     mine: list[tuple[int, Level]] = []

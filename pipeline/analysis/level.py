@@ -2,7 +2,7 @@
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable, Sequence
 
@@ -47,6 +47,8 @@ class Level:
     scaled_from: dict | None = None  # see solve.Solution.scaled_from
     fields: tuple | None = None  # (u, von_mises) on the requested mesh only
     sections: dict | None = None  # section results (pipeline/post/sections.py), requested mesh only
+    # solve_level's load_variants on this mesh, in order: (global peak, critical peak, sections)
+    load_variants: list[tuple[NodalPeak, NodalPeak, dict | None]] = field(default_factory=list)
 
 
 def peaks_of(case: Case, u: fem.Function, mat: Material) -> tuple[fem.Function, NodalPeak, NodalPeak]:
@@ -180,14 +182,18 @@ def solve_level(case: Case, factor: float, msh_path: Path | None = None,
                 keep_fields: bool = False, with_sections: bool = False, comm: MPI.Comm = MPI.COMM_WORLD,
                 progress: Progress | None = None, hotspots: Hotspots = (),
                 load_mesh: Callable[[], ImportedMesh] | None = None,
-                mesher: Mesher | None = None, problem: Problem | None = None, reuse: bool = True) -> Level:
+                mesher: Mesher | None = None, problem: Problem | None = None, reuse: bool = True,
+                load_variants: Sequence[Case] = ()) -> Level:
     """Build, mesh and solve the case with every mesh size times ``factor``; find the peaks.
 
     ``load_mesh``: that mesh made already (see :func:`analyse`); factor, msh_path and
     hotspots are then only the mesh's description. ``problem``: mesh, material and loads
     set up already (:func:`set_up`), when another solver gets the same ones. ``mesher``: this process's
     meshing.Mesher of the case's part, if it has one. ``reuse``: take an earlier solve of
-    this mesh scaled to the case's load and E, and keep this one (:func:`solve_or_scale`). Raises NumericalError if the mesh has
+    this mesh scaled to the case's load and E, and keep this one (:func:`solve_or_scale`).
+    ``load_variants``: cases that differ from ``case`` only in the journal load model, solved
+    on the same operator and preconditioner (a new right-hand side each); their peaks and
+    sections are the level's ``load_variants``. Raises NumericalError if the mesh has
     an inverted element, the solver fails, the result is not finite, or the loads do not
     balance to 1e-6·Q.
     """
@@ -200,9 +206,14 @@ def solve_level(case: Case, factor: float, msh_path: Path | None = None,
         f"import {m.timings['import']:.2f} s")
     variants = formula_load_cases(case, prob) if with_sections else {}
     extra = [v[2] for v in variants.values() if v[2] is not None]
-    sol = solve_or_scale(case, prob, reuse, more=[v.tractions for v in extra])
+    mine = [crosshead_loads(m, v.dims, v.load_N, v.support, shape=v.bearing_shape, band=v.bearing_band(),
+                            order=v.order) for v in load_variants]
+    sol = solve_or_scale(case, prob, reuse, more=[v.tractions for v in extra + mine])
+    # The formula bands' solutions first (formula_load_table takes them in order), then these.
+    mine_sols = sol.more[len(extra):]
+    sol.more = sol.more[:len(extra)]
     limit = 1e-6 * case.load_N
-    for lc_k, sol_k in zip([lc, *extra], [sol, *sol.more]):
+    for lc_k, sol_k in zip([lc, *extra, *mine], [sol, *sol.more, *mine_sols]):
         support_k, eq_err, point_r = equilibrium(lc_k, sol_k.reactions)
         if not (eq_err <= limit and point_r <= limit):
             raise NumericalError(f"loads out of balance: equilibrium error {eq_err:.3g} N, "
@@ -220,6 +231,12 @@ def solve_level(case: Case, factor: float, msh_path: Path | None = None,
                                    sym_idx, pk.value_MPa, bearing_centre_mm=case.bearing_band().centre_mm)
         if variants:
             sections["formula_load"] = formula_load_table(case, variants, sol, mat, share, sym_idx)
+    load_readings = []
+    for v, sol_k in zip(load_variants, mine_sols):
+        _, v_pk, v_crit = peaks_of(v, sol_k.u, mat)
+        load_readings.append((v_pk, v_crit, None if not with_sections else section_results(
+            sol_k, mat, v.dims, v.load_N, 0.25 if v.model == "quarter" else 1.0, sym_idx, v_pk.value_MPa,
+            bearing_centre_mm=v.bearing_band().centre_mm)))
     t_post = time.perf_counter() - t0
     timings = dict(m.timings, **sol.timings, post=t_post)
     how = (f"{sol.iterations} iterations ({case.solver}), assemble {sol.timings['assemble']:.2f} s, "
@@ -234,4 +251,4 @@ def solve_level(case: Case, factor: float, msh_path: Path | None = None,
                  support_force_N=support, equilibrium_error_N=eq_err,
                  constraint_reaction_N=point_r, jacobian_ratio=m.jacobian_ratio,
                  timings=timings, scaled_from=sol.scaled_from, fields=(sol.u, vm) if keep_fields else None,
-                 sections=sections)
+                 sections=sections, load_variants=load_readings)

@@ -25,7 +25,8 @@ from mpi4py import MPI
 
 from geometry.table import Dimensions, InputError, validate
 
-from pipeline.inputs.case import SENSITIVITY_KEYS, Case
+from pipeline.inputs.case import Case, check, journal_bearing_surface
+from pipeline.inputs.choices import BEARING_SHAPES
 from pipeline.analysis.level import Level, Progress
 from pipeline.analysis.pilot import pilot_factor
 from pipeline.fe.meshing import owners
@@ -54,19 +55,22 @@ class Range:
     changed in it (empty when nothing)."""
 
     input: str
-    kind: str  # "dimension" or "load model"
-    unit: str
-    nominal: float
-    low: float
-    high: float
+    kind: str  # DIMENSION or LOAD_MODEL
+    unit: str  # "mm", or "" for a choice (the bearing pressure's shape)
+    nominal: float | str
+    low: float | str
+    high: float | str
     reason: str
     note: str = ""
 
-    def variant(self, case: Case, value: float) -> Case:
+    def variant(self, case: Case, value: float | str) -> Case:
         """The case with this input at ``value`` (unchecked)."""
-        if self.kind == "dimension":
+        if self.kind == DIMENSION:
             return replace(case, dims=replace(case.dims, **{self.input: value}))
-        raise ValueError(f"unknown kind of input {self.kind!r}")
+        return replace(case, **{self.input: value})
+
+
+DIMENSION, LOAD_MODEL = "dimension", "load model"  # the kinds of input
 
 
 @dataclass(frozen=True)
@@ -90,13 +94,16 @@ class Reading:
 
 @dataclass
 class Sensitivity:
-    """The sensitivity analysis of a run: each range with the readings at its two ends,
-    the nominal case's reading on the same mesh (the baseline) and on a second mesh (the
-    noise), the variants' mesh factor, which assumed inputs were not varied and why, and
-    its wall time (s)."""
+    """The sensitivity analysis of a run: each range with the readings at its two ends and
+    the reading they are compared with (a dimension's: the nominal case on the variants'
+    mesh; a load-model choice's: the run's requested mesh, which its ends were solved on),
+    the nominal case's reading on the variants' mesh and on a second mesh (the noise), the
+    variants' mesh factor, which assumed inputs were not varied and why, and its wall time
+    (s)."""
 
     ranges: list[Range]
     ends: list[tuple[Reading, Reading]]
+    baselines: list[Reading]  # per range, what its ends are compared with
     baseline: Reading
     second: Reading
     mesh_factor: float
@@ -141,14 +148,14 @@ def default_range(name: str, d: Dimensions) -> Range:
     if name == "dj":
         lo, _ = _clip_low(d.dj * (1 - DJ_SPREAD), 0.0, "", "mm")
         hi, note = _clip_high(d.dj * (1 + DJ_SPREAD), 2 * (room - d.rf), f"dj/2 + rf <= min(h3, b1)/2 - {m:.2g} mm", "mm")
-        return Range("dj", "dimension", "mm", d.dj, lo, hi,
+        return Range("dj", DIMENSION, "mm", d.dj, lo, hi,
                      f"±{100 * DJ_SPREAD:.0f} % of the assumed journal diameter: the journal diameters that fit "
                      "the bearing plates and the geometry rules", note)
     if name == "rf":
         lo, hi = _clip_low(d.rf * (1 - RF_SPREAD), 0.0, "", "mm")[0], d.rf * (1 + RF_SPREAD)
         hi, note = _clip_high(hi, min(room - d.dj / 2, d.b2 - m),
                               f"dj/2 + rf <= min(h3, b1)/2 - {m:.2g} mm and rf <= b2 - {m:.2g} mm", "mm")
-        return Range("rf", "dimension", "mm", d.rf, lo, hi,
+        return Range("rf", DIMENSION, "mm", d.rf, lo, hi,
                      f"±{100 * RF_SPREAD:.0f} % of the assumed fillet radius: the radii a machinist would turn "
                      f"on this journal (r/dj {lo / d.dj:.3f} to {hi / d.dj:.3f})", note)
     if name in ("seat_inner", "seat_outer"):
@@ -160,33 +167,91 @@ def default_range(name: str, d: Dimensions) -> Range:
         else:
             lo, n1 = _clip_low(lo, d.d14 + m, f"seat_outer >= d14 + {m:.2g} mm", "mm")
             hi, n2 = _clip_high(hi, d.b1 - m, f"seat_outer <= b1 - {m:.2g} mm", "mm")
-        return Range(name, "dimension", "mm", v, lo, hi,
+        return Range(name, DIMENSION, "mm", v, lo, hi,
                      f"±{100 * SEAT_SPREAD:.0f} % of Dm: another thrust washer on the same track (a judgement; "
                      "the paper gives no seat)", "; ".join(n for n in (n1, n2) if n))
     raise ValueError(f"no default range for {name!r}")
 
 
-VARIED = SENSITIVITY_KEYS  # the inputs with a default range
+DIMENSION_INPUTS = ("dj", "rf", "seat_inner", "seat_outer")  # the dimensions with a default range
 
 
 def ranges_of(case: Case) -> tuple[list[Range], dict[str, str]]:
     """The ranges a run varies, and the inputs it does not vary with the reason: every
     assumed input over its default range (or the case's own range for it), and an input
     the user set only when the case gives a range for it (case file [sensitivity], or
-    --vary)."""
+    --vary); the dimensions first, then the load model's choices."""
     given = dict((k, (lo, hi)) for k, lo, hi in case.sensitivity_ranges)
     out: list[Range] = []
     skipped: dict[str, str] = {}
-    for name in VARIED:
+    for name in DIMENSION_INPUTS:
         if name in given:
             lo, hi = given[name]
-            out.append(Range(name, "dimension", "mm", getattr(case.dims, name), lo, hi,
+            out.append(Range(name, DIMENSION, "mm", getattr(case.dims, name), lo, hi,
                              "the range the case gives"))
         elif name in case.assumed:
             out.append(default_range(name, case.dims))
         else:
             skipped[name] = "set by the user, and no range given for it"
+    if case.support != "bearing":
+        skipped.update({name: f"support {case.support}: no bearing pressure" for name in LOAD_MODEL_INPUTS})
+        return out, skipped
+    defaults = load_model_ranges(case)
+    for name in LOAD_MODEL_INPUTS:
+        if name in given:
+            lo, hi = given[name]
+            out.append(replace(defaults[name], low=lo, high=hi, reason="the range the case gives", note=""))
+        elif getattr(case, name) == getattr(Case, name):  # the default model: assumed
+            out.append(defaults[name])
+        else:
+            skipped[name] = "set by the user, and no range given for it"
     return out, skipped
+
+
+# The load model's choices (docs/design.md §3), varied after the dimensions.
+LOAD_MODEL_INPUTS = ("bearing_shape", "bearing_centre_mm", "bearing_length_mm")
+
+
+def load_model_ranges(case: Case) -> dict[str, Range]:
+    """The plausible range of each load-model choice of support "bearing", from the geometry
+    (until a contact study bounds them): the pressure's shape, both; its centre from the
+    quarter-point of the journal's bearing surface nearest the shoulder to its middle; the
+    loaded length from half the bearing surface to all of it (mm)."""
+    start, end = journal_bearing_surface(case.dims)
+    length = end - start
+    band = case.bearing_band()
+    return {
+        "bearing_shape": Range("bearing_shape", LOAD_MODEL, "", case.bearing_shape, BEARING_SHAPES[0],
+                               BEARING_SHAPES[-1], "both shapes of the bearing pressure: how the side plate's "
+                               "bore bears on the journal is not known"),
+        "bearing_centre_mm": Range("bearing_centre_mm", LOAD_MODEL, "mm", band.centre_mm,
+                                   round(start + length / 4, 9), round(start + length / 2, 9),
+                                   "the centre of pressure from the bearing surface's quarter-point nearest the "
+                                   "shoulder (a plate that bears on its inner edge as the journal bends) to its "
+                                   "middle (pressure spread over the whole plate); from the geometry, no contact "
+                                   "study yet"),
+        "bearing_length_mm": Range("bearing_length_mm", LOAD_MODEL, "mm", band.length_mm,
+                                   round(length / 2, 9), round(length, 9),
+                                   "the loaded length from half the journal's bearing surface (a thinner side "
+                                   "plate, centred) to all of it; from the geometry, no contact study yet"),
+    }
+
+
+def load_variant_cases(case: Case) -> list[Case]:
+    """The cases the load-model ranges need solved on the run's mesh: each end of each range
+    that differs from the case's own load model and is valid, in the order of the ranges
+    (:func:`analyse_sensitivity` reads their results in this order)."""
+    out = []
+    for r in ranges_of(case)[0]:
+        if r.kind == LOAD_MODEL:
+            ends = [r.variant(case, v) for v in (r.low, r.high)]
+            out += [c for c in ends if not _invalid_load(c) and not same_load(case, c)]
+    return out
+
+
+def same_load(a: Case, b: Case) -> bool:
+    """Whether two cases load the journals alike (shape and band)."""
+    return a.bearing_shape == b.bearing_shape and a.bearing_band() == b.bearing_band()
 
 
 def read_level(case: Case, lv: Level) -> Reading:
@@ -199,8 +264,8 @@ def read_level(case: Case, lv: Level) -> Reading:
 
 def journal_root(case: Case) -> float:
     """The journal root's nominal bending stress 32·M/(π·dj³) of a case (MPa), M from Q/2 at
-    the middle of its bearing length (statics, docs/design.md §5)."""
-    return journal_nominal(case.dims, case.load_N)[1]
+    the middle of its bearing band (statics, docs/design.md §5)."""
+    return journal_nominal(case.dims, case.load_N, case.bearing_band().centre_mm)[1]
 
 
 def analyse_variant(case: Case, factor: float) -> Reading:
@@ -235,6 +300,9 @@ def analyse_sensitivity(case: Case, comm: MPI.Comm = MPI.COMM_WORLD, progress: P
     say = progress or (lambda s: None)
     t0 = time.perf_counter()
     ranges, skipped = ranges_of(case)
+    if not levels:  # no requested mesh whose operator the load model's variants are solved on
+        skipped.update({r.input: "no requested mesh to solve it on" for r in ranges if r.kind == LOAD_MODEL})
+        ranges = [r for r in ranges if r.kind == DIMENSION]
     factor = case.mesh_factor * MESH_RATIO
     same = next((lv for lv in levels if math.isclose(lv.factor, factor, rel_tol=1e-9)), None)
     if math.isclose(pilot_factor(case), pilot_factor(replace(case, mesh_factor=factor)), rel_tol=1e-9):
@@ -242,7 +310,7 @@ def analyse_sensitivity(case: Case, comm: MPI.Comm = MPI.COMM_WORLD, progress: P
     jobs: list[tuple[Case, float, str]] = [(case, factor, "nominal")]
     if same is None:
         jobs.append((case, factor * NOISE_RATIO, "nominal, 2nd mesh"))
-    for r in ranges:
+    for r in (r for r in ranges if r.kind == DIMENSION):
         jobs += [(r.variant(case, r.low), factor, f"{r.input} = {r.low:.4g} {r.unit}"),
                  (r.variant(case, r.high), factor, f"{r.input} = {r.high:.4g} {r.unit}")]
     who = owners([1.0] * len(jobs), comm.size)
@@ -268,12 +336,50 @@ def analyse_sensitivity(case: Case, comm: MPI.Comm = MPI.COMM_WORLD, progress: P
         if who[k] != 0:  # rank 0 said its own
             say(_line(label, who[k], readings[k]))
     second = read_level(case, same) if same is not None else readings[1]
-    first = 1 if same is not None else 2
-    ends = [(readings[first + 2 * i], readings[first + 1 + 2 * i]) for i in range(len(ranges))]
+    k = 1 if same is not None else 2  # the first dimension variant's job
+    run = read_level(case, levels[0]) if levels else None
+    solved = iter(levels[0].load_variants if any(r.kind == LOAD_MODEL for r in ranges) else [])
+    ends, baselines = [], []
+    for r in ranges:
+        if r.kind == DIMENSION:
+            ends.append((readings[k], readings[k + 1]))
+            baselines.append(readings[0])
+            k += 2
+            continue
+        pair = []
+        for v in (r.low, r.high):
+            c = r.variant(case, v)
+            why = _invalid_load(c)
+            pair.append(Reading(invalid=why) if why else run if same_load(case, c)
+                        else _reading(c, *next(solved)))
+            if pair[-1].ok:
+                say(f"sensitivity {r.input} = {v if isinstance(v, str) else f'{v:.4g} {r.unit}'} (the run's mesh, "
+                    f"its operator): peak {pair[-1].peak_MPa:.2f} MPa, critical {pair[-1].critical_MPa:.2f} MPa")
+        ends.append((pair[0], pair[1]))
+        baselines.append(run)
     how = (f"the run's error-bar mesh ×{factor:.3g}, refined at the run's places" if same is not None
            else f"a mesh ×{factor * NOISE_RATIO:.3g}, refined at its own pilot's places")
-    return Sensitivity(ranges=ranges, ends=ends, baseline=readings[0], second=second, mesh_factor=factor,
+    return Sensitivity(ranges=ranges, ends=ends, baselines=baselines, baseline=readings[0], second=second,
+                       mesh_factor=factor,
                        not_varied=skipped, time_s=time.perf_counter() - t0, second_mesh=how)
+
+
+def _invalid_load(case: Case) -> str | None:
+    """Why a load-model variant cannot be solved (a band off the journal), or None."""
+    try:
+        check(case)
+    except InputError as exc:
+        return " ".join(str(exc).split())
+    return None
+
+
+def _reading(case: Case, peak, critical, sections: dict | None) -> Reading:
+    """The values (MPa) of a load-model variant solved on the run's mesh (level.Level's
+    load_variants)."""
+    sec = sections or {}
+    return Reading(peak_MPa=peak.value_MPa, critical_MPa=critical.value_MPa,
+                   section_MPa=(sec.get("critical_section") or {}).get("nominal_MPa"),
+                   journal_MPa=(sec.get("journal_root") or {}).get("nominal_MPa"))
 
 
 def _line(label: str, rank: int, rd: Reading) -> str:

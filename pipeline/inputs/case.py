@@ -19,7 +19,7 @@ from pipeline.inputs.tomlfile import read_toml
 
 DIMENSION_KEYS = tuple(f.name for f in fields(Dimensions))
 # The inputs a case may give a sensitivity range for ([sensitivity] in a case file, --vary).
-SENSITIVITY_KEYS = ("dj", "rf", "seat_inner", "seat_outer")
+SENSITIVITY_KEYS = ("dj", "rf", "seat_inner", "seat_outer", "bearing_centre_mm", "bearing_length_mm")
 
 
 @dataclass(frozen=True)

@@ -278,10 +278,10 @@ def sensitivity_entries(sens: Sensitivity, run_values: dict[str, float | None], 
              "critical_section_nominal": "section_MPa", "journal_root_nominal": "journal_MPa"}
     checked = [k for k in CHECKED if (verdicts.get(k) or {}).get("verdict") not in (None, "none")]
     out = []
-    for r, ends in zip(sens.ranges, sens.ends):
+    for r, ends, base in zip(sens.ranges, sens.ends, sens.baselines):
         vals = {}
         for key, attr in attrs.items():
-            vals[key] = [scaled(run_values.get(key), getattr(e, attr), getattr(sens.baseline, attr))
+            vals[key] = [scaled(run_values.get(key), getattr(e, attr), getattr(base, attr))
                          if e.ok else None for e in ends]
         # The journal root's nominal stress is statics: its value at each end is exact.
         vals["journal_root_nominal"] = [
