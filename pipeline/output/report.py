@@ -283,10 +283,11 @@ def sensitivity_section(res: dict) -> str:
          f"**{summ['sentence']}**\n",
          "The error bar above is the mesh's error for *this* model. The inputs below are assumed (the "
          "paper does not give them) or are choices of the load model; each is varied alone over the range "
-         "stated, the others kept. Each end of a range is analysed on one mesh at mesh factor "
+         "stated, the others kept. Each end of a dimension's range is analysed on one mesh at mesh factor "
          f"{summ['mesh_factor']:.3g} with its own pilot; the nominal case on the same mesh is the baseline, "
-         "so an end's value is this run's value × end / baseline. Capacity: the hook load at which the "
-         "first checked stress reaches the allowable.\n",
+         "so an end's value is this run's value × end / baseline. Each end of a load-model choice is solved "
+         "on this run's own mesh with its operator (a new right-hand side) and read as it is. Capacity: the "
+         "hook load at which the first checked stress reaches the allowable.\n",
          "| input | range | why this range | " + " | ".join(h for _, h, _ in SENSITIVITY_COLUMNS) + " |",
          "|---|---|---|" + "---|" * len(SENSITIVITY_COLUMNS)]
     noise = summ.get("noise_MPa") or {}
