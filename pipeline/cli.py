@@ -196,8 +196,8 @@ def make_parser() -> argparse.ArgumentParser:
     run.add_argument("--ratio", type=_number, default=1.3, help="mesh-size ratio between those meshes (default 1.3)")
     run.add_argument("--no-fields", action="store_true", help="skip ParaView files, picture and report (benchmarks)")
     run.add_argument("--no-sensitivity", action="store_true",
-                     help="skip varying the assumed inputs (dj, rf, seat, the bearing load model) over their plausible ranges; a run with "
-                          "--want skips it too")
+                     help="skip varying the assumed inputs (dj, rf, seat, the bearing load model) over their "
+                          "plausible ranges; a run with --want skips it too")
     run.add_argument("--vary", type=_vary, action="append", default=[], metavar="NAME=LOW:HIGH",
                      help="the range (mm) over which the sensitivity section varies NAME (dj rf seat_inner "
                           "seat_outer bearing_centre_mm bearing_length_mm), instead of its default; varies it "
@@ -221,8 +221,9 @@ def make_parser() -> argparse.ArgumentParser:
     sweep.add_argument("--levels", type=int, help="meshes per variant for its error bar (default 3; 1 = none; 2 is refused)")
     sweep.add_argument("--ratio", type=_number, help="mesh-size ratio between them (default 1.3)")
     sweep.add_argument("--sensitivity", action="store_true",
-                       help="each variant also varies its assumed inputs (dj, rf, seat, bearing load model) over their ranges, and the "
-                            "table says which verdicts depend on one (about doubles a variant's time)")
+                       help="each variant also varies its assumed inputs (dj, rf, seat, bearing load model) over "
+                            "their ranges, and the table says which verdicts depend on one (about doubles a variant's "
+                            "time)")
     return parser
 
 
