@@ -22,7 +22,7 @@ from pipeline.output.report import write_report
 from pipeline.analysis.level import Level, Progress
 from pipeline.analysis.analyse import analyse
 from pipeline.output.results import add_sensitivity, build_results, load_sweep, sum_timings
-from pipeline.analysis.sensitivity import analyse_sensitivity, load_variant_cases
+from pipeline.analysis.sensitivity import MESH_RATIO, analyse_sensitivity, load_variant_cases
 from pipeline.output.drawing import Picture, finish_picture, start_picture
 from pipeline.post.features import describe_location
 from pipeline.analysis.pilot import Pilot, refinement_places
@@ -54,10 +54,12 @@ def execute_run(case: Case, out_dir: Path, levels: int = 3, ratio: float = 1.3,
         vary = sensitivity and case.want == "both"
         try:
             # The load model's variants change only the right-hand side: solved on the
-            # requested mesh's operator as it is solved.
+            # operator of the error-bar mesh at the dimension variants' factor, on its own
+            # rank beside the others (or of the requested mesh when the run has no such mesh).
             lv, pl = analyse(case, levels=levels, ratio=ratio, msh_path=stage / files["mesh"] if write_mesh else None,
                              progress=say, comm=comm, pl=pl, on_requested=requested.write,
-                             mesher=mesher, load_variants=load_variant_cases(case) if vary else ())
+                             mesher=mesher, load_variants=load_variant_cases(case) if vary else (),
+                             load_variants_at=case.mesh_factor * MESH_RATIO)
             sens = analyse_sensitivity(case, comm=comm, progress=say, levels=lv) if vary else None
         except BaseException:
             requested.abandon()  # the run failed: no picture either

@@ -3,6 +3,7 @@ solved over the MPI ranks.
 """
 from __future__ import annotations
 
+import math
 import time
 from pathlib import Path
 from typing import Callable, Sequence
@@ -21,7 +22,8 @@ def analyse(case: Case, levels: int = 3, ratio: float = 1.3, msh_path: Path | No
             progress: Progress | None = None, comm: MPI.Comm = MPI.COMM_WORLD,
             pl: Pilot | None = None,
             on_requested: Callable[[Level, Pilot], None] | None = None,
-            mesher: Mesher | None = None, load_variants: Sequence[Case] = ()) -> tuple[list[Level], Pilot]:
+            mesher: Mesher | None = None, load_variants: Sequence[Case] = (),
+            load_variants_at: float | None = None, formula_loads: bool = True) -> tuple[list[Level], Pilot]:
     """Solve on ``levels`` meshes, the requested one and coarser by ``ratio`` each; finest first.
 
     The refinement goes where the peaks are (:func:`pilot.refinement_places`: a pilot
@@ -34,8 +36,11 @@ def analyse(case: Case, levels: int = 3, ratio: float = 1.3, msh_path: Path | No
     and the meshes). If places known from the dimensions were refined and the critical
     peak of the requested mesh lies outside them, the analysis starts again with the
     pilot's places, before anything is handed on. ``load_variants``: cases that differ only
-    in the journal load model, solved on the requested mesh's operator (its level's
-    ``load_variants``).
+    in the journal load model, solved on the operator of the error-bar mesh at mesh factor
+    ``load_variants_at`` if the run has one (on its own rank, beside the others), else of
+    the requested mesh (that level's ``load_variants``). ``formula_loads``: the requested
+    mesh also solves the journal load at each hand formula's position (sections'
+    ``formula_load``).
     """
     with given_or_new(mesher, case.dims, case.model) as m:
         pl = pl or refinement_places(case, comm=comm, progress=progress, mesher=m)
@@ -50,14 +55,18 @@ def analyse(case: Case, levels: int = 3, ratio: float = 1.3, msh_path: Path | No
     if comm.size > 1 and levels > 1:
         say(f"meshes ×{', ×'.join(f'{f:.3g}' for f in factors)} made on {min(comm.size, levels)} ranks at once "
             f"({time.perf_counter() - t0:.2f} s)")
+    host = next((k for k in range(1, levels) if load_variants_at is not None
+                 and math.isclose(factors[k], load_variants_at, rel_tol=1e-9)), 0)
     fine = solve_level(case, factors[0], keep_fields=True, with_sections=True, comm=comm, progress=progress,
-                       load_mesh=loaders[0], load_variants=load_variants)
+                       load_mesh=loaders[0], load_variants=load_variants if host == 0 else (),
+                       formula_loads=formula_loads)
     if pl.source == KNOWN and not inside_refinement(fine.critical.location_mm, pl,
                                                     case.mesh_spec(factors[0]).edge_hotspot_radius):
         say(f"the critical peak at ({', '.join(f'{c:.2f}' for c in fine.critical.location_mm)}) mm lies outside "
             f"the known places' refinement: finding the places by a pilot solve instead")
         return analyse(case, levels, ratio, msh_path, progress, comm,
-                       pilot(case, comm=comm, progress=progress, mesher=mesher), on_requested, mesher, load_variants)
+                       pilot(case, comm=comm, progress=progress, mesher=mesher), on_requested, mesher, load_variants,
+                       load_variants_at, formula_loads)
     if on_requested is not None:
         on_requested(fine, pl)
     mine: list[tuple[int, Level]] = []
@@ -65,8 +74,8 @@ def analyse(case: Case, levels: int = 3, ratio: float = 1.3, msh_path: Path | No
     for k in range(1, levels):
         if on[k] == comm.rank and error is None:
             try:
-                mine.append((k, error_bar_level(case, specs[k], loaders[k],
-                                                progress if comm.rank == 0 else None)))
+                mine.append((k, error_bar_level(case, specs[k], loaders[k], progress if comm.rank == 0 else None,
+                                                load_variants if k == host else ())))
             except Exception as exc:  # re-raised on every rank below
                 error = (k, exc)
     wait_for_ranks(comm)
@@ -86,18 +95,22 @@ def analyse(case: Case, levels: int = 3, ratio: float = 1.3, msh_path: Path | No
     return out, pl
 
 
-def error_bar_level(case: Case, spec, load_mesh: Callable[[], ImportedMesh], progress: Progress | None) -> Level:
+def error_bar_level(case: Case, spec, load_mesh: Callable[[], ImportedMesh], progress: Progress | None,
+                    load_variants: Sequence[Case] = ()) -> Level:
     """One error-bar mesh solved on this rank alone: the results of an earlier run of the
     same mesh and problem scaled to the case's load (pipeline/cache/levels.py), or else a
-    new solve of the mesh ``load_mesh`` gives (``spec`` its MeshSpec), then kept."""
+    new solve of the mesh ``load_mesh`` gives (``spec`` its MeshSpec), then kept. With
+    ``load_variants`` (load-model cases solved on this mesh's operator, with the sections
+    of each and of the case) it is always solved: the cache keeps no variants."""
     name = levelcache.key(case, spec)
-    lv = levelcache.earlier(name, case, spec.factor)
+    lv = None if load_variants else levelcache.earlier(name, case, spec.factor)
     if lv is not None:
         (progress or (lambda s: None))(
             f"mesh ×{spec.factor:.3g}: the results of an earlier run at Q = {lv.scaled_from['load_N']:g} N scaled "
             f"({lv.timings['post']:.2f} s); peak {lv.peak.value_MPa:.2f} MPa, critical {lv.critical.value_MPa:.2f} MPa")
         return lv
-    lv = solve_level(case, spec.factor, comm=MPI.COMM_SELF, load_mesh=load_mesh, progress=progress)
+    lv = solve_level(case, spec.factor, comm=MPI.COMM_SELF, load_mesh=load_mesh, progress=progress,
+                     with_sections=bool(load_variants), load_variants=load_variants, formula_loads=False)
     levelcache.store(name, lv, case)
     return lv
 

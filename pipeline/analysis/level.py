@@ -183,7 +183,7 @@ def solve_level(case: Case, factor: float, msh_path: Path | None = None,
                 progress: Progress | None = None, hotspots: Hotspots = (),
                 load_mesh: Callable[[], ImportedMesh] | None = None,
                 mesher: Mesher | None = None, problem: Problem | None = None, reuse: bool = True,
-                load_variants: Sequence[Case] = ()) -> Level:
+                load_variants: Sequence[Case] = (), formula_loads: bool = True) -> Level:
     """Build, mesh and solve the case with every mesh size times ``factor``; find the peaks.
 
     ``load_mesh``: that mesh made already (see :func:`analyse`); factor, msh_path and
@@ -193,7 +193,9 @@ def solve_level(case: Case, factor: float, msh_path: Path | None = None,
     this mesh scaled to the case's load and E, and keep this one (:func:`solve_or_scale`).
     ``load_variants``: cases that differ from ``case`` only in the journal load model, solved
     on the same operator and preconditioner (a new right-hand side each); their peaks and
-    sections are the level's ``load_variants``. Raises NumericalError if the mesh has
+    sections are the level's ``load_variants``. ``formula_loads``: with the sections, also
+    the journal load at each hand formula's position (sections' ``formula_load``). Raises
+    NumericalError if the mesh has
     an inverted element, the solver fails, the result is not finite, or the loads do not
     balance to 1e-6·Q.
     """
@@ -204,7 +206,7 @@ def solve_level(case: Case, factor: float, msh_path: Path | None = None,
     say(f"mesh ×{factor:.3g}: {m.mesh.topology.index_map(3).size_global} tets, "
         f"geometry {m.timings['geometry']:.2f} s, mesh {m.timings['mesh']:.2f} s, "
         f"import {m.timings['import']:.2f} s")
-    variants = formula_load_cases(case, prob) if with_sections else {}
+    variants = formula_load_cases(case, prob) if with_sections and formula_loads else {}
     extra = [v[2] for v in variants.values() if v[2] is not None]
     mine = [crosshead_loads(m, v.dims, v.load_N, v.support, shape=v.bearing_shape, band=v.bearing_band(),
                             order=v.order) for v in load_variants]

@@ -281,7 +281,7 @@ def analyse_variant(case: Case, factor: float) -> Reading:
         return Reading(invalid=" ".join(str(exc).split()))
     variant = replace(case, mesh_factor=factor)
     try:
-        lv, _ = analyse(variant, levels=1, comm=MPI.COMM_SELF)
+        lv, _ = analyse(variant, levels=1, comm=MPI.COMM_SELF, formula_loads=False)
     except (NumericalError, GeometryError) as exc:
         return Reading(failed=" ".join(str(exc).split()))
     return read_level(variant, lv[0])
@@ -337,8 +337,11 @@ def analyse_sensitivity(case: Case, comm: MPI.Comm = MPI.COMM_WORLD, progress: P
             say(_line(label, who[k], readings[k]))
     second = read_level(case, same) if same is not None else readings[1]
     k = 1 if same is not None else 2  # the first dimension variant's job
-    run = read_level(case, levels[0]) if levels else None
-    solved = iter(levels[0].load_variants if any(r.kind == LOAD_MODEL for r in ranges) else [])
+    # The load model's ends were solved on one of the run's meshes (analyse's
+    # load_variants_at): its nominal reading is their baseline, its variants their ends.
+    host = next((lv for lv in levels if lv.load_variants), levels[0] if levels else None)
+    run = read_level(case, host) if host is not None else None
+    solved = iter(host.load_variants if any(r.kind == LOAD_MODEL for r in ranges) else [])
     ends, baselines = [], []
     for r in ranges:
         if r.kind == DIMENSION:
@@ -353,8 +356,9 @@ def analyse_sensitivity(case: Case, comm: MPI.Comm = MPI.COMM_WORLD, progress: P
             pair.append(Reading(invalid=why) if why else run if same_load(case, c)
                         else _reading(c, *next(solved)))
             if pair[-1].ok:
-                say(f"sensitivity {r.input} = {v if isinstance(v, str) else f'{v:.4g} {r.unit}'} (the run's mesh, "
-                    f"its operator): peak {pair[-1].peak_MPa:.2f} MPa, critical {pair[-1].critical_MPa:.2f} MPa")
+                say(f"sensitivity {r.input} = {v if isinstance(v, str) else f'{v:.4g} {r.unit}'} (the run's mesh "
+                    f"×{host.factor:.3g}, its operator): peak {pair[-1].peak_MPa:.2f} MPa, "
+                    f"critical {pair[-1].critical_MPa:.2f} MPa")
         ends.append((pair[0], pair[1]))
         baselines.append(run)
     how = (f"the run's error-bar mesh ×{factor:.3g}, refined at the run's places" if same is not None

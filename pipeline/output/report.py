@@ -286,7 +286,8 @@ def sensitivity_section(res: dict) -> str:
          "stated, the others kept. Each end of a dimension's range is analysed on one mesh at mesh factor "
          f"{summ['mesh_factor']:.3g} with its own pilot; the nominal case on the same mesh is the baseline, "
          "so an end's value is this run's value × end / baseline. Each end of a load-model choice is solved "
-         "on this run's own mesh with its operator (a new right-hand side) and read as it is. Capacity: the "
+         "on one of this run's own meshes with its operator (a new right-hand side: the error-bar mesh at "
+         "that factor, or the requested one), with that mesh's own value as the baseline. Capacity: the "
          "hook load at which the first checked stress reaches the allowable.\n",
          "| input | range | why this range | " + " | ".join(h for _, h, _ in SENSITIVITY_COLUMNS) + " |",
          "|---|---|---|" + "---|" * len(SENSITIVITY_COLUMNS)]
