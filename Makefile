@@ -19,6 +19,7 @@ run: $(SETUP)
 # The whole suite (CI runs this, with the linter first); test-fast: the edit-test loop, the
 # tests not marked slow (under a minute).
 test: $(SETUP)
+	$(PY) -m ruff check .
 	$(PY) -m pytest -q tests
 
 test-fast: $(SETUP)

@@ -170,8 +170,10 @@ def add_case_options(p: argparse.ArgumentParser, dim_type=None) -> None:
     m.add_argument("--mesh-factor", type=_number, dest="mesh_factor", metavar="F",
                    help="multiply every mesh size by F (<1 finer, >1 coarser; default 1)")
     m.add_argument("--size-body", type=_number, dest="size_body_mm", metavar="MM", help="element size away from features, mm")
-    m.add_argument("--size-feature", type=_number, dest="size_feature_mm", metavar="MM", help="element size at bore and seat edges, mm")
-    m.add_argument("--size-fillet", type=_number, dest="size_fillet_mm", metavar="MM", help="element size on the shoulder fillets, mm")
+    m.add_argument("--size-feature", type=_number, dest="size_feature_mm", metavar="MM",
+                   help="element size at bore and seat edges, mm")
+    m.add_argument("--size-fillet", type=_number, dest="size_fillet_mm", metavar="MM",
+                   help="element size on the shoulder fillets, mm")
     m.add_argument("--grading", type=_number, dest="grading_mm", metavar="MM", help="distance over which sizes grow, mm")
     m.add_argument("--solver", choices=SOLVERS,
                    help="CG + p-multigrid over P1 with GAMG (default), CG + GAMG, CG + BoomerAMG, or direct MUMPS")
@@ -192,7 +194,8 @@ def make_parser() -> argparse.ArgumentParser:
                          formatter_class=argparse.RawDescriptionHelpFormatter)
     add_case_options(run)
     run.add_argument("--levels", type=int, default=3,
-                     help="meshes solved for the error bar: the requested one and coarser ones (default 3, up to 8; 1 = no error bar; 2 is refused)")
+                     help="meshes solved for the error bar: the requested one and coarser ones "
+                          "(default 3, up to 8; 1 = no error bar; 2 is refused)")
     run.add_argument("--ratio", type=_number, default=1.3, help="mesh-size ratio between those meshes (default 1.3)")
     run.add_argument("--no-fields", action="store_true", help="skip ParaView files, picture and report (benchmarks)")
     run.add_argument("--no-sensitivity", action="store_true",
@@ -580,8 +583,8 @@ def _summary(out: Path) -> None:
     from pipeline.output.report import error_bar_text, feature_text, no_safety_factor_reason, pm
     res = json.loads((out / "results.json").read_text(encoding="utf-8"))
     fe = res["fe"]
-    _print(f"global peak   {fe['peak']['value_MPa']:8.2f} MPa  {error_bar_text(fe['peak'])}  [{feature_text(fe['peak'])}]")
-    _print(f"critical peak {fe['critical']['value_MPa']:8.2f} MPa  {error_bar_text(fe['critical'])}  [{feature_text(fe['critical'])}]")
+    for name, key in (("global peak  ", "peak"), ("critical peak", "critical")):
+        _print(f"{name} {fe[key]['value_MPa']:8.2f} MPa  {error_bar_text(fe[key])}  [{feature_text(fe[key])}]")
     an = res["analytic"]
 
     def sf(key: str) -> str:

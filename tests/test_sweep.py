@@ -16,7 +16,8 @@ from pipeline.errors import InputError
 from pipeline.study.plan import read_study
 from pipeline.study.sweep import time_left_s
 from pipeline.inputs.valuelist import parse_loads, parse_values
-from pipeline.study.table import COLUMNS, _passing_lines, band_reach, passing_count, with_verdicts, crossing_text, crossings, parameters_text, series, sides, unanalysed, varying_names
+from pipeline.study.table import (COLUMNS, _passing_lines, band_reach, crossing_text, crossings, parameters_text,
+                                  passing_count, series, sides, unanalysed, varying_names, with_verdicts)
 
 ROOT = Path(__file__).resolve().parents[1]
 GRID = ["--size", "05", "--dim", "rf=1.0,1.5,2.5", "--mesh-factor", "3", "--levels", "1"]
@@ -116,7 +117,8 @@ def test_crossing_is_interpolated_with_its_band():
     # A third variant back above 100 MPa: two crossings, neither the only one of its line.
     back = dict(rows[1], variant="c", **{"dims.rf": 3.0, "peak_MPa": 110.0})
     again = crossings(rows + [back], "dims.rf", 100.0)
-    assert [x["at"] for x in again] == pytest.approx([1.5, 2 + 20 / 30])  # 80 -> 110 MPa over rf 2 -> 3 and not any(x["only_crossing"] for x in again)
+    # 80 -> 110 MPa over rf 2 -> 3 and not any(x["only_crossing"] for x in again)
+    assert [x["at"] for x in again] == pytest.approx([1.5, 2 + 20 / 30])
     assert "stays" not in crossing_text(again[0], 100.0)
     # In a study where the load is the same everywhere, the line does not name it.
     assert crossing_text(found[0], 100.0, varying=set()).endswith("up to rf = 2 mm.")
@@ -401,7 +403,8 @@ def test_a_study_at_several_loads_counts_variants_and_cases_apart(tmp_path):
     unnamed: "2 variants (1 valid, 1 invalid)" and then "2 done, 2 invalid"."""
     p = sweep(tmp_path / "s", "--size", "05", "--dim", "rf=1,3", "--load", "5000,10000", "--mesh-factor", "3",
               "--levels", "1")
-    assert "sweep: 2 variants at 2 loads each (1 valid, 1 invalid), 0 already done" in (p.stdout + p.stderr), (p.stdout + p.stderr)
+    said = p.stdout + p.stderr
+    assert "sweep: 2 variants at 2 loads each (1 valid, 1 invalid), 0 already done" in said, said
     assert "sweep: 4 cases (2 variants at 2 loads): 2 done, 2 invalid, 0 failed; " in p.stdout, p.stdout
 
 

@@ -131,7 +131,8 @@ def comparison_section(res: dict) -> str:
          "The hand formulas give a *nominal* stress; the FE field gives the same quantity from the "
          "section's force and moment (reactions of the symmetry plane, exact for the FE solution) "
          "and from the linearised stress through the section, plus the concentration on top of it.\n",
-         "| section | formula, nominal (MPa) | FE nominal: N/(w·h) + 6M/(w·h²) (MPa) | FE linearised σ_xx, m + b (MPa) | FE peak von Mises (MPa) | Kt = peak / nominal |",
+         "| section | formula, nominal (MPa) | FE nominal: N/(w·h) + 6M/(w·h²) (MPa) | FE linearised σ_xx, m + b (MPa) "
+         "| FE peak von Mises (MPa) | Kt = peak / nominal |",
          "|---|---|---|---|---|---|"]
     cs, lines, root = sec.get("critical_section"), sec["lines"], sec["journal_root"]
     crit = fe["critical"]
@@ -331,8 +332,10 @@ def _summary_lines(res: dict) -> list[str]:
     add("## Summary\n")
     add("| quantity | value (MPa) | error bar | where |")
     add("|---|---|---|---|")
-    add(f"| FE peak von Mises, whole part | **{_f(fe['peak']['value_MPa'])}** | {error_bar_text(fe['peak'])} | {feature_text(fe['peak'])} at {_loc(fe['peak']['location_mm'])} |")
-    add(f"| FE peak von Mises, critical region (\\|x\\| ≤ di/2) | **{_f(fe['critical']['value_MPa'])}** | {error_bar_text(fe['critical'])} | {feature_text(fe['critical'])} at {_loc(fe['critical']['location_mm'])} |")
+    for name, key in (("whole part", "peak"), ("critical region (\\|x\\| ≤ di/2)", "critical")):
+        p = fe[key]
+        add(f"| FE peak von Mises, {name} | **{_f(p['value_MPa'])}** | {error_bar_text(p)} | "
+            f"{feature_text(p)} at {_loc(p['location_mm'])} |")
     pub = an.get("published")
     add(f"| approximate formula (span {_f(an['approximate_span_mm'], 1)} mm) | {_f(an['approximate_MPa'])} | "
         f"{'published ' + _f(pub['approximate_MPa']) if pub else ''} | nominal, ligament beside bore |")
@@ -510,7 +513,8 @@ def _load_sweep_lines(res: dict) -> list[str]:
             "load's), and scaled to the others: linear elasticity with traction loads only, so every "
             "stress scales with the load.\n")
         # The bands scale with the load too (the relative error is the first load's).
-        add("| load (N) | global peak (MPa) | critical peak (MPa) | approximate (MPa) | exact (MPa) | safety factor (global / critical) |")
+        add("| load (N) | global peak (MPa) | critical peak (MPa) | approximate (MPa) | exact (MPa) "
+            "| safety factor (global / critical) |")
         add("|---|---|---|---|---|---|")
         for r in sweep:
             add(f"| {_f(r['load_N'], 0)} | {pm(r['peak_MPa'], r.get('peak_band_MPa'))} | "
