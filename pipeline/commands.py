@@ -15,7 +15,9 @@ from pipeline.inputs.case import Case
 from pipeline.fe.meshing import Mesher
 from pipeline.runtime.interrupts import on_stop
 from pipeline.runtime.outdir import staged_dir
+from pipeline.output.flat import own_row
 from pipeline.output.jsonio import write_json
+from pipeline.output.provenance import complete
 from pipeline.fe.elasticity import Material
 from pipeline.output.fields import write_fields as write_field_files
 from pipeline.output.report import write_report
@@ -69,6 +71,7 @@ def execute_run(case: Case, out_dir: Path, levels: int = 3, ratio: float = 1.3,
             add_sensitivity(res, sens, case)
         requested.finish(res)
         res["timings_s"]["total"] = time.perf_counter() - t_all
+        complete(res, own_row(res))
         write_json(stage / "results.json", res, comm.rank)
         if write_fields and comm.rank == 0:
             write_report(stage)
@@ -190,6 +193,7 @@ def execute_converge(case: Case, out_dir: Path, levels: int = 5, ratio: float = 
         res["files"] = {"results": "results.json", "report": "report.md", "report_html": "report.html",
                         "mesh": "mesh.msh", **({"convergence_plot": conv["plot"]} if "plot" in conv else {})}
         res["timings_s"]["total"] = time.perf_counter() - t_all
+        complete(res, own_row(res))
         write_json(stage / "results.json", res, comm.rank)
         if comm.rank == 0:
             write_report(stage)

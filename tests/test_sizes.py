@@ -154,7 +154,7 @@ def test_makefile_has_a_target_per_row_and_sizes_sweeps_then_summarises():
                                             capture_output=True, text=True, check=True, env=env).stdout.splitlines()
                 if not ln.startswith("make") and "setup" not in ln]
     for size in TABLE:
-        assert any(f"-m pipeline run --size {size} --out results/{size}" in ln for ln in dry(size)), size
+        assert any(f"crosshead run --size {size} --out results/{size}" in ln for ln in dry(size)), size
     out = dry("sizes")
     assert "sweep --sizes all --out results/sizes" in out[-2]
     assert "-m pipeline.study.summary results/sizes/variants --all --out results/summary" in out[-1]

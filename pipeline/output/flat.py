@@ -99,7 +99,7 @@ _PER_LOAD = ("load_N", "approximate_MPa", "exact_MPa",
 def rows(res: dict) -> list[dict]:
     """One row (COLUMNS) per load of the run in ``res`` (a results.json's content): the
     case's own load, or each entry of its ``load_sweep`` in order."""
-    own = _own_row(res)
+    own = own_row(res)
     sweep = res.get("load_sweep")
     if not sweep:
         return [own]
@@ -113,7 +113,7 @@ def rows(res: dict) -> list[dict]:
     return out
 
 
-def _own_row(res: dict) -> dict:
+def own_row(res: dict) -> dict:
     """The row at the case's own load, from the fe and analytic blocks."""
     case, fe, an = res["case"], res["fe"], res["analytic"]
     nominal = ((fe.get("sections") or {}).get("critical_section") or {}).get("nominal_MPa")

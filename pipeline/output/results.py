@@ -7,6 +7,7 @@ from geometry.table import published
 
 from pipeline.post import formulas
 from pipeline.inputs.case import Case
+from pipeline.output.provenance import about
 from pipeline.post.errorbar import METHOD_TEXT, Estimate, estimate_levels, singular_override, verdict_against
 from pipeline.post.features import describe_location, singular_feature
 from pipeline.analysis.level import Level
@@ -48,6 +49,7 @@ def build_results(case: Case, levels: list[Level], timings: dict[str, float],
             block["not_wanted"] = (f"want = {case.want}: the run did not refine for the {name} peak; "
                                    "shown for orientation only")
     return {
+        "about": about(),
         "units": {"length": "mm", "force": "N", "stress": "MPa"},
         "case": case.as_dict(),
         "analytic": _analytic_block(case, hand),
@@ -84,10 +86,9 @@ def peak_block(case: Case, p: NodalPeak, est: Estimate | None, refined: bool = T
              "unaveraged_MPa": p.unaveraged.value_MPa, "averaged_MPa": p.averaged.value_MPa,
              "averaged_location_mm": list(p.averaged.location_mm)}
     est, singular = singular_override(est, singular_feature(case, p.location_mm), block["feature"], refined)
-    if est is not None:
-        block["error_estimate"] = est.as_dict()
-    if singular is not None:
-        block["singular_feature"] = singular
+    block["error_estimate"] = None if est is None else est.as_dict()
+    block["singular_feature"] = singular
+    block["not_wanted"] = None  # set by build_results for a peak the run was not asked for
     return block
 
 
