@@ -67,7 +67,7 @@ def _relax_curved(target: float) -> float:
     """Repair curved tets with det J ratio < target; returns the worst ratio after it.
 
     The ratio is :func:`jacobian_ratio`'s, computed here in numpy from the node positions
-    (tests/test_geometry.py checks the two agree): asking gmsh for every tet's Jacobians
+    (tests/geometry/test_geometry.py checks the two agree): asking gmsh for every tet's Jacobians
     is slow, and this is on the path of every run.
 
     Why: curving second-order tets onto the shoulder fillet inverts some, and elements left

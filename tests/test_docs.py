@@ -18,7 +18,7 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 REFERENCE_DOCS = sorted([ROOT / "README.md", *(ROOT / "docs").rglob("*.md")])
-TEST_FILES = sorted(p for p in (ROOT / "tests").glob("*.py") if p.name != "test_docs.py")
+TEST_FILES = sorted(p for p in (ROOT / "tests").rglob("*.py") if p.name != "test_docs.py")
 
 LINK = re.compile(r"\[[^\]]*\]\(([^)\s]+)\)")
 CODE = re.compile(r"`([^`\n]+)`")

@@ -42,7 +42,7 @@ def meshing_scale(d: Dimensions) -> float:
     to run) instead of 67 MPa. So the part is built and meshed at No. 05's size (lengths
     divided by this scale) and the node coordinates are multiplied by it afterwards:
     geometrically similar parts get similar meshes and their FE stresses obey the
-    similarity law to round-off (tests/test_sizes.py). No. 05 itself has scale 1 and is
+    similarity law to round-off (tests/study/test_sizes.py). No. 05 itself has scale 1 and is
     meshed exactly as given.
     """
     return d.h3 / REFERENCE_H3_MM
@@ -146,7 +146,7 @@ class Mesher:
     error-bar ones). Each mesh starts from a cleared mesh and no size fields (the builder
     removes its own), so it is bit for bit the mesh a fresh session makes: the mesh
     depends only on its inputs, whichever rank makes it and whatever it made before
-    (tests/test_geometry.py). gmsh has one session per process: if something else
+    (tests/geometry/test_geometry.py). gmsh has one session per process: if something else
     re-initialised it meanwhile, the part is built again.
     """
 

@@ -28,7 +28,7 @@ def p1_interpolation(V1, V) -> PETSc.Mat:
     """The interpolation matrix from V1 (vector P1) to V (vector Pk) on the same mesh, bs 3.
 
     Each Pk node takes the P1 basis values at its reference point, as DOLFINx's
-    interpolation_matrix does (tests/test_verification.py checks the two are equal), but
+    interpolation_matrix does (tests/verification/test_verification.py checks the two are equal), but
     vectorised: DOLFINx's took 0.28 s at No. 05 x1.3 on one core, for every solve.
     Rows: the Pk nodes this rank owns; columns: global P1 numbering.
     """

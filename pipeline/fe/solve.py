@@ -81,7 +81,7 @@ def solver_options(name: str, rtol: float) -> dict[str, object]:
     if name == "gamg":
         # Stop on the true (unpreconditioned) residual: the same norm solve() checks after.
         # Smoothed aggregation (nsmooths 1) keeps the iterations flat under refinement
-        # (tests/test_conditioning.py); unsmoothed aggregation is faster per solve but its
+        # (tests/fe/test_conditioning.py); unsmoothed aggregation is faster per solve but its
         # iterations grow with the mesh (docs/decisions.md).
         return {**cg, **_GAMG}
     if name == "hypre":

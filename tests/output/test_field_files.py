@@ -1,0 +1,183 @@
+"""The field file a run writes (fields.vtu), read with VTK alone as ParaView would: one
+connected whole part whose outer surface is the CAD's, and values that reproduce the
+peaks the run reports at the places it reports (docs/design.md §7)."""
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+pytestmark = pytest.mark.slow  # real runs or shared runs in fixtures: `make test-fast` skips them
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def _run(out: Path, *extra: str) -> Path:
+    p = subprocess.run([sys.executable, "-m", "pipeline", "run", "--size", "05", "--mesh-factor", "3",
+                        "--levels", "1", "--out", str(out), "--quiet", *extra],
+                       cwd=ROOT, capture_output=True, text=True, timeout=600)
+    assert p.returncode == 0, p.stderr
+    return out
+
+
+@pytest.fixture(scope="module")
+def whole(tmp_path_factory) -> Path:
+    return _run(tmp_path_factory.mktemp("fields") / "05")
+
+
+def _grid(path: Path):
+    from vtkmodules.vtkIOXML import vtkXMLUnstructuredGridReader
+    reader = vtkXMLUnstructuredGridReader()
+    reader.SetFileName(str(path))
+    reader.Update()
+    return reader.GetOutput()
+
+
+def _surface(grid):
+    """The outer surface of a grid of 10-node tets, each quadratic face split into triangles
+    that follow its curvature (VTK's nonlinear subdivision)."""
+    from vtkmodules.vtkFiltersGeometry import vtkDataSetSurfaceFilter
+    f = vtkDataSetSurfaceFilter()
+    f.SetInputData(grid)
+    f.SetNonlinearSubdivisionLevel(3)
+    f.Update()
+    return f.GetOutput()
+
+
+def _area(poly) -> float:
+    from vtkmodules.vtkFiltersCore import vtkMassProperties, vtkTriangleFilter
+    tri = vtkTriangleFilter()
+    tri.SetInputData(poly)
+    mp = vtkMassProperties()
+    mp.SetInputConnection(tri.GetOutputPort())
+    mp.Update()
+    return mp.GetSurfaceArea()
+
+
+def _cad_area(dims: dict) -> float:
+    """The whole part's outer surface area (mm²) from the OpenCASCADE model itself."""
+    import gmsh
+
+    from geometry.part import build
+    from geometry.table import Dimensions
+    gmsh.initialize(readConfigFiles=False)
+    try:
+        gmsh.option.setNumber("General.Terminal", 0)
+        gmsh.model.add("area")
+        build(Dimensions(**dims), "full")
+        outer = gmsh.model.getBoundary(gmsh.model.getEntities(3), combined=True, oriented=False)
+        return sum(gmsh.model.occ.getMass(2, abs(tag)) for _, tag in outer)
+    finally:
+        gmsh.finalize()
+
+
+def test_the_whole_part_is_one_connected_mesh_with_the_cad_s_surface(whole):
+    from vtkmodules.util.numpy_support import vtk_to_numpy
+    from vtkmodules.vtkFiltersCore import vtkConnectivityFilter
+    grid = _grid(whole / "fields.vtu")
+    conn = vtkConnectivityFilter()
+    conn.SetInputData(grid)
+    conn.SetExtractionModeToAllRegions()
+    conn.Update()
+    assert conn.GetNumberOfExtractedRegions() == 1
+    surface = _surface(grid)
+    dims = json.loads((whole / "results.json").read_text())["case"]["dims"]
+    assert _area(surface) == pytest.approx(_cad_area(dims), rel=1e-3)
+    # No face of the symmetry planes is left inside the part as a surface.
+    x = vtk_to_numpy(surface.GetPoints().GetData())
+    scale = np.abs(x).max()
+    on_plane = (np.abs(x[:, 0]) < 1e-6 * scale) | (np.abs(x[:, 1]) < 1e-6 * scale)
+    assert on_plane.mean() < 0.01   # only the planes' traces on the outer surface
+
+
+def _probe(grid, point) -> dict[str, float]:
+    """Point arrays interpolated at ``point`` (mm) by VTK's probe filter (ParaView's Probe)."""
+    from vtkmodules.util.numpy_support import vtk_to_numpy
+    from vtkmodules.vtkCommonCore import vtkPoints
+    from vtkmodules.vtkCommonDataModel import vtkPolyData
+    from vtkmodules.vtkFiltersCore import vtkProbeFilter
+    pts = vtkPoints()
+    pts.InsertNextPoint(*point)
+    src = vtkPolyData()
+    src.SetPoints(pts)
+    probe = vtkProbeFilter()
+    probe.SetInputData(src)
+    probe.SetSourceData(grid)
+    probe.Update()
+    out = probe.GetOutput().GetPointData()
+    assert vtk_to_numpy(out.GetArray("vtkValidPointMask"))[0] == 1, f"{point} is outside the part"
+    return {out.GetArrayName(i): vtk_to_numpy(out.GetArray(i))[0] for i in range(out.GetNumberOfArrays())}
+
+
+def _node(grid, point) -> int:
+    """The grid's point nearest ``point`` (mm)."""
+    from vtkmodules.vtkCommonDataModel import vtkStaticPointLocator
+    locator = vtkStaticPointLocator()
+    locator.SetDataSet(grid)
+    locator.BuildLocator()
+    return locator.FindClosestPoint(point)
+
+
+def _unaveraged_at(grid, point) -> float:
+    """The unaveraged reading at ``point``: the largest element-node value there, over the
+    tets that share the node (cell array von_mises_unaveraged_MPa, one value per vertex)."""
+    from vtkmodules.util.numpy_support import vtk_to_numpy
+    from vtkmodules.vtkCommonCore import vtkIdList
+    node = _node(grid, point)
+    values = vtk_to_numpy(grid.GetCellData().GetArray("von_mises_unaveraged_MPa"))
+    cells = vtkIdList()
+    grid.GetPointCells(node, cells)
+    found = []
+    for i in range(cells.GetNumberOfIds()):
+        c = cells.GetId(i)
+        ids = [grid.GetCell(c).GetPointId(k) for k in range(4)]
+        if node in ids:
+            found.append(values[c, ids.index(node)])
+    assert found, f"no tet has a vertex at {point}"
+    return float(max(found))
+
+
+def test_a_probe_at_each_reported_place_reads_the_reported_values(whole):
+    """At the node of each reported place the file holds the reported readings to Float32's
+    precision; ParaView's Probe there (interpolating in the curved tet whose Float32 corners
+    sit within ~1e-6 mm of the place) reads them to 2e-5."""
+    from vtkmodules.util.numpy_support import vtk_to_numpy
+    grid = _grid(whole / "fields.vtu")
+    averaged_at_nodes = vtk_to_numpy(grid.GetPointData().GetArray("von_mises_averaged_MPa"))
+    fe = json.loads((whole / "results.json").read_text())["fe"]
+    for key in ("peak", "critical"):
+        p = fe[key]
+        unaveraged = _unaveraged_at(grid, p["location_mm"])
+        averaged = float(averaged_at_nodes[_node(grid, p["averaged_location_mm"])])
+        probed = float(_probe(grid, p["averaged_location_mm"])["von_mises_averaged_MPa"])
+        assert unaveraged == pytest.approx(p["unaveraged_MPa"], rel=2e-6), key
+        assert averaged == pytest.approx(p["averaged_MPa"], rel=2e-6), key
+        assert probed == pytest.approx(p["averaged_MPa"], rel=2e-5), key
+        reading = 0.5 * (unaveraged + averaged) if p["value_MPa"] != p["unaveraged_MPa"] else unaveraged
+        assert reading == pytest.approx(p["value_MPa"], rel=2e-6), key
+
+
+def test_the_stress_tensor_s_invariants_are_consistent(whole):
+    """von Mises and principal stresses written beside the tensor are the tensor's (checked
+    at every node by an independent formula: von Mises from the principal stresses)."""
+    from vtkmodules.util.numpy_support import vtk_to_numpy
+    pd = _grid(whole / "fields.vtu").GetPointData()
+    s1, s2, s3 = (vtk_to_numpy(pd.GetArray(f"principal_stress_{i}_MPa")).astype(float) for i in (1, 2, 3))
+    vm = vtk_to_numpy(pd.GetArray("von_mises_averaged_MPa")).astype(float)
+    assert np.all(s1 >= s2) and np.all(s2 >= s3)
+    from_principal = np.sqrt(0.5 * ((s1 - s2) ** 2 + (s2 - s3) ** 2 + (s3 - s1) ** 2))
+    np.testing.assert_allclose(vm, from_principal, rtol=1e-4, atol=1e-4 * vm.max())
+    t = vtk_to_numpy(pd.GetArray("stress_MPa")).astype(float)
+    np.testing.assert_allclose(t[:, 0] + t[:, 1] + t[:, 2], s1 + s2 + s3, rtol=1e-4, atol=1e-4 * vm.max())
+
+
+def test_the_quarter_fields_hold_the_quarter(tmp_path):
+    out = _run(tmp_path / "q", "--quarter-fields")
+    x = _grid(out / "fields.vtu").GetPoints()
+    from vtkmodules.util.numpy_support import vtk_to_numpy
+    xyz = vtk_to_numpy(x.GetData())
+    assert xyz[:, 0].min() > -1e-6 and xyz[:, 1].min() > -1e-6

@@ -1,0 +1,229 @@
+"""What a person reads: report.md and the self-contained report.html, the whole-part
+fields, the sections plot (docs/design.md §7)."""
+from __future__ import annotations
+
+import json
+import re
+import subprocess
+import sys
+from html.parser import HTMLParser
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from pipeline.output.mirror import mirror_quarter
+
+pytestmark = pytest.mark.slow  # real runs or shared runs in fixtures: `make test-fast` skips them
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def test_mirror_makes_four_positive_tets_with_mirrored_displacement():
+    pts = np.array([[1.0, 1.0, 0.0], [2.0, 1.0, 0.0], [1.0, 2.0, 0.0], [1.0, 1.0, 1.0]])
+    cells = np.array([[0, 1, 2, 3]])
+    disp = np.array([[0.1, 0.2, 0.3]] * 4)
+    P, C, data, _ = mirror_quarter(pts, cells, {"v": np.arange(4.0), "displacement_mm": disp})
+    V, D = data["v"], data["displacement_mm"]
+    assert P.shape == (16, 3) and C.shape == (4, 4) and len(V) == 16
+    vols = [np.linalg.det(np.array([P[c[1]] - P[c[0]], P[c[2]] - P[c[0]], P[c[3]] - P[c[0]]])) for c in C]
+    assert all(v > 0 for v in vols)  # orientation kept: the same sign as the original tet
+    assert np.allclose(D[4], [-0.1, 0.2, 0.3]) and np.allclose(D[8], [0.1, -0.2, 0.3])
+    assert np.allclose(P[12], [-1.0, -1.0, 0.0])
+
+
+def test_mirror_shares_the_plane_nodes_and_reflects_a_tensor():
+    """A tet with a face on x = 0 (its nodes ~1e-13 off the plane, as gmsh places them) and an
+    edge on y = 0: the copies share those nodes, placed on the planes exactly; a stress
+    tensor's shear components change sign with the reflection (σ' = R σ R, R = diag(±1))."""
+    pts = np.array([[1e-13, 0.0, 0.0], [1.0, -2e-13, 0.0], [-1e-13, 1.0, 0.0], [0.0, 0.5, 1.0]])
+    sigma = np.array([[1.0, 2.0, 3.0], [2.0, 4.0, 5.0], [3.0, 5.0, 6.0]])
+    P, C, data, ids = mirror_quarter(pts, np.array([[0, 1, 2, 3]]), {"stress_MPa": np.tile(sigma.ravel(), (4, 1))})
+    # Node 0 is on both planes (one node), 2 and 3 on x = 0, 1 on y = 0: 16 − 3 − 2·2 − 2·1 = 7 nodes.
+    assert len(P) == 7 and len(np.unique(P, axis=0)) == 7
+    assert P[ids[0][0]].tolist() == [0.0, 0.0, 0.0] and P[ids[0][2], 0] == 0.0
+    assert ids[1][2] == ids[0][2] and ids[2][1] == ids[0][1] and ids[3][0] == ids[0][0]
+    R = np.diag([-1.0, 1.0, 1.0])
+    np.testing.assert_allclose(data["stress_MPa"][ids[1][1]].reshape(3, 3), R @ sigma @ R)
+
+
+def _tet10(pts4: np.ndarray) -> np.ndarray:
+    """A straight 10-node tet in VTK order: vertices, then mid-edges (0,1), (1,2), (2,0), (0,3), (1,3), (2,3)."""
+    edges = [(0, 1), (1, 2), (2, 0), (0, 3), (1, 3), (2, 3)]
+    return np.vstack([pts4] + [0.5 * (pts4[a] + pts4[b]) for a, b in edges])
+
+
+def test_mirror_keeps_ten_node_tets_positive_with_their_mid_edge_nodes():
+    pts = _tet10(np.array([[1.0, 1.0, 0.0], [2.0, 1.0, 0.0], [1.0, 2.0, 0.0], [1.0, 1.0, 1.0]]))
+    P, C, _, _ = mirror_quarter(pts, np.arange(10)[None, :], {"displacement_mm": np.zeros((10, 3))})
+    assert C.shape == (4, 10)
+    for c in C:
+        x = P[c]
+        assert np.linalg.det(np.array([x[1] - x[0], x[2] - x[0], x[3] - x[0]])) > 0
+        np.testing.assert_allclose(x, _tet10(x[:4]), atol=1e-12)   # each mid node on its VTK edge
+
+
+class _Html(HTMLParser):
+    def __init__(self):
+        super().__init__()
+        self.headings, self.images, self._in_h = [], [], False
+
+    def handle_starttag(self, tag, attrs):
+        if tag in ("h1", "h2"):
+            self._in_h = True
+            self.headings.append("")
+        if tag == "img":
+            self.images.append(dict(attrs).get("src", ""))
+
+    def handle_endtag(self, tag):
+        if tag in ("h1", "h2"):
+            self._in_h = False
+
+    def handle_data(self, data):
+        if self._in_h:
+            self.headings[-1] += data
+
+
+@pytest.fixture(scope="module")
+def run_folder(tmp_path_factory):
+    out = tmp_path_factory.mktemp("report") / "05"
+    p = subprocess.run([sys.executable, "-m", "pipeline", "run", "--size", "05", "--mesh-factor", "3",
+                        "--out", str(out), "--quiet"], cwd=ROOT, capture_output=True, text=True, timeout=600)
+    assert p.returncode == 0, p.stderr
+    return out
+
+
+def test_html_report_has_every_section_and_embeds_every_picture(run_folder):
+    md = (run_folder / "report.md").read_text()
+    doc = _Html()
+    doc.feed((run_folder / "report.html").read_text())
+    sections = [ln.lstrip("# ").strip().replace("`", "") for ln in md.splitlines() if re.match(r"^#{1,2} ", ln)]
+    assert sections and [h.strip() for h in doc.headings] == sections
+    pictures = re.findall(r"!\[[^\]]*\]\(([^)]+)\)", md)
+    assert len(doc.images) == len(pictures) >= 2  # the von Mises picture and the sections plot
+    assert all(src.startswith("data:image/png;base64,") for src in doc.images)
+
+
+def test_fields_show_the_whole_part(run_folder):
+    """fields.vtu covers x and y of both signs: the quarter mirrored (bounds ± b6/2, ± b1/2)."""
+    import meshio
+    m = meshio.read(run_folder / "fields.vtu")
+    d = json.loads((run_folder / "results.json").read_text())["case"]["dims"]
+    assert m.points[:, 0].min() == pytest.approx(-d["b6"] / 2, rel=1e-6)
+    assert m.points[:, 1].min() == pytest.approx(-d["b1"] / 2, rel=1e-6)
+    assert m.points[:, 0].max() == pytest.approx(d["b6"] / 2, rel=1e-6)
+
+
+def test_published_values_only_for_their_row(run_folder, tmp_path):
+    """No. 05 at the paper's load and spans shows the published values; another load does not."""
+    res = json.loads((run_folder / "results.json").read_text())
+    assert res["analytic"]["published"]["exact_MPa"] == 43.75
+    out = tmp_path / "other"
+    p = subprocess.run([sys.executable, "-m", "pipeline", "run", "--size", "05", "--load", "12000",
+                        "--mesh-factor", "3", "--levels", "1", "--out", str(out), "--quiet"],
+                       cwd=ROOT, capture_output=True, text=True, timeout=600)
+    assert p.returncode == 0, p.stderr
+    assert json.loads((out / "results.json").read_text())["analytic"]["published"] is None
+    assert "published" not in (out / "report.md").read_text()
+
+
+def test_load_arrows_point_where_the_loads_act():
+    """Seat arrows point down onto the top face on the seat's mean radius; support arrows
+    point up at the journals' underside; the quarter shows its own share of them."""
+    from pipeline.inputs.case import resolve
+    from pipeline.output.picture import load_arrows
+    d = resolve("05").as_dict()["dims"]
+    whole, quarter = load_arrows(d, 10_000.0, True), load_arrows(d, 10_000.0, False)
+    assert [c for *_, c in whole].count("red") == 8 and [c for *_, c in whole].count("green") == 2
+    assert [c for *_, c in quarter].count("red") == 2 and [c for *_, c in quarter].count("green") == 1
+    for tail, vec, colour in whole:
+        tip = tail + vec
+        if colour == "red":
+            assert vec[2] < 0 and tip[2] == pytest.approx(d["h3"])
+            assert np.hypot(tip[0], tip[1]) == pytest.approx((d["seat_inner"] + d["seat_outer"]) / 4)
+        else:
+            assert vec[2] > 0 and tip[2] == pytest.approx(d["h3"] / 2 - d["dj"] / 2)
+            assert d["b1"] / 2 < abs(tip[0]) < d["b6"] / 2
+
+
+def test_verdict_capacities_follow_linearity_and_the_lowest_is_named(run_folder):
+    """Each row's capacity is the hook load at which that stress reaches the allowable:
+    Q·allowable/σ (linear elasticity, loads only); the report names the row with the lowest."""
+    from pipeline.output.report import VERDICT_NAMES
+    res = json.loads((run_folder / "results.json").read_text())
+    q, allow = res["case"]["load_N"], res["case"]["allowable_MPa"]
+    rows = {k: r for k, r in res["fe"]["verdict"].items() if r["verdict"] != "none"}
+    assert len(rows) >= 3
+    for r in rows.values():
+        assert r["capacity_N"] == pytest.approx(q * allow / r["value_MPa"], rel=1e-9)
+    lowest = min(rows, key=lambda k: q * allow / rows[k]["value_MPa"])
+    assert f"Lowest capacity: **{VERDICT_NAMES[lowest]}**" in (run_folder / "report.md").read_text()
+
+
+def test_report_flags_scaled_rows_and_singular_peaks(run_folder):
+    """A scaled row of the size table is said to be no DIN value at the top; a singular global
+    peak gets no Kt and names its singular feature where the peak is listed."""
+    from pipeline.output.report import render_markdown
+    res = json.loads((run_folder / "results.json").read_text())
+    plain = render_markdown(res)
+    assert "not DIN 15412 values" not in plain and "singular:" not in plain
+    res["case"]["source"] = "scaled from No. 05 by geometric similarity; NOT a DIN 15412 value"
+    res["fe"]["peak"]["singular_feature"] = "edge of the rigid support patch"
+    md = render_markdown(res)
+    assert "not DIN 15412 values" in md.split("## Summary")[0]
+    assert "(singular: edge of the rigid support patch)" in md
+    assert "none: the peak is singular" in md
+
+
+def _study(status: str, values: list[float], extrapolated: float | None, band: float) -> dict:
+    """A convergence block as execute_converge writes it: three meshes, finest first."""
+    h = [0.01, 0.013, 0.017]
+    levels = [{"peak_unaveraged_MPa": v + 1, "peak_averaged_MPa": v - 1, "critical_unaveraged_MPa": v,
+               "critical_averaged_MPa": v - 0.1} for v in values]
+    est = {"h": h, "values": values, "status": status, "extrapolated": extrapolated, "band": band}
+    return {"levels": levels, "peak": est, "critical": dict(est, status="settled", extrapolated=values[0])}
+
+
+@pytest.mark.parametrize("status,limit_label", [("converged", "Richardson limit 99.00 MPa"),
+                                                ("scattered", "least-squares limit 99.00 MPa"),
+                                                ("unsettled", None), ("exact", None), ("oscillatory", None)])
+def test_convergence_plot_shows_both_readings_the_error_bar_and_only_a_real_limit(status, limit_label):
+    """The plot drew an extrapolated limit and band only for 'converged': a study whose
+    fillet peak was 'scattered' (a fitted limit, a band) showed a bare line. Now every
+    status has both readings and the error bar; a limit only where one was extrapolated,
+    and none for a settled peak (its 'limit' is the finest value itself)."""
+    import matplotlib.pyplot as plt
+
+    from pipeline.output.plots import convergence_figure
+    fig = convergence_figure(_study(status, [100.0, 101.0, 102.0], None if status == "unsettled" else 99.0, 0.5),
+                             "05")
+    glob, crit = ([t.get_text() for t in ax.get_legend().get_texts()] for ax in fig.axes)
+    plt.close(fig)
+    for labels in (glob, crit):
+        assert {"unaveraged (largest element-node value)", "averaged (nodal-averaged stress)",
+                "reported value", "error bar ±0.5 MPa"} <= set(labels)
+    assert (limit_label in glob) if limit_label else not any("limit" in t for t in glob)
+    assert not any("limit" in t for t in crit)
+
+
+def test_a_peak_not_asked_for_gets_no_band_or_limit_in_the_convergence_study():
+    """converge --want critical: the fillet's meshes were not refined, so its 'scattered'
+    fit (a limit at 92 MPa, a ±12 MPa band at No. 05 ×3) was drawn and tabled as if it were
+    a result. Its plot now shows the values only, titled as not asked for, and the report's
+    line says it is not resolved; the critical peak keeps its band and limit."""
+    import matplotlib.pyplot as plt
+
+    from pipeline.output.plots import convergence_figure
+    from pipeline.output.report import convergence_table
+    conv = _study("scattered", [100.0, 101.0, 102.0], 99.0, 0.5)
+    conv["not_wanted"] = {"peak": "want = critical: the run did not refine for the global peak"}
+    conv["critical"]["gci_fine"] = 1e-3
+    fig = convergence_figure(conv, "05")
+    (glob, crit), titles = ([[t.get_text() for t in ax.get_legend().get_texts()] for ax in fig.axes],
+                            [ax.get_title() for ax in fig.axes])
+    plt.close(fig)
+    assert not any("limit" in t or "error bar" in t for t in glob) and "not asked for" in titles[0]
+    assert "error bar ±0.5 MPa" in crit and "not asked for" not in titles[1]
+    table = convergence_table(dict(conv, levels=[{"mesh_factor": 1.0, "dofs": 1, "peak_MPa": 100.0,
+                                                  "critical_peak_MPa": 60.0, "time_s": 1.0}]))
+    assert "- global peak: not resolved (want = critical" in table and "status `scattered`" not in table.split("- critical")[0]
