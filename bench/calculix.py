@@ -29,6 +29,7 @@ import tempfile
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Sequence
 
 import numpy as np
 import ufl
@@ -174,8 +175,16 @@ def _id_lines(ids: np.ndarray, per_line: int = 10) -> list[str]:
     return [", ".join(ids[k:k + per_line]) for k in range(0, len(ids), per_line)]
 
 
-def inp_text(model: CcxModel, mat: Material, solver: str = "spooles", title: str = "crosshead") -> str:
-    """The CalculiX input deck of ``model`` (one linear static step)."""
+def inp_text(model: CcxModel, mat: Material, solver: str = "spooles", title: str = "crosshead",
+             model_lines: Sequence[str] = (), step_lines: Sequence[str] | None = None,
+             output_lines: Sequence[str] = ()) -> str:
+    """The CalculiX input deck of ``model`` (one static step).
+
+    A contact model (bench/contact.py) adds its surfaces and interactions as
+    ``model_lines`` (before the step), replaces the step's ``*STEP``/``*STATIC`` lines by
+    ``step_lines`` (increments of a nonlinear step) and asks for more output with
+    ``output_lines`` (before ``*END STEP``); the defaults give the linear peer's deck.
+    """
     out = [f"*HEADING\n{title[:80]}", "*NODE, NSET=NALL"]
     ids = np.arange(1, model.nodes.shape[0] + 1)
     out += [f"{i},{fmt(a)},{fmt(b)},{fmt(c)}" for i, (a, b, c) in zip(ids, model.nodes.tolist())]
@@ -187,8 +196,11 @@ def inp_text(model: CcxModel, mat: Material, solver: str = "spooles", title: str
         out.append(f"*NSET, NSET={names[comp]}")
         out += _id_lines(nids)
     out += ["*MATERIAL, NAME=STEEL", "*ELASTIC", f"{fmt(mat.E)},{fmt(mat.nu)}",
-            "*SOLID SECTION, ELSET=EALL, MATERIAL=STEEL", "*STEP"]
-    out.append("*STATIC" if solver == "spooles" else "*STATIC, SOLVER=ITERATIVE CHOLESKY")
+            "*SOLID SECTION, ELSET=EALL, MATERIAL=STEEL", *model_lines]
+    if step_lines is None:
+        out += ["*STEP", "*STATIC" if solver == "spooles" else "*STATIC, SOLVER=ITERATIVE CHOLESKY"]
+    else:
+        out += list(step_lines)
     out.append("*BOUNDARY")
     out += [f"{names[comp]},{comp + 1},{comp + 1}" for comp in model.fixed]
     # Loads on fixed DOFs would only go into reactions; DOLFINx zeroes them too (set_bc).
@@ -200,14 +212,17 @@ def inp_text(model: CcxModel, mat: Material, solver: str = "spooles", title: str
     for comp in range(3):
         nz = np.flatnonzero(np.abs(f[:, comp]) > 1e-14 * scale)
         out += [f"{n + 1},{comp + 1},{fmt(val)}" for n, val in zip(nz.tolist(), f[nz, comp].tolist())]
-    out += ["*NODE PRINT, NSET=NALL", "U", "*END STEP", ""]
+    out += [*output_lines, "*NODE PRINT, NSET=NALL", "U", "*END STEP", ""]
     return "\n".join(out)
 
 
 def read_dat_displacements(path: Path, n_nodes: int) -> np.ndarray:
-    """Nodal displacements (n_nodes × 3, mm) from a CalculiX .dat file (*NODE PRINT U)."""
+    """Nodal displacements (n_nodes × 3, mm) from a CalculiX .dat file (*NODE PRINT U): the
+    last block printed, which is the end of the step when a nonlinear step has several
+    increments."""
     lines = Path(path).read_text().splitlines()
-    start = next((k for k, s in enumerate(lines) if s.strip().startswith("displacements (vx,vy,vz)")), None)
+    heads = [k for k, s in enumerate(lines) if s.strip().startswith("displacements (vx,vy,vz)")]
+    start = heads[-1] if heads else None
     if start is None:
         raise NumericalError(f"no displacement block in {path}")
     U = np.full((n_nodes, 3), np.nan)
@@ -235,6 +250,24 @@ class CcxResult:
     log: str = ""
 
 
+def run_job(wd: Path, threads: int = 1, ccx: str = "ccx", job: str = "job") -> tuple[str, float, int]:
+    """Run ``ccx -i job`` in folder ``wd`` on ``threads`` threads; (log, wall time s, the
+    children's peak resident memory KiB). Raises NumericalError if ccx fails or its log
+    has an ``*ERROR``."""
+    env = dict(os.environ, OMP_NUM_THREADS=str(threads), CCX_NPROC_STIFFNESS=str(threads),
+               CCX_NPROC_EQUATION_SOLVER=str(threads), CCX_NPROC_RESULTS=str(threads),
+               NUMBER_OF_CPUS=str(threads), OPENBLAS_NUM_THREADS="1")
+    t0 = time.perf_counter()
+    proc = subprocess.run([ccx, "-i", job], cwd=wd, env=env, capture_output=True, text=True)
+    seconds = time.perf_counter() - t0
+    maxrss = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss
+    log = proc.stdout + proc.stderr
+    if proc.returncode != 0 or "*ERROR" in log:
+        tail = " | ".join(log.strip().splitlines()[-5:])
+        raise NumericalError(f"ccx failed (exit {proc.returncode}): {tail}")
+    return log, seconds, int(maxrss)
+
+
 def solve_ccx(mesh, facet_tags, lc: LoadCase, mat: Material, threads: int = 1,
               solver: str = "spooles", workdir: Path | None = None, keep: bool = False,
               ccx: str = "ccx") -> CcxResult:
@@ -259,17 +292,7 @@ def solve_ccx(mesh, facet_tags, lc: LoadCase, mat: Material, threads: int = 1,
         inp = wd / "job.inp"
         inp.write_text(inp_text(model, mat, solver=solver))
         timings["write"] = time.perf_counter() - t0
-        env = dict(os.environ, OMP_NUM_THREADS=str(threads), CCX_NPROC_STIFFNESS=str(threads),
-                   CCX_NPROC_EQUATION_SOLVER=str(threads), CCX_NPROC_RESULTS=str(threads),
-                   NUMBER_OF_CPUS=str(threads), OPENBLAS_NUM_THREADS="1")
-        t0 = time.perf_counter()
-        proc = subprocess.run([ccx, "-i", "job"], cwd=wd, env=env, capture_output=True, text=True)
-        timings["ccx"] = time.perf_counter() - t0
-        maxrss = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss
-        log = proc.stdout + proc.stderr
-        if proc.returncode != 0 or "*ERROR" in log:
-            tail = " | ".join(log.strip().splitlines()[-5:])
-            raise NumericalError(f"ccx failed (exit {proc.returncode}): {tail}")
+        log, timings["ccx"], maxrss = run_job(wd, threads, ccx)
         t0 = time.perf_counter()
         U = read_dat_displacements(wd / "job.dat", model.nodes.shape[0])
         u = fem.Function(model.V, name="displacement_mm")

@@ -1,0 +1,161 @@
+"""Reference study of the bearing load model: the journal in a side-plate bore, solved with
+CalculiX's contact, beside the pipeline's p0·cos θ model on the same mesh (mm, N, MPa).
+
+For each clearance (diametral, mm) and mesh factor the study solves the contact model of
+bench/contact.py and reads
+
+- equilibrium: the plate's held face carries Q/4 (the quarter model), and so do the
+  nodal forces the contact puts on the journal (the crosshead's out-of-balance forces
+  under CalculiX's displacement);
+- the contact's centre along the journal (exact, from those nodal forces) and its lever
+  from the shoulder, beside the cos θ model's (the middle of the bearing length);
+- the pressure −n·σ·n of the journal's own stress at its surface, per band of angle θ
+  (from straight down) and per band along the journal, beside p0·cos θ; its extent in θ;
+- the global (fillet) and critical peaks, read as the pipeline reads its own, beside the
+  pipeline's cos θ model solved on the very same crosshead mesh (no pilot refinement).
+
+Run: ``python -m bench.load_reference --out results/load-reference`` (make load-reference);
+docs/load-reference.md has the results and what follows for the load model's inputs.
+A point already in ``points.jsonl`` is not solved again.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from dataclasses import replace
+from pathlib import Path
+
+from pipeline.runtime.environment import configure  # noqa: E402
+
+configure()  # before numpy, PETSc or DOLFINx load (pipeline/runtime/environment.py)
+
+from pipeline.runtime.folders import refusal  # noqa: E402
+
+OWN_FILES = frozenset({"points.jsonl", "table.md"})
+# Diametral clearances (mm) on the No. 05 journal, dj = 20 mm (ISO 286, 18-30 mm range):
+# 0, a close running fit H7/g6 (7..41 µm, its mean) and a loose fit H9/d9 (65..169 µm, its
+# mean), usual for a pivot that only turns when the hook swings.
+CLEARANCES = {"zero": 0.0, "H7/g6": 0.024, "H9/d9": 0.117}
+PLATE_SIZE_PER_FACTOR = 0.75  # the plate's element size on the bore, mm per unit mesh factor
+
+
+def solve_point(size: str, factor: float, fit: str, clearance_mm: float, friction: float = 0.0,
+                penalty_scale: float = 1.0) -> dict:
+    """One contact solve and the cos θ model on the same mesh: the study's row (JSON-ready)."""
+    from mpi4py import MPI
+
+    from bench.contact import (PlateSpec, contact_model, force_summary, nodal_contact_forces, penalty,
+                               pressure_summary, solve_contact, stress_samples)
+    from pipeline.analysis.level import peaks_of, set_up, solve_level
+    from pipeline.inputs.case import resolve
+
+    case = resolve(size, overrides={"mesh_factor": factor, "solver": "mumps"})
+    case = replace(case, rtol=1e-10)
+    t0 = time.perf_counter()
+    prob = set_up(case, factor, comm=MPI.COMM_SELF)
+    lv = solve_level(case, factor, comm=MPI.COMM_SELF, problem=prob, reuse=False)
+    t_cos = time.perf_counter() - t0
+    spec = PlateSpec(clearance_mm=clearance_mm, size_mm=PLATE_SIZE_PER_FACTOR * factor, friction=friction)
+    spec = replace(spec, penalty_MPa_per_mm=penalty(spec, case.E_MPa) * penalty_scale)
+    t0 = time.perf_counter()
+    cm = contact_model(prob.mesh.mesh, prob.mesh.facet_tags, prob.loads, case.dims, spec)
+    sol = solve_contact(cm, prob.material, increments=1)
+    _, pk, cr = peaks_of(case, sol.u, prob.material)
+    xyz, F = nodal_contact_forces(cm, sol.u, prob.loads, prob.material)
+    forces = force_summary(xyz, F, case.dims, case.load_N)
+    pressure = pressure_summary(stress_samples(cm, sol.u, prob.material, case.dims), case.dims, spec, case.load_N)
+    t_contact = time.perf_counter() - t0
+    return {
+        "size": size, "mesh_factor": factor, "fit": fit, "clearance_mm": clearance_mm,
+        "friction": friction, "penalty_MPa_per_mm": spec.penalty_MPa_per_mm,
+        "plate_size_mm": spec.size_mm, "plate_x_mm": list(spec.x_range(case.dims)),
+        "crosshead_cells": lv.cells, "crosshead_dofs": lv.dofs,
+        "contact_nodes": int(cm.model.nodes.shape[0]), "plate_cells": int(cm.plate.elements.shape[0]),
+        "slave_faces": int(len(cm.slave_faces)), "master_faces": int(len(cm.master_faces)),
+        "ccx_s": sol.timings["ccx"], "contact_total_s": t_contact, "cos_model_s": t_cos,
+        "ccx_iterations": sol.iterations,
+        "plate_reaction_N": sol.plate_reaction_N.tolist(), "spring_force_N": sol.spring_force_N,
+        "quarter_load_N": case.load_N / 4,
+        "forces": forces, "pressure": pressure,
+        "peak_contact_MPa": pk.value_MPa, "peak_contact_location_mm": list(pk.location_mm),
+        "peak_cos_MPa": lv.peak.value_MPa, "peak_cos_location_mm": list(lv.peak.location_mm),
+        "peak_diff_pct": 100 * (pk.value_MPa / lv.peak.value_MPa - 1),
+        "critical_contact_MPa": cr.value_MPa, "critical_cos_MPa": lv.critical.value_MPa,
+        "critical_diff_pct": 100 * (cr.value_MPa / lv.critical.value_MPa - 1),
+    }
+
+
+def table(rows: list[dict]) -> str:
+    """The study's results as a Markdown table (mm, N, MPa, s)."""
+    head = ("| fit | clearance mm | factor | crosshead DOFs | plate reaction / (Q/4) | contact force / (Q/4) "
+            "| centre x mm | lever mm (cos θ: 7.00) | extent ° (99 %) | p max MPa (p0 28.9) "
+            "| fillet peak MPa: contact | cos θ | diff % | critical diff % | ccx s |")
+    out = [head, "|" + "---|" * (head.count("|") - 1)]
+    for r in rows:
+        f, p = r["forces"], r["pressure"]
+        out.append(
+            f"| {r['fit']}{' μ=' + format(r['friction'], 'g') if r['friction'] else ''}"
+            f"{' K×' + format(r.get('penalty_scale', 1), 'g') if r.get('penalty_scale', 1) != 1 else ''} "
+            f"| {r['clearance_mm']:.3f} | {r['mesh_factor']:g} | {r['crosshead_dofs']} "
+            f"| {r['plate_reaction_N'][2] / r['quarter_load_N']:.5f} | {f['force_z_over_quarter_load']:.5f} "
+            f"| {f['centre_x_mm']:.2f} | {f['lever_mm']:.2f} | {p['extent_deg']:.0f} | {p['p_max_MPa']:.1f} "
+            f"| {r['peak_contact_MPa']:.2f} | {r['peak_cos_MPa']:.2f} | {r['peak_diff_pct']:+.2f} "
+            f"| {r['critical_diff_pct']:+.2f} | {r['ccx_s']:.0f} |")
+    return "\n".join(out) + "\n"
+
+
+def main(argv: list[str] | None = None) -> int:
+    """The study: every clearance at every mesh factor, one row each in points.jsonl, then
+    table.md. Exit 2 on a bad --out or option."""
+    p = argparse.ArgumentParser(prog="python -m bench.load_reference", description=__doc__.splitlines()[0])
+    p.add_argument("--out", required=True, type=Path, help="results folder (points.jsonl, table.md)")
+    p.add_argument("--size", default="05")
+    p.add_argument("--factors", default="2.0", help="mesh factors, comma-separated (default 2.0)")
+    p.add_argument("--fits", default=",".join(CLEARANCES), help=f"of {', '.join(CLEARANCES)} (default all)")
+    p.add_argument("--friction", type=float, default=0.0, help="Coulomb μ (default 0: frictionless)")
+    p.add_argument("--penalty-scale", type=float, default=1.0,
+                   help="the penalty slope × this (a sensitivity check; default 1)")
+    a = p.parse_args(argv)
+    try:
+        factors = [float(s) for s in a.factors.split(",")]
+        fits = [s.strip() for s in a.fits.split(",")]
+    except ValueError:
+        sys.stderr.write(f"--factors: not a list of numbers: {a.factors!r}\n")
+        return 2
+    bad = [f for f in fits if f not in CLEARANCES]
+    if bad or not all(f > 0 for f in factors) or a.friction < 0 or a.penalty_scale <= 0:
+        sys.stderr.write(f"bad option: fits {bad or 'ok'}, factors > 0, friction >= 0, penalty scale > 0\n")
+        return 2
+    why = refusal(a.out, OWN_FILES)
+    if why is not None:
+        sys.stderr.write(why + "\n")
+        return 2
+    a.out.mkdir(parents=True, exist_ok=True)
+    points = a.out / "points.jsonl"
+    rows = [json.loads(s) for s in points.read_text().splitlines() if s.strip()] if points.exists() else []
+    done = {(r["size"], r["mesh_factor"], r["fit"], r["friction"], r.get("penalty_scale", 1.0)) for r in rows}
+    for factor in factors:
+        for fit in fits:
+            key = (a.size, factor, fit, a.friction, a.penalty_scale)
+            if key in done:
+                continue
+            print(f"load-reference: No. {a.size}, mesh factor {factor:g}, {fit} ({CLEARANCES[fit]:g} mm) ...",
+                  flush=True)
+            row = solve_point(a.size, factor, fit, CLEARANCES[fit], a.friction, a.penalty_scale)
+            row["penalty_scale"] = a.penalty_scale
+            with points.open("a") as fh:  # one complete line per point: a stop loses at most one
+                fh.write(json.dumps(row) + "\n")
+            rows.append(row)
+            print(f"  fillet peak {row['peak_contact_MPa']:.2f} MPa (cos θ {row['peak_cos_MPa']:.2f}, "
+                  f"{row['peak_diff_pct']:+.2f} %), lever {row['forces']['lever_mm']:.2f} mm, "
+                  f"ccx {row['ccx_s']:.0f} s", flush=True)
+    from pipeline.runtime.atomicfile import write_text
+    write_text(a.out / "table.md", table(rows))
+    print(table(rows))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
