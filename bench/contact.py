@@ -15,11 +15,12 @@ from there, as a hook block's side plates hang from the sheave axle, and carries
 journal upwards. Its face y = 0 is a symmetry plane (u_y = 0).
 
 Contact: the lower half of the journal's bearing surface (the faces the pipeline's
-``journal_bearing`` group holds) is the slave, the lower half of the bore the master,
+``journal_bearing`` group holds) is the slave, the whole bore the master (its mesh does
+not end at θ = 90°, and a larger master costs nothing),
 ``TYPE=SURFACE TO SURFACE`` with a linear penalty ``*SURFACE BEHAVIOR`` and no friction
 (or Coulomb friction μ). The crosshead's only rigid motion left, its vertical translation,
 is carried by the contact; a soft spring (1 N/mm) on one node keeps the first iteration's
-matrix regular and takes a force the report shows (well under 1e-3 N).
+matrix regular and takes a force the study reports (about 0.02 N, under 1e-5 of Q/4).
 
 Read-back: the displacement of the crosshead's nodes goes into the DOLFINx P2 space of its
 mesh (as bench/calculix.py does) so its peaks are read exactly as the pipeline reads its
@@ -89,7 +90,7 @@ class PlateMesh:
     elements: np.ndarray
     top: np.ndarray          # 0-based nodes of the held top face
     sym_y: np.ndarray        # 0-based nodes on y = 0
-    bore_faces: np.ndarray   # (F, 2): element (0-based), face (1..4) on the bore's lower half
+    bore_faces: np.ndarray   # (F, 2): element (0-based), face (1..4) on the bore
     volume_mm3: float
     flipped: int = 0
 
@@ -149,8 +150,7 @@ def plate_mesh(d: Dimensions, spec: PlateSpec) -> PlateMesh:
     elems, flipped = _positive(elems, nodes)
     tol = 1e-6 * d.b6
     on_bore = np.abs(np.hypot(nodes[:, 1], nodes[:, 2] - zb) - rb) < 1e-4 * rb
-    lower = nodes[:, 2] <= zb + tol
-    faces = surface_faces(elems, on_bore & lower)
+    faces = surface_faces(elems, on_bore)
     return PlateMesh(nodes=nodes, elements=elems, top=np.flatnonzero(nodes[:, 2] > ztop - tol),
                      sym_y=np.flatnonzero(nodes[:, 1] < tol), bore_faces=faces, volume_mm3=vol,
                      flipped=flipped)
@@ -168,13 +168,16 @@ def _positive(elems: np.ndarray, nodes: np.ndarray) -> tuple[np.ndarray, int]:
 
 
 def surface_faces(elems: np.ndarray, on: np.ndarray) -> np.ndarray:
-    """The element faces (element 0-based, face 1..4) whose six nodes all have ``on`` true
-    and that lie on the boundary (no other element shares them)."""
+    """The element faces (element 0-based, face 1..4) whose three corner nodes all have
+    ``on`` true and that lie on the boundary (no other element shares them).
+
+    Corners only: a mid-side node of a curved face may have been pulled straight by the
+    curved-tet repair (geometry/curved.py) and lie slightly off the surface."""
     corners = elems[:, C3D10_FACES[:, :3]]                 # (E, 4, 3)
     keys = np.sort(corners, axis=2).reshape(-1, 3)
     _, inverse, counts = np.unique(keys, axis=0, return_inverse=True, return_counts=True)
     boundary = counts[inverse.ravel()] == 1
-    all_on = on[elems[:, C3D10_FACES]].all(axis=2).ravel()
+    all_on = on[corners].all(axis=2).ravel()
     pick = np.flatnonzero(boundary & all_on)
     return np.column_stack([pick // 4, pick % 4 + 1])
 
