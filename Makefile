@@ -11,7 +11,7 @@ CROSSHEAD := .venv/bin/crosshead
 RUN := $(if $(filter 1,$(RANKS)),$(CROSSHEAD),$(PY) -m pipeline.runtime.launch $(RANKS))
 SIZES := $(shell awk -F, '!/^\#/ && $$1 != "size" && NF > 1 {print $$1}' geometry/sizes.csv)
 
-.PHONY: run test test-fast lint converge bench bench-sweeps reference sizes setup clean clean-cache $(SIZES)
+.PHONY: run test test-fast lint converge bench bench-sweeps reference load-reference sizes setup clean clean-cache $(SIZES)
 
 run: $(SETUP)
 	$(RUN) run --size 05 --out results/05
@@ -56,6 +56,14 @@ bench-sweeps: $(SETUP)
 # About 6 minutes on 2 cores; a re-run skips the points already in results/fillet-reference/.
 reference: $(SETUP)
 	$(PY) -m bench.fillet_reference --out results/fillet-reference --ranks $(RANKS)
+
+# An independent check of the bearing load model: the journal in a side-plate bore with
+# CalculiX's contact (zero clearance, H7/g6, H9/d9) beside the cos θ model on the same mesh
+# (docs/load-reference.md). About 15 minutes on 2 cores; a re-run skips the points already
+# in results/load-reference/.
+LOAD_REFERENCE_ARGS ?= --factors 2.0
+load-reference: $(SETUP)
+	$(PY) -m bench.load_reference --out results/load-reference $(LOAD_REFERENCE_ARGS)
 
 setup: $(SETUP)
 

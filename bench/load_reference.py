@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import sys
 import time
 from dataclasses import replace
@@ -39,6 +40,23 @@ OWN_FILES = frozenset({"points.jsonl", "table.md"})
 # mean), usual for a pivot that only turns when the hook swings.
 CLEARANCES = {"zero": 0.0, "H7/g6": 0.024, "H9/d9": 0.117}
 PLATE_SIZE_PER_FACTOR = 0.75  # the plate's element size on the bore, mm per unit mesh factor
+
+
+def hertz_line_contact(dj_mm: float, clearance_mm: float, force_per_mm_N: float, E_MPa: float,
+                       nu: float) -> dict:
+    """Hertz's line contact of a journal (diameter dj) in a bore of dj + clearance, equal
+    materials: half-width b = √(4·w·R/(π·E*)) with 1/R = 1/r1 − 1/r2, E* = E/(2(1 − ν²)),
+    peak pressure 2w/(π·b); as the half-angle b/r1 (degrees) and the angle within which
+    99 % of the elliptical pressure's force acts (0.9587·b). A closed form beside the
+    contact model (valid while b is small against the radius), none for zero clearance."""
+    if clearance_mm <= 0:
+        return {}
+    r1, r2 = dj_mm / 2, dj_mm / 2 + clearance_mm / 2
+    R = r1 * r2 / (r2 - r1)
+    e_star = E_MPa / (2 * (1 - nu ** 2))
+    b = math.sqrt(4 * force_per_mm_N * R / (math.pi * e_star))
+    return {"half_width_mm": b, "half_angle_deg": math.degrees(b / r1),
+            "extent99_deg": math.degrees(0.9587 * b / r1), "p_max_MPa": 2 * force_per_mm_N / (math.pi * b)}
 
 
 def solve_point(size: str, factor: float, fit: str, clearance_mm: float, friction: float = 0.0,
@@ -84,6 +102,9 @@ def solve_point(size: str, factor: float, fit: str, clearance_mm: float, frictio
         "peak_diff_pct": 100 * (pk.value_MPa / lv.peak.value_MPa - 1),
         "critical_contact_MPa": cr.value_MPa, "critical_cos_MPa": lv.critical.value_MPa,
         "critical_diff_pct": 100 * (cr.value_MPa / lv.critical.value_MPa - 1),
+        "hertz": hertz_line_contact(case.dims.dj, clearance_mm,
+                                    case.load_N / 2 / (case.dims.b6 / 2 - case.dims.b1 / 2 - case.dims.rf),
+                                    case.E_MPa, case.nu),
     }
 
 
@@ -100,10 +121,17 @@ def table(rows: list[dict]) -> str:
             f"{' K×' + format(r.get('penalty_scale', 1), 'g') if r.get('penalty_scale', 1) != 1 else ''} "
             f"| {r['clearance_mm']:.3f} | {r['mesh_factor']:g} | {r['crosshead_dofs']} "
             f"| {r['plate_reaction_N'][2] / r['quarter_load_N']:.5f} | {f['force_z_over_quarter_load']:.5f} "
-            f"| {f['centre_x_mm']:.2f} | {f['lever_mm']:.2f} | {p['extent_deg']:.0f} | {p['p_max_MPa']:.1f} "
+            f"| {f['centre_x_mm']:.2f} | {f['lever_mm']:.2f} | {p['extent_deg']:.0f}{_hertz(r, 'extent99_deg')} "
+            f"| {p['p_max_MPa']:.1f}{_hertz(r, 'p_max_MPa')} "
             f"| {r['peak_contact_MPa']:.2f} | {r['peak_cos_MPa']:.2f} | {r['peak_diff_pct']:+.2f} "
             f"| {r['critical_diff_pct']:+.2f} | {r['ccx_s']:.0f} |")
     return "\n".join(out) + "\n"
+
+
+def _hertz(row: dict, key: str) -> str:
+    """' (Hertz: v)' for a table cell, or nothing (zero clearance)."""
+    h = row.get("hertz") or {}
+    return f" (Hertz {h[key]:.0f})" if key in h else ""
 
 
 def main(argv: list[str] | None = None) -> int:
