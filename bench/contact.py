@@ -59,7 +59,9 @@ class PlateSpec:
     ``clearance_mm`` is diametral (bore − journal diameter). ``thickness_mm`` None: the
     journal's bearing length b6/2 − b1/2 − rf. The width, the ligament under the bore and
     the height over the axis are multiples of dj by default (a plate of usual proportions;
-    the paper gives none). ``size_mm``: element size on the bore; it grows to 3× that
+    the paper gives none). ``offset_mm``: the plate's inner face stands this far off the
+    fillet's run-out (0: flush, its bore edge on the fillet's end). ``size_mm``: element
+    size on the bore; it grows to 3× that
     away from it. ``penalty_MPa_per_mm``: the slope of the linear pressure-overclosure law,
     None for 20·E/size (penetration at 100 MPa then about 1e-5 mm, a thousandth of the
     elastic approach of journal and bore). ``friction``: Coulomb μ (0: frictionless).
@@ -73,10 +75,12 @@ class PlateSpec:
     size_mm: float = 1.5
     penalty_MPa_per_mm: float | None = None
     friction: float = 0.0
+    offset_mm: float = 0.0
 
     def x_range(self, d: Dimensions) -> tuple[float, float]:
-        """The plate's faces along the journal axis (mm): from the fillet's run-out outwards."""
-        x0 = d.b1 / 2 + d.rf
+        """The plate's faces along the journal axis (mm): from ``offset_mm`` beyond the
+        fillet's run-out outwards (default thickness: to the tip)."""
+        x0 = d.b1 / 2 + d.rf + self.offset_mm
         t = self.thickness_mm if self.thickness_mm is not None else d.b6 / 2 - x0
         return x0, x0 + t
 

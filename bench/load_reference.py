@@ -59,8 +59,23 @@ def hertz_line_contact(dj_mm: float, clearance_mm: float, force_per_mm_N: float,
             "extent99_deg": math.degrees(0.9587 * b / r1), "p_max_MPa": 2 * force_per_mm_N / (math.pi * b)}
 
 
+def fillet_core_peak(case, u, mat):
+    """The fillet's peak von Mises (MPa, the pipeline's midpoint reading) over the fillet's
+    half next to the body, |x| ≤ b1/2 + rf/2: at least rf/2 from the fillet's run-out, where
+    a flush plate's bore edge presses on the journal (an edge of contact, whose local stress
+    grows under refinement and depends on the edge's shape, not on the load model)."""
+    import numpy as np
+
+    from geometry.places import at_journal_root
+    from pipeline.post.peaks import MIDPOINT, averaged_von_mises, nodal_peak, von_mises
+
+    d = case.dims
+    return nodal_peak(von_mises(u, mat), averaged_von_mises(u, mat), MIDPOINT,
+                      lambda xyz: at_journal_root(d, xyz) & (np.abs(xyz[:, 0]) <= d.b1 / 2 + d.rf / 2))
+
+
 def solve_point(size: str, factor: float, fit: str, clearance_mm: float, friction: float = 0.0,
-                penalty_scale: float = 1.0) -> dict:
+                penalty_scale: float = 1.0, offset_mm: float = 0.0) -> dict:
     """One contact solve and the cos θ model on the same mesh: the study's row (JSON-ready)."""
     from mpi4py import MPI
 
@@ -73,21 +88,24 @@ def solve_point(size: str, factor: float, fit: str, clearance_mm: float, frictio
     case = replace(case, rtol=1e-10)
     t0 = time.perf_counter()
     prob = set_up(case, factor, comm=MPI.COMM_SELF)
-    lv = solve_level(case, factor, comm=MPI.COMM_SELF, problem=prob, reuse=False)
+    lv = solve_level(case, factor, comm=MPI.COMM_SELF, problem=prob, reuse=False, keep_fields=True)
+    core_cos = fillet_core_peak(case, lv.fields[0], prob.material)
     t_cos = time.perf_counter() - t0
-    spec = PlateSpec(clearance_mm=clearance_mm, size_mm=PLATE_SIZE_PER_FACTOR * factor, friction=friction)
+    spec = PlateSpec(clearance_mm=clearance_mm, size_mm=PLATE_SIZE_PER_FACTOR * factor, friction=friction,
+                     offset_mm=offset_mm)
     spec = replace(spec, penalty_MPa_per_mm=penalty(spec, case.E_MPa) * penalty_scale)
     t0 = time.perf_counter()
     cm = contact_model(prob.mesh.mesh, prob.mesh.facet_tags, prob.loads, case.dims, spec)
     sol = solve_contact(cm, prob.material, increments=1)
     _, pk, cr = peaks_of(case, sol.u, prob.material)
+    core = fillet_core_peak(case, sol.u, prob.material)
     xyz, F = nodal_contact_forces(cm, sol.u, prob.loads, prob.material)
     forces = force_summary(xyz, F, case.dims, case.load_N)
     pressure = pressure_summary(stress_samples(cm, sol.u, prob.material, case.dims), case.dims, spec, case.load_N)
     t_contact = time.perf_counter() - t0
     return {
         "size": size, "mesh_factor": factor, "fit": fit, "clearance_mm": clearance_mm,
-        "friction": friction, "penalty_MPa_per_mm": spec.penalty_MPa_per_mm,
+        "friction": friction, "offset_mm": offset_mm, "penalty_MPa_per_mm": spec.penalty_MPa_per_mm,
         "plate_size_mm": spec.size_mm, "plate_x_mm": list(spec.x_range(case.dims)),
         "crosshead_cells": lv.cells, "crosshead_dofs": lv.dofs,
         "contact_nodes": int(cm.model.nodes.shape[0]), "plate_cells": int(cm.plate.elements.shape[0]),
@@ -100,30 +118,42 @@ def solve_point(size: str, factor: float, fit: str, clearance_mm: float, frictio
         "peak_contact_MPa": pk.value_MPa, "peak_contact_location_mm": list(pk.location_mm),
         "peak_cos_MPa": lv.peak.value_MPa, "peak_cos_location_mm": list(lv.peak.location_mm),
         "peak_diff_pct": 100 * (pk.value_MPa / lv.peak.value_MPa - 1),
+        "fillet_core_contact_MPa": core.value_MPa, "fillet_core_contact_location_mm": list(core.location_mm),
+        "fillet_core_cos_MPa": core_cos.value_MPa, "fillet_core_cos_location_mm": list(core_cos.location_mm),
+        "fillet_core_diff_pct": 100 * (core.value_MPa / core_cos.value_MPa - 1),
         "critical_contact_MPa": cr.value_MPa, "critical_cos_MPa": lv.critical.value_MPa,
         "critical_diff_pct": 100 * (cr.value_MPa / lv.critical.value_MPa - 1),
-        "hertz": hertz_line_contact(case.dims.dj, clearance_mm,
-                                    case.load_N / 2 / (case.dims.b6 / 2 - case.dims.b1 / 2 - case.dims.rf),
-                                    case.E_MPa, case.nu),
+        "hertz": hertz_of(case, clearance_mm),
     }
+
+
+def hertz_of(case, clearance_mm: float) -> dict:
+    """:func:`hertz_line_contact` for the case's journal under Q/2 spread over its bearing
+    length b6/2 − b1/2 − rf (mm, N/mm, MPa)."""
+    d = case.dims
+    return hertz_line_contact(d.dj, clearance_mm, case.load_N / 2 / (d.b6 / 2 - d.b1 / 2 - d.rf),
+                              case.E_MPa, case.nu)
 
 
 def table(rows: list[dict]) -> str:
     """The study's results as a Markdown table (mm, N, MPa, s)."""
     head = ("| fit | clearance mm | factor | crosshead DOFs | plate reaction / (Q/4) | contact force / (Q/4) "
             "| centre x mm | lever mm (cos θ: 7.00) | extent ° (99 %) | p max MPa (p0 28.9) "
-            "| fillet peak MPa: contact | cos θ | diff % | critical diff % | ccx s |")
+            "| global peak MPa: contact | cos θ | diff % | fillet core MPa: contact | cos θ | diff % "
+            "| critical diff % | ccx s |")
     out = [head, "|" + "---|" * (head.count("|") - 1)]
     for r in rows:
         f, p = r["forces"], r["pressure"]
         out.append(
             f"| {r['fit']}{' μ=' + format(r['friction'], 'g') if r['friction'] else ''}"
-            f"{' K×' + format(r.get('penalty_scale', 1), 'g') if r.get('penalty_scale', 1) != 1 else ''} "
+            f"{' K×' + format(r.get('penalty_scale', 1), 'g') if r.get('penalty_scale', 1) != 1 else ''}"
+            f"{' offset ' + format(r['offset_mm'], 'g') + ' mm' if r.get('offset_mm') else ''} "
             f"| {r['clearance_mm']:.3f} | {r['mesh_factor']:g} | {r['crosshead_dofs']} "
             f"| {r['plate_reaction_N'][2] / r['quarter_load_N']:.5f} | {f['force_z_over_quarter_load']:.5f} "
             f"| {f['centre_x_mm']:.2f} | {f['lever_mm']:.2f} | {p['extent_deg']:.0f}{_hertz(r, 'extent99_deg')} "
             f"| {p['p_max_MPa']:.1f}{_hertz(r, 'p_max_MPa')} "
             f"| {r['peak_contact_MPa']:.2f} | {r['peak_cos_MPa']:.2f} | {r['peak_diff_pct']:+.2f} "
+            f"| {r['fillet_core_contact_MPa']:.2f} | {r['fillet_core_cos_MPa']:.2f} | {r['fillet_core_diff_pct']:+.2f} "
             f"| {r['critical_diff_pct']:+.2f} | {r['ccx_s']:.0f} |")
     return "\n".join(out) + "\n"
 
@@ -143,6 +173,8 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--factors", default="2.0", help="mesh factors, comma-separated (default 2.0)")
     p.add_argument("--fits", default=",".join(CLEARANCES), help=f"of {', '.join(CLEARANCES)} (default all)")
     p.add_argument("--friction", type=float, default=0.0, help="Coulomb μ (default 0: frictionless)")
+    p.add_argument("--offset-mm", type=float, default=0.0,
+                   help="the plate's inner face this far off the fillet's run-out (default 0: flush)")
     p.add_argument("--penalty-scale", type=float, default=1.0,
                    help="the penalty slope × this (a sensitivity check; default 1)")
     a = p.parse_args(argv)
@@ -153,8 +185,9 @@ def main(argv: list[str] | None = None) -> int:
         sys.stderr.write(f"--factors: not a list of numbers: {a.factors!r}\n")
         return 2
     bad = [f for f in fits if f not in CLEARANCES]
-    if bad or not all(f > 0 for f in factors) or a.friction < 0 or a.penalty_scale <= 0:
-        sys.stderr.write(f"bad option: fits {bad or 'ok'}, factors > 0, friction >= 0, penalty scale > 0\n")
+    if bad or not all(f > 0 for f in factors) or a.friction < 0 or a.penalty_scale <= 0 \
+            or not 0 <= a.offset_mm < 5:
+        sys.stderr.write(f"bad option: fits {bad or 'ok'}, factors > 0, friction >= 0, penalty scale > 0, 0 <= offset < 5 mm\n")
         return 2
     why = refusal(a.out, OWN_FILES)
     if why is not None:
@@ -163,15 +196,20 @@ def main(argv: list[str] | None = None) -> int:
     a.out.mkdir(parents=True, exist_ok=True)
     points = a.out / "points.jsonl"
     rows = [json.loads(s) for s in points.read_text().splitlines() if s.strip()] if points.exists() else []
-    done = {(r["size"], r["mesh_factor"], r["fit"], r["friction"], r.get("penalty_scale", 1.0)) for r in rows}
+    for r in rows:  # rows written before the Hertz column existed
+        if "hertz" not in r:
+            from pipeline.inputs.case import resolve
+            r["hertz"] = hertz_of(resolve(r["size"]), r["clearance_mm"])
+    done = {(r["size"], r["mesh_factor"], r["fit"], r["friction"], r.get("penalty_scale", 1.0), r.get("offset_mm", 0.0))
+            for r in rows}
     for factor in factors:
         for fit in fits:
-            key = (a.size, factor, fit, a.friction, a.penalty_scale)
+            key = (a.size, factor, fit, a.friction, a.penalty_scale, a.offset_mm)
             if key in done:
                 continue
             print(f"load-reference: No. {a.size}, mesh factor {factor:g}, {fit} ({CLEARANCES[fit]:g} mm) ...",
                   flush=True)
-            row = solve_point(a.size, factor, fit, CLEARANCES[fit], a.friction, a.penalty_scale)
+            row = solve_point(a.size, factor, fit, CLEARANCES[fit], a.friction, a.penalty_scale, a.offset_mm)
             row["penalty_scale"] = a.penalty_scale
             with points.open("a") as fh:  # one complete line per point: a stop loses at most one
                 fh.write(json.dumps(row) + "\n")
