@@ -481,7 +481,8 @@ def nodal_contact_forces(cm: ContactModel, u, lc, mat) -> tuple[np.ndarray, np.n
     seat = seat_only(lc).tractions[0]
     ds = ufl.Measure("ds", domain=mesh, subdomain_data=cm.facet_tags)
     dx = ufl.Measure("dx", domain=mesh, metadata={"quadrature_degree": 2})
-    r = assemble_vector(fem.form(ufl.inner(stress(u, mat), strain(v)) * dx - ufl.inner(seat.value, v) * ds(seat.marker)))
+    residual = ufl.inner(stress(u, mat), strain(v)) * dx - ufl.inner(seat.value, v) * ds(seat.marker)
+    r = assemble_vector(fem.form(residual))
     r.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
     R = r.array_r.reshape(-1, 3).copy()
     r.destroy()

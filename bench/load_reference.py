@@ -75,8 +75,12 @@ def fillet_core_peak(case, u, mat):
 
 
 def solve_point(size: str, factor: float, fit: str, clearance_mm: float, friction: float = 0.0,
-                penalty_scale: float = 1.0, offset_mm: float = 0.0) -> dict:
-    """One contact solve and the cos θ model on the same mesh: the study's row (JSON-ready)."""
+                penalty_scale: float = 1.0, offset_mm: float = 0.0, size_body_mm: float | None = None) -> dict:
+    """One contact solve and the cos θ model on the same mesh: the study's row (JSON-ready).
+
+    ``size_body_mm``: the crosshead's far-field element size before the factor (the case's
+    size_body_mm). The journal's elements grow from the fillet's size with slope 0.5 up to
+    that size, so it is what makes the journal's surface fine enough for a narrow contact."""
     from mpi4py import MPI
 
     from bench.contact import (PlateSpec, contact_model, force_summary, nodal_contact_forces, penalty,
@@ -84,14 +88,17 @@ def solve_point(size: str, factor: float, fit: str, clearance_mm: float, frictio
     from pipeline.analysis.level import peaks_of, set_up, solve_level
     from pipeline.inputs.case import resolve
 
-    case = resolve(size, overrides={"mesh_factor": factor, "solver": "mumps"})
+    case = resolve(size, overrides={"mesh_factor": factor, "solver": "mumps", "size_body_mm": size_body_mm})
     case = replace(case, rtol=1e-10)
     t0 = time.perf_counter()
     prob = set_up(case, factor, comm=MPI.COMM_SELF)
     lv = solve_level(case, factor, comm=MPI.COMM_SELF, problem=prob, reuse=False, keep_fields=True)
     core_cos = fillet_core_peak(case, lv.fields[0], prob.material)
     t_cos = time.perf_counter() - t0
-    spec = PlateSpec(clearance_mm=clearance_mm, size_mm=PLATE_SIZE_PER_FACTOR * factor, friction=friction,
+    plate_size = PLATE_SIZE_PER_FACTOR * factor
+    if size_body_mm is not None:  # the journal as fine as the far field: the plate's bore too
+        plate_size = min(PLATE_SIZE_PER_FACTOR, size_body_mm) * factor
+    spec = PlateSpec(clearance_mm=clearance_mm, size_mm=plate_size, friction=friction,
                      offset_mm=offset_mm)
     spec = replace(spec, penalty_MPa_per_mm=penalty(spec, case.E_MPa) * penalty_scale)
     t0 = time.perf_counter()
@@ -104,7 +111,7 @@ def solve_point(size: str, factor: float, fit: str, clearance_mm: float, frictio
     pressure = pressure_summary(stress_samples(cm, sol.u, prob.material, case.dims), case.dims, spec, case.load_N)
     t_contact = time.perf_counter() - t0
     return {
-        "size": size, "mesh_factor": factor, "fit": fit, "clearance_mm": clearance_mm,
+        "size": size, "mesh_factor": factor, "size_body_mm": size_body_mm, "fit": fit, "clearance_mm": clearance_mm,
         "friction": friction, "offset_mm": offset_mm, "penalty_MPa_per_mm": spec.penalty_MPa_per_mm,
         "plate_size_mm": spec.size_mm, "plate_x_mm": list(spec.x_range(case.dims)),
         "crosshead_cells": lv.cells, "crosshead_dofs": lv.dofs,
@@ -148,7 +155,7 @@ def table(rows: list[dict]) -> str:
             f"| {r['fit']}{' μ=' + format(r['friction'], 'g') if r['friction'] else ''}"
             f"{' K×' + format(r.get('penalty_scale', 1), 'g') if r.get('penalty_scale', 1) != 1 else ''}"
             f"{' offset ' + format(r['offset_mm'], 'g') + ' mm' if r.get('offset_mm') else ''} "
-            f"| {r['clearance_mm']:.3f} | {r['mesh_factor']:g} | {r['crosshead_dofs']} "
+            f"| {r['clearance_mm']:.3f} | {r['mesh_factor']:g}{_body(r)} | {r['crosshead_dofs']} "
             f"| {r['plate_reaction_N'][2] / r['quarter_load_N']:.5f} | {f['force_z_over_quarter_load']:.5f} "
             f"| {f['centre_x_mm']:.2f} | {f['lever_mm']:.2f} | {p['extent_deg']:.0f}{_hertz(r, 'extent99_deg')} "
             f"| {p['p_max_MPa']:.1f}{_hertz(r, 'p_max_MPa')} "
@@ -156,6 +163,11 @@ def table(rows: list[dict]) -> str:
             f"| {r['fillet_core_contact_MPa']:.2f} | {r['fillet_core_cos_MPa']:.2f} | {r['fillet_core_diff_pct']:+.2f} "
             f"| {r['critical_diff_pct']:+.2f} | {r['ccx_s']:.0f} |")
     return "\n".join(out) + "\n"
+
+
+def _body(row: dict) -> str:
+    """', body N mm' for a table cell when the far-field size was set, else nothing."""
+    return f", body {row['size_body_mm']:g} mm" if row.get("size_body_mm") else ""
 
 
 def _hertz(row: dict, key: str) -> str:
@@ -173,6 +185,8 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--factors", default="2.0", help="mesh factors, comma-separated (default 2.0)")
     p.add_argument("--fits", default=",".join(CLEARANCES), help=f"of {', '.join(CLEARANCES)} (default all)")
     p.add_argument("--friction", type=float, default=0.0, help="Coulomb μ (default 0: frictionless)")
+    p.add_argument("--size-body-mm", type=float, default=None,
+                   help="the crosshead's far-field element size before the factor (default: the case's)")
     p.add_argument("--offset-mm", type=float, default=0.0,
                    help="the plate's inner face this far off the fillet's run-out (default 0: flush)")
     p.add_argument("--penalty-scale", type=float, default=1.0,
@@ -186,8 +200,9 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     bad = [f for f in fits if f not in CLEARANCES]
     if bad or not all(f > 0 for f in factors) or a.friction < 0 or a.penalty_scale <= 0 \
-            or not 0 <= a.offset_mm < 5:
-        sys.stderr.write(f"bad option: fits {bad or 'ok'}, factors > 0, friction >= 0, penalty scale > 0, 0 <= offset < 5 mm\n")
+            or not 0 <= a.offset_mm < 5 or (a.size_body_mm is not None and a.size_body_mm <= 0):
+        sys.stderr.write(f"bad option: fits {bad or 'ok'}; need factors > 0, friction >= 0, "
+                         "penalty scale > 0, 0 <= offset < 5 mm, size body > 0\n")
         return 2
     why = refusal(a.out, OWN_FILES)
     if why is not None:
@@ -200,16 +215,17 @@ def main(argv: list[str] | None = None) -> int:
         if "hertz" not in r:
             from pipeline.inputs.case import resolve
             r["hertz"] = hertz_of(resolve(r["size"]), r["clearance_mm"])
-    done = {(r["size"], r["mesh_factor"], r["fit"], r["friction"], r.get("penalty_scale", 1.0), r.get("offset_mm", 0.0))
-            for r in rows}
+    done = {(r["size"], r["mesh_factor"], r["fit"], r["friction"], r.get("penalty_scale", 1.0), r.get("offset_mm", 0.0),
+             r.get("size_body_mm")) for r in rows}
     for factor in factors:
         for fit in fits:
-            key = (a.size, factor, fit, a.friction, a.penalty_scale, a.offset_mm)
+            key = (a.size, factor, fit, a.friction, a.penalty_scale, a.offset_mm, a.size_body_mm)
             if key in done:
                 continue
             print(f"load-reference: No. {a.size}, mesh factor {factor:g}, {fit} ({CLEARANCES[fit]:g} mm) ...",
                   flush=True)
-            row = solve_point(a.size, factor, fit, CLEARANCES[fit], a.friction, a.penalty_scale, a.offset_mm)
+            row = solve_point(a.size, factor, fit, CLEARANCES[fit], a.friction, a.penalty_scale, a.offset_mm,
+                              a.size_body_mm)
             row["penalty_scale"] = a.penalty_scale
             with points.open("a") as fh:  # one complete line per point: a stop loses at most one
                 fh.write(json.dumps(row) + "\n")
