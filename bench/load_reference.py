@@ -211,10 +211,6 @@ def main(argv: list[str] | None = None) -> int:
     a.out.mkdir(parents=True, exist_ok=True)
     points = a.out / "points.jsonl"
     rows = [json.loads(s) for s in points.read_text().splitlines() if s.strip()] if points.exists() else []
-    for r in rows:  # rows written before the Hertz column existed
-        if "hertz" not in r:
-            from pipeline.inputs.case import resolve
-            r["hertz"] = hertz_of(resolve(r["size"]), r["clearance_mm"])
     done = {(r["size"], r["mesh_factor"], r["fit"], r["friction"], r.get("penalty_scale", 1.0), r.get("offset_mm", 0.0),
              r.get("size_body_mm")) for r in rows}
     for factor in factors:
