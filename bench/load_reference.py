@@ -118,7 +118,7 @@ def solve_point(size: str, factor: float, fit: str, clearance_mm: float, frictio
         "contact_nodes": int(cm.model.nodes.shape[0]), "plate_cells": int(cm.plate.elements.shape[0]),
         "slave_faces": int(len(cm.slave_faces)), "master_faces": int(len(cm.master_faces)),
         "ccx_s": sol.timings["ccx"], "contact_total_s": t_contact, "cos_model_s": t_cos,
-        "ccx_iterations": sol.iterations,
+        "ccx_iterations": sol.iterations, "ccx_attempts": sol.attempts,
         "plate_reaction_N": sol.plate_reaction_N.tolist(), "spring_force_N": sol.spring_force_N,
         "quarter_load_N": case.load_N / 4,
         "forces": forces, "pressure": pressure,

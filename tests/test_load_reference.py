@@ -144,6 +144,7 @@ def test_tiny_contact_case_balances_the_load(coarse):
     sol = solve_contact(cm, prob.material, increments=1)
     q4 = case.load_N / 4
     assert abs(sol.spring_force_N) < 1e-5 * q4
+    assert sol.attempts >= 1 and sol.iterations >= sol.attempts
     assert sol.plate_reaction_N[2] + sol.spring_force_N == pytest.approx(q4, rel=1e-4)
     xyz, F = nodal_contact_forces(cm, sol.u, prob.loads, prob.material)
     f = force_summary(xyz, F, case.dims, case.load_N)
