@@ -64,7 +64,9 @@ class PlateSpec:
     journal's bearing length b6/2 − b1/2 − rf. The width, the ligament under the bore and
     the height over the axis are multiples of dj by default (a plate of usual proportions;
     the paper gives none). ``offset_mm``: the plate's inner face stands this far off the
-    fillet's run-out (0: flush, its bore edge on the fillet's end). ``size_mm``: element
+    fillet's run-out (0: flush, its bore edge on the fillet's end). ``held``: the face held
+    fixed, "top" (the plate hangs from it, as from a sheave axle) or "bottom" (the plate
+    stands on it: the ligament under the bore in compression instead). ``size_mm``: element
     size on the bore; it grows to 3× that
     away from it. ``penalty_MPa_per_mm``: the slope of the linear pressure-overclosure law,
     None for 20·E/size (penetration at 100 MPa then about 1e-5 mm, a thousandth of the
@@ -80,6 +82,7 @@ class PlateSpec:
     penalty_MPa_per_mm: float | None = None
     friction: float = 0.0
     offset_mm: float = 0.0
+    held: str = "top"
 
     def x_range(self, d: Dimensions) -> tuple[float, float]:
         """The plate's faces along the journal axis (mm): from ``offset_mm`` beyond the
@@ -96,7 +99,7 @@ class PlateMesh:
 
     nodes: np.ndarray
     elements: np.ndarray
-    top: np.ndarray          # 0-based nodes of the held top face
+    top: np.ndarray          # 0-based nodes of the held face (top or bottom: PlateSpec.held)
     sym_y: np.ndarray        # 0-based nodes on y = 0
     bore_faces: np.ndarray   # (F, 2): element (0-based), face (1..4) on the bore
     volume_mm3: float
@@ -110,6 +113,8 @@ def plate_mesh(d: Dimensions, spec: PlateSpec) -> PlateMesh:
     boolean failure, docs/stack.md)."""
     import gmsh
 
+    if spec.held not in ("top", "bottom"):
+        raise ValueError(f"side plate: held must be 'top' or 'bottom', got {spec.held!r}")
     x0, x1 = spec.x_range(d)
     rj, c = d.dj / 2, spec.clearance_mm
     rb, zb = rj + c / 2, d.h3 / 2 + c / 2          # bore radius and axis height
@@ -159,7 +164,8 @@ def plate_mesh(d: Dimensions, spec: PlateSpec) -> PlateMesh:
     tol = 1e-6 * d.b6
     on_bore = np.abs(np.hypot(nodes[:, 1], nodes[:, 2] - zb) - rb) < 1e-4 * rb
     faces = surface_faces(elems, on_bore)
-    return PlateMesh(nodes=nodes, elements=elems, top=np.flatnonzero(nodes[:, 2] > ztop - tol),
+    held = nodes[:, 2] > ztop - tol if spec.held == "top" else nodes[:, 2] < zlo + tol
+    return PlateMesh(nodes=nodes, elements=elems, top=np.flatnonzero(held),
                      sym_y=np.flatnonzero(nodes[:, 1] < tol), bore_faces=faces, volume_mm3=vol,
                      flipped=flipped)
 

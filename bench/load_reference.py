@@ -75,7 +75,8 @@ def fillet_core_peak(case, u, mat):
 
 
 def solve_point(size: str, factor: float, fit: str, clearance_mm: float, friction: float = 0.0,
-                penalty_scale: float = 1.0, offset_mm: float = 0.0, size_body_mm: float | None = None) -> dict:
+                penalty_scale: float = 1.0, offset_mm: float = 0.0, size_body_mm: float | None = None,
+                held: str = "top") -> dict:
     """One contact solve and the cos θ model on the same mesh: the study's row (JSON-ready).
 
     ``size_body_mm``: the crosshead's far-field element size before the factor (the case's
@@ -99,7 +100,7 @@ def solve_point(size: str, factor: float, fit: str, clearance_mm: float, frictio
     if size_body_mm is not None:  # the journal as fine as the far field: the plate's bore too
         plate_size = min(PLATE_SIZE_PER_FACTOR, size_body_mm) * factor
     spec = PlateSpec(clearance_mm=clearance_mm, size_mm=plate_size, friction=friction,
-                     offset_mm=offset_mm)
+                     offset_mm=offset_mm, held=held)
     spec = replace(spec, penalty_MPa_per_mm=penalty(spec, case.E_MPa) * penalty_scale)
     t0 = time.perf_counter()
     cm = contact_model(prob.mesh.mesh, prob.mesh.facet_tags, prob.loads, case.dims, spec)
@@ -112,7 +113,7 @@ def solve_point(size: str, factor: float, fit: str, clearance_mm: float, frictio
     t_contact = time.perf_counter() - t0
     return {
         "size": size, "mesh_factor": factor, "size_body_mm": size_body_mm, "fit": fit, "clearance_mm": clearance_mm,
-        "friction": friction, "offset_mm": offset_mm, "penalty_MPa_per_mm": spec.penalty_MPa_per_mm,
+        "friction": friction, "offset_mm": offset_mm, "plate_held": held, "penalty_MPa_per_mm": spec.penalty_MPa_per_mm,
         "plate_size_mm": spec.size_mm, "plate_x_mm": list(spec.x_range(case.dims)),
         "crosshead_cells": lv.cells, "crosshead_dofs": lv.dofs,
         "contact_nodes": int(cm.model.nodes.shape[0]), "plate_cells": int(cm.plate.elements.shape[0]),
@@ -154,7 +155,8 @@ def table(rows: list[dict]) -> str:
         out.append(
             f"| {r['fit']}{' μ=' + format(r['friction'], 'g') if r['friction'] else ''}"
             f"{' K×' + format(r.get('penalty_scale', 1), 'g') if r.get('penalty_scale', 1) != 1 else ''}"
-            f"{' offset ' + format(r['offset_mm'], 'g') + ' mm' if r.get('offset_mm') else ''} "
+            f"{' offset ' + format(r['offset_mm'], 'g') + ' mm' if r.get('offset_mm') else ''}"
+            f"{' plate held at its bottom' if r.get('plate_held') == 'bottom' else ''} "
             f"| {r['clearance_mm']:.3f} | {r['mesh_factor']:g}{_body(r)} | {r['crosshead_dofs']} "
             f"| {r['plate_reaction_N'][2] / r['quarter_load_N']:.5f} | {f['force_z_over_quarter_load']:.5f} "
             f"| {f['centre_x_mm']:.2f} | {f['lever_mm']:.2f} | {p['extent_deg']:.0f}{_hertz(r, 'extent99_deg')} "
@@ -187,6 +189,8 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--friction", type=float, default=0.0, help="Coulomb μ (default 0: frictionless)")
     p.add_argument("--size-body-mm", type=float, default=None,
                    help="the crosshead's far-field element size before the factor (default: the case's)")
+    p.add_argument("--plate-held", choices=("top", "bottom"), default="top",
+                   help="the plate's face held fixed: top (it hangs, default) or bottom (it stands)")
     p.add_argument("--offset-mm", type=float, default=0.0,
                    help="the plate's inner face this far off the fillet's run-out (default 0: flush)")
     p.add_argument("--penalty-scale", type=float, default=1.0,
@@ -212,16 +216,16 @@ def main(argv: list[str] | None = None) -> int:
     points = a.out / "points.jsonl"
     rows = [json.loads(s) for s in points.read_text().splitlines() if s.strip()] if points.exists() else []
     done = {(r["size"], r["mesh_factor"], r["fit"], r["friction"], r.get("penalty_scale", 1.0), r.get("offset_mm", 0.0),
-             r.get("size_body_mm")) for r in rows}
+             r.get("size_body_mm"), r.get("plate_held", "top")) for r in rows}
     for factor in factors:
         for fit in fits:
-            key = (a.size, factor, fit, a.friction, a.penalty_scale, a.offset_mm, a.size_body_mm)
+            key = (a.size, factor, fit, a.friction, a.penalty_scale, a.offset_mm, a.size_body_mm, a.plate_held)
             if key in done:
                 continue
             print(f"load-reference: No. {a.size}, mesh factor {factor:g}, {fit} ({CLEARANCES[fit]:g} mm) ...",
                   flush=True)
             row = solve_point(a.size, factor, fit, CLEARANCES[fit], a.friction, a.penalty_scale, a.offset_mm,
-                              a.size_body_mm)
+                              a.size_body_mm, a.plate_held)
             row["penalty_scale"] = a.penalty_scale
             with points.open("a") as fh:  # one complete line per point: a stop loses at most one
                 fh.write(json.dumps(row) + "\n")

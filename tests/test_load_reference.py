@@ -78,6 +78,16 @@ def test_plate_bore_area_and_volume_are_the_closed_forms():
     assert pm.volume_mm3 == pytest.approx(t * (h - math.pi * rb ** 2 / 2), rel=1e-9)
 
 
+def test_plate_is_held_at_the_face_asked_for():
+    """Top: the face 2·dj over the journal axis; bottom: 0.75·dj under the bore."""
+    d = resolve("05").dims
+    for held, z in (("top", d.h3 / 2 + 2.0 * d.dj), ("bottom", d.h3 / 2 - d.dj / 2 - 0.75 * d.dj)):
+        pm = plate_mesh(d, PlateSpec(size_mm=3.0, held=held))
+        assert pm.top.size > 10 and np.allclose(pm.nodes[pm.top, 2], z)
+    with pytest.raises(ValueError):
+        plate_mesh(d, PlateSpec(held="side"))
+
+
 def test_cos_model_summary_of_the_cos_pressure_is_the_model():
     """Samples of p0·cos θ on a fine grid of the quarter journal's lower surface carry
     Q/4 up, centred mid-length (lever 7.0 mm for No. 05), with the cos θ shares."""
