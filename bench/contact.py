@@ -272,7 +272,7 @@ def deck(cm: ContactModel, mat, increments: int = 4) -> str:
     k = penalty(cm.spec, mat.E)
     model_lines = ["*SURFACE, NAME=SJOURNAL, TYPE=ELEMENT", *_face_lines(cm.slave_faces),
                    "*SURFACE, NAME=SBORE, TYPE=ELEMENT", *_face_lines(cm.master_faces),
-                   f"*ELEMENT, TYPE=SPRING1, ELSET=ESPRING", f"{spring_el},{cm.spring_node}",
+                   "*ELEMENT, TYPE=SPRING1, ELSET=ESPRING", f"{spring_el},{cm.spring_node}",
                    "*SPRING, ELSET=ESPRING", "3", f"{SPRING_N_PER_MM:.6f}",  # ccx needs the point
                    "*NSET, NSET=NPLATETOP", *[", ".join(map(str, cm.plate_top[i:i + 10].tolist()))
                                               for i in range(0, cm.plate_top.size, 10)],
