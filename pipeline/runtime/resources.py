@@ -11,6 +11,7 @@ memory (docs/performance.md), with a margin of 1.5.
 """
 from __future__ import annotations
 
+import functools
 import os
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -97,13 +98,37 @@ def cgroup_room_bytes(proc_cgroup: Path = Path("/proc/self/cgroup"),
     return min(rooms) if rooms else None
 
 
+# Proportions of the part whose extremes the size table spans: below them a part is small in
+# one feature against its length (thin, or with thin journals or a small fillet), and the
+# default sizes, set by the features, put far more tets into it than the table's rows have.
+PROPORTIONS = {"h3/b6": lambda d: d.h3 / d.b6, "dj/b6": lambda d: d.dj / d.b6, "rf/dj": lambda d: d.rf / d.dj,
+               "dj/b1": lambda d: d.dj / d.b1}
+OUTSIDE_TABLE = 0.8  # a proportion below this fraction of the table's smallest is outside it
+
+
+@functools.cache
+def _table_proportions() -> dict[str, float]:
+    """The smallest of each proportion over the rows of the size table (geometry/sizes.csv)."""
+    from geometry.table import load_table
+    rows = [r.dims for r in load_table().values()]
+    return {name: min(f(d) for d in rows) for name, f in PROPORTIONS.items()}
+
+
+def unusual_proportions(case: Case) -> list[str]:
+    """The proportions of the case's part that lie below the size table's (named), where the
+    estimate's tets-per-factor law, measured on table rows, does not hold."""
+    least = _table_proportions()
+    return [name for name, f in PROPORTIONS.items() if f(case.dims) < OUTSIDE_TABLE * least[name]]
+
+
 def needs_probe(case: Case, factors: Sequence[float]) -> bool:
-    """Whether the run could be large: finer than the default mesh, sizes set by hand, or
-    a fillet much smaller than the default (its elements are rf/4)."""
+    """Whether the run could be large: finer than the default mesh, sizes set by hand, a
+    fillet much smaller than the default (its elements are rf/4), or a part whose
+    proportions lie outside the size table's (a part large by its shape)."""
     small_fillet = case.dims.rf < 0.03 * case.dims.h3  # half the default 0.06·h3
     by_hand = any(getattr(case, k) is not None for k in
                   ("size_body_mm", "size_feature_mm", "size_fillet_mm", "grading_mm"))
-    return min(factors) < 0.8 or by_hand or small_fillet
+    return min(factors) < 0.8 or by_hand or small_fillet or bool(unusual_proportions(case))
 
 
 def estimate(case: Case, factors: Sequence[float], probe_tets: int, probe_factor: float) -> Estimate:
