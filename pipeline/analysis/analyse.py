@@ -122,7 +122,7 @@ def error_bar_ranks(factors: Sequence[float], ranks: int) -> list[int | None]:
     picture, gets the least.
 
     Why: a small mesh scales badly over ranks; one mesh per rank, side by side with the
-    picture process, finishes the error bar sooner (docs/decisions.md).
+    picture process, finishes the error bar sooner (docs/decisions/0006-error-bar-meshes-over-the-ranks.md).
     """
     who = owners([f ** -3 for f in factors[1:]], ranks)
     return [None] + [ranks - 1 - r for r in who]

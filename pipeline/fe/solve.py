@@ -72,7 +72,7 @@ def solver_options(name: str, rtol: float) -> dict[str, object]:
     if name == "pmg":
         # Why: GAMG on the P2 matrix spends half its time in set-up (Galerkin products of a
         # matrix with ~80 entries per row); the P1 matrix of the same mesh has 1/7 of the
-        # rows, and the two-level cycle takes fewer iterations (docs/decisions.md).
+        # rows, and the two-level cycle takes fewer iterations (docs/decisions/0001-p-multigrid-default-solver.md).
         return {**cg, "pc_type": "mg",
                 "mg_levels_ksp_type": "chebyshev", "mg_levels_pc_type": "jacobi",
                 "mg_levels_ksp_chebyshev_esteig_steps": 20,
@@ -82,7 +82,7 @@ def solver_options(name: str, rtol: float) -> dict[str, object]:
         # Stop on the true (unpreconditioned) residual: the same norm solve() checks after.
         # Smoothed aggregation (nsmooths 1) keeps the iterations flat under refinement
         # (tests/fe/test_conditioning.py); unsmoothed aggregation is faster per solve but its
-        # iterations grow with the mesh (docs/decisions.md).
+        # iterations grow with the mesh (docs/decisions/0001-p-multigrid-default-solver.md).
         return {**cg, **_GAMG}
     if name == "hypre":
         return {**cg, "pc_type": "hypre", "pc_hypre_type": "boomeramg",
@@ -275,7 +275,7 @@ def _let_threads_run(ksp: PETSc.KSP, its: int, rnorm: float) -> None:
     waits here for it to end the process: taking the lock back for a whole iteration each
     time the watcher gave it up (at every file it removes) slowed the clean-up to seconds.
     An iteration of a Krylov solver takes milliseconds or more; giving up the lock costs
-    microseconds (docs/decisions.md). A direct solve (MUMPS) has no iterations and still
+    microseconds (docs/decisions/0016-stops.md). A direct solve (MUMPS) has no iterations and still
     holds it throughout."""
     time.sleep(0)  # releases the interpreter lock, and takes it back after any waiting thread
     yield_to_stop()

@@ -6,6 +6,7 @@ import sys
 from pathlib import Path
 
 from geometry.table import is_scaled_row
+from pipeline.post.errorbar import STATUS_TEXT, TREND_TEXT
 
 ASSUMED_WHY = {
     "dj": "journal diameter, 0.8·h (docs/design.md §2)",
@@ -478,12 +479,7 @@ def _fe_lines(res: dict) -> list[str]:
                 f"{_f(b['unaveraged_MPa'])} MPa, averaged {_f(b['averaged_MPa'])} MPa, reported "
                 f"**{_f(b['value_MPa'])}** MPa {error_bar_text(b)}.")
     add("")
-    add("The trend over the meshes (the same case on coarser meshes, every size × the ratio in the "
-        "table): with three meshes Richardson extrapolation and Roache's GCI (Fs = 1.25, Celik et "
-        "al. 2008); with four or more a weighted least-squares fit f = f0 + C·h^p (Eça & Hoekstra "
-        "2014) whose band adds the data's scatter about the fit and uses Fs = 3 when they scatter; "
-        "for a midpoint the fit takes both readings with one common limit f0. "
-        "Why the two readings and this rule: docs/design.md §5, measured in docs/accuracy.md.\n")
+    add(TREND_TEXT + "\n")
     add("| mesh factor | DOFs | global peak (MPa) | unaveraged | averaged | critical peak (MPa) | iterations | time (s) |")
     add("|---|---|---|---|---|---|---|---|")
     for lv in fe["levels"]:
@@ -493,11 +489,7 @@ def _fe_lines(res: dict) -> list[str]:
     add("")
     if "peaks_plot" in res.get("files", {}):
         add("![peaks against degrees of freedom](peaks.png)\n")
-        add("The status in each panel's title: *converged* (monotone, observed order ≥ 0.5: GCI band), "
-            "*settled* (every mesh within 0.1 %), *oscillatory* (the changes alternate in sign: band = "
-            "largest change), *unsettled* (not yet in the asymptotic range: band = largest change, no "
-            "extrapolation), *scattered* (four or more meshes about a fit: band with Fs = 3), *singular* "
-            "(grows under refinement: no finite value); docs/design.md §5.\n")
+        add(f"The status in each panel's title: {STATUS_TEXT}\n")
     return L
 
 
