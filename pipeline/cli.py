@@ -128,7 +128,15 @@ def _dim_spec(text: str) -> tuple[str, str]:
     return k, v
 
 
-def add_case_options(p: argparse.ArgumentParser, dim_type=None) -> None:
+# A study's defaults when neither the command line nor the study file sets them (None in
+# the parser, so that a study file's value is not overridden by a default).
+SWEEP_DEFAULTS = {"levels": 3, "ratio": 1.3}
+OUT_HELP = {"run": "output folder (default results/<case name>)",
+            "converge": "output folder (default results/<case name>-converge)",
+            "sweep": "output folder (default results/sweep-<size or case file name>, or the study file's out)"}
+
+
+def add_case_options(p: argparse.ArgumentParser, dim_type=None, command: str = "run") -> None:
     """Options shared by run and converge: what to analyse and how finely."""
     g = p.add_argument_group("what to analyse")
     g.add_argument("--size", help="hook number from geometry/sizes.csv, e.g. 05, 1.6, 10")
@@ -180,7 +188,7 @@ def add_case_options(p: argparse.ArgumentParser, dim_type=None) -> None:
     m.add_argument("--rtol", type=_number, help="relative tolerance of the iterative solver on the true residual (default 1e-8)")
     m.add_argument("--memory-limit", type=_gib, dest="memory_limit", metavar="GB",
                    help="refuse a run estimated to need more memory than this, GiB (default: what the machine has free)")
-    p.add_argument("--out", type=Path, help="output folder (default results/<case name>)")
+    p.add_argument("--out", type=Path, help=OUT_HELP[command])
     p.add_argument("--quiet", action="store_true", help="no progress lines")
 
 
@@ -210,14 +218,14 @@ def make_parser() -> argparse.ArgumentParser:
     conv = sub.add_parser("converge", help="mesh convergence study: >= 4 meshes, extrapolation, GCI, plot",
                           description=DESCRIPTION, epilog=EPILOG,
                           formatter_class=argparse.RawDescriptionHelpFormatter)
-    add_case_options(conv)
+    add_case_options(conv, command="converge")
     conv.add_argument("--levels", type=int, default=5,
                       help="number of meshes (default 5, at least 4); the finest is the case's mesh / ratio^(levels-3)")
     conv.add_argument("--ratio", type=_number, default=1.3, help="mesh-size ratio between meshes, >= 1.3 (default 1.3)")
     sweep = sub.add_parser("sweep", help="design study: a grid of dimensions and loads, each variant with its error bar",
                            description=DESCRIPTION, epilog=SWEEP_EPILOG,
                            formatter_class=argparse.RawDescriptionHelpFormatter)
-    add_case_options(sweep, dim_type=_dim_spec)
+    add_case_options(sweep, dim_type=_dim_spec, command="sweep")
     sweep.add_argument("--sizes", metavar="LIST", help="hook numbers to sweep over, e.g. 05,1,2.5, or 'all' rows of "
                        "geometry/sizes.csv (each at its own rated load unless --load is given)")
     sweep.add_argument("--study", type=Path, help="a study file (TOML with a [sweep] table), e.g. cases/sweep-rf.toml")
@@ -500,8 +508,8 @@ def _sweep(args, rank0: bool) -> int:
     if "mesh_factor" in study and "mesh_factor" not in base:
         base["mesh_factor"] = float(study["mesh_factor"])
     # The command line overrides the study file, which overrides the defaults.
-    levels = args.levels if args.levels is not None else int(study.get("levels", 3))
-    ratio = args.ratio if args.ratio is not None else float(study.get("ratio", 1.3))
+    levels = args.levels if args.levels is not None else int(study.get("levels", SWEEP_DEFAULTS["levels"]))
+    ratio = args.ratio if args.ratio is not None else float(study.get("ratio", SWEEP_DEFAULTS["ratio"]))
     if not 1 <= levels <= 8 or not 1.1 <= ratio <= 3:
         raise InputError("levels/ratio: levels must lie in 1..8 and ratio in [1.1, 3]")
     if levels == 2:
