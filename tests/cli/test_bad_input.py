@@ -15,6 +15,7 @@ import io
 import json
 import math
 import os
+import re
 import subprocess
 import sys
 from dataclasses import fields
@@ -49,11 +50,15 @@ def call_main(argv: list[str]) -> tuple[int, str, str]:
     return code, out.getvalue(), err.getvalue()
 
 
+PROGRESS = re.compile(r"^\[\s*[0-9.]+ s\] ")  # a progress line's stamp: progress goes to stderr too
+
+
 def assert_exit_2(code: int, stderr: str, expect: tuple[str, ...]) -> str:
-    """Exit 2, one stderr line starting 'error:' and containing every expected word."""
+    """Exit 2, one stderr line (besides progress lines) starting 'error:' and containing every
+    expected word."""
     assert code == 2, (code, stderr)
     assert "Traceback" not in stderr
-    lines = stderr.splitlines()
+    lines = [ln for ln in stderr.splitlines() if not PROGRESS.match(ln)]
     assert len(lines) == 1 and stderr.endswith("\n"), stderr
     line = lines[0]
     assert line.startswith("error: "), line
