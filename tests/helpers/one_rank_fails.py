@@ -25,12 +25,12 @@ BUSY = sys.argv[1].endswith(":busy")
 _solve_or_scale = pipeline.analysis.level.solve_or_scale
 
 
-def failing_solve_or_scale(case, prob, reuse=True):
+def failing_solve_or_scale(case, prob, reuse=True, **more):
     if MPI.COMM_WORLD.rank == FAILING_RANK and prob.mesh.mesh.comm.size > 1:
         raise RuntimeError(f"injected on rank {FAILING_RANK} alone")
     if BUSY and MPI.COMM_WORLD.rank == 0 and prob.mesh.mesh.comm.size > 1:
         sum(range(10**12))  # builtin sum in C: Python's lock is not released for minutes
-    return _solve_or_scale(case, prob, reuse)
+    return _solve_or_scale(case, prob, reuse, **more)
 
 
 pipeline.analysis.level.solve_or_scale = failing_solve_or_scale

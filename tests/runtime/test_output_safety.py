@@ -42,10 +42,14 @@ def cli(args: list[str], cwd: Path = ROOT, **kw) -> subprocess.CompletedProcess:
                           capture_output=True, text=True, timeout=300, **kw)
 
 
+PROGRESS = re.compile(r"^\[\s*[0-9.]+ s\] ")  # a progress line's stamp (progress goes to stderr)
+
+
 def one_error_line(proc: subprocess.CompletedProcess, code: int, *words: str) -> str:
+    """The one line (besides progress lines) a failed or stopped command says on stderr."""
     assert proc.returncode == code, (proc.returncode, proc.stderr)
     assert "Traceback" not in proc.stderr
-    lines = proc.stderr.strip().splitlines()
+    lines = [ln for ln in proc.stderr.strip().splitlines() if not PROGRESS.match(ln)]
     assert len(lines) == 1, proc.stderr
     for w in words:
         assert w in lines[0], (w, lines[0])
@@ -186,7 +190,7 @@ def test_signal_mid_run_cleans_up_and_keeps_the_earlier_result(tmp_path, earlier
     proc.send_signal(sig)
     _, err = proc.communicate(timeout=120)
     assert proc.returncode == code, err
-    lines = [ln for ln in err.strip().splitlines() if ln]
+    lines = [ln for ln in err.strip().splitlines() if ln and not PROGRESS.match(ln)]
     assert len(lines) == 1 and word in lines[0] and "Traceback" not in err, err
     assert snapshot(out) == before
     assert debris(tmp_path, "res") == []
@@ -202,7 +206,7 @@ def test_a_stop_while_the_program_loads_says_so_in_one_line(tmp_path, sig, code,
                         *map(str, FAST), "--out", str(out)],
                        cwd=ROOT, env=ENV, capture_output=True, text=True, timeout=120)
     assert p.returncode == code, p.stderr
-    lines = [ln for ln in p.stderr.strip().splitlines() if ln]
+    lines = [ln for ln in p.stderr.strip().splitlines() if ln and not PROGRESS.match(ln)]
     assert len(lines) == 1 and word in lines[0] and "nothing written" in lines[0], p.stderr
     assert "Traceback" not in p.stderr
     assert sorted(os.listdir(tmp_path)) == []
@@ -237,7 +241,7 @@ def test_a_stopped_sweep_says_it_keeps_what_it_finished_and_resumes(tmp_path):
     proc.send_signal(signal.SIGINT)
     _, err = proc.communicate(timeout=120)
     assert proc.returncode == 130, err
-    lines = err.strip().splitlines()
+    lines = [ln for ln in err.strip().splitlines() if not PROGRESS.match(ln)]
     assert len(lines) == 1 and "resumes" in lines[0] and str(out) in lines[0], err
     assert debris(tmp_path, "study") == []
     again = cli(args[:-2] + ["--out", out, "--quiet"])
@@ -340,7 +344,7 @@ def test_disk_full_is_exit_2_with_nothing_written(tmp_path, earlier, monkeypatch
     for target in (out, tmp_path / "a" / "b" / "c"):
         code = cli_main.main([*FAST, "--out", str(target), "--quiet"])
         err = capsys.readouterr().err
-        assert code == 2 and len(err.strip().splitlines()) == 1, err
+        assert code == 2 and len([ln for ln in err.strip().splitlines() if not PROGRESS.match(ln)]) == 1, err
         assert "out: cannot write" in err and "No space left" in err and "nothing written" in err
     assert snapshot(out) == before and debris(tmp_path, "res") == []
     assert not (tmp_path / "a").exists()
@@ -362,7 +366,8 @@ def test_a_failed_replacement_puts_the_earlier_result_back(tmp_path, earlier, mo
     before = snapshot(out)
     code = cli_main.main([*FAST, "--out", str(out), "--quiet"])
     err = capsys.readouterr().err
-    assert code == 2 and len(err.strip().splitlines()) == 1 and "nothing written" in err, err
+    assert code == 2 and len([ln for ln in err.strip().splitlines() if not PROGRESS.match(ln)]) == 1 \
+        and "nothing written" in err, err
     assert snapshot(out) == before and debris(tmp_path, "res") == []
 
 
