@@ -27,7 +27,7 @@ import sys
 import time
 from pathlib import Path
 
-from pipeline.runtime.folders import MARKER, refusal
+from pipeline.runtime.folders import marked_kind, refusal
 
 ROOT = Path(__file__).resolve().parents[1]
 GRID = ["--size", "05", "--dim", "rf=0.5:2.5:6", "--dim", "dj=16,17,18,19"]
@@ -52,7 +52,7 @@ def remove_study(out: Path) -> None:
     touch anything else found at that path."""
     if not out.exists():
         return
-    if not (out / MARKER).is_file():
+    if marked_kind(out) != "sweep":  # only the tool's own study marker, not any file of that name
         raise SystemExit(f"bench.sweeps: {out} exists and is not a sweep folder; choose another --out")
     shutil.rmtree(out)
 

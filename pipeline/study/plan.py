@@ -132,14 +132,20 @@ def failure_file(out: Path, key: str) -> Path:
 def earlier_variants(out: Path, keys: set[str]) -> list[Path]:
     """The results in the study folder ``out`` of variants that are not among ``keys``:
     what a run of the study with other inputs or older code left (a variant's key hashes
-    both). Only what a variant writes is named: a folder with the results marker, or a
-    ``<key>.failed.json``."""
-    from pipeline.runtime.folders import MARKER
+    both). Only what a variant writes is named: a folder with the tool's own marker
+    (pipeline.runtime.folders.marker_data: an empty or foreign marker is a user's), or a
+    ``<key>.failed.json`` that matches its checksum."""
+    from pipeline.runtime.folders import marker_data
+    from pipeline.study.manifest import VariantFault, read_failure
     found = []
     folder = out / "variants"
     for p in sorted(folder.iterdir()) if folder.is_dir() else []:
-        if p.is_dir() and not p.is_symlink() and p.name not in keys and (p / MARKER).is_file():
+        if p.is_dir() and not p.is_symlink() and p.name not in keys and marker_data(p) is not None:
             found.append(p)
         elif p.is_file() and p.name.endswith(".failed.json") and p.name.removesuffix(".failed.json") not in keys:
+            try:
+                read_failure(p)
+            except VariantFault:
+                continue  # not a note this tool wrote (or one changed since): kept
             found.append(p)
     return found

@@ -1,5 +1,7 @@
 """make bench-sweeps' arithmetic (bench/sweeps.py): medians, the paired throughput ratio
 and the targets' verdicts, on made-up wall times (s) whose answers are worked out here."""
+import json
+
 import pytest
 
 from bench.sweeps import STUDIES, command, remove_study, summarise
@@ -36,7 +38,11 @@ def test_only_a_sweep_folder_is_removed_between_repeats(tmp_path):
     with pytest.raises(SystemExit):
         remove_study(user)
     assert (user / "data.csv").read_text() == "1\n"
-    (user / MARKER).write_text("{}\n")
+    (user / MARKER).write_text("{}\n")       # a marker the tool did not write: still the user's
+    with pytest.raises(SystemExit):
+        remove_study(user)
+    assert (user / "data.csv").read_text() == "1\n"
+    (user / MARKER).write_text(json.dumps({"tool": "crosshead", "sweep": True}))
     remove_study(user)
     assert not user.exists()
     remove_study(user)  # nothing there: nothing to do

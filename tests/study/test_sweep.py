@@ -262,23 +262,31 @@ def test_a_failed_variant_writes_why_with_its_size_and_inputs(tmp_path, monkeypa
 
 
 def test_only_results_of_other_variants_are_removed(tmp_path):
-    """What a finished study removes from its variants/: the folders (with the results
-    marker) and failure notes of keys it does not have; its own, and anything the tool did
-    not write, stay."""
+    """What a finished study removes from its variants/: the folders (with the tool's own
+    marker) and failure notes (matching their checksums) of keys it does not have; its own,
+    and anything the tool did not write, stay: a folder whose marker is empty JSON or a
+    note that is not the tool's is a user's."""
+    import json
+
     from pipeline.runtime.folders import MARKER
+    from pipeline.study.manifest import write_failure
     from pipeline.study.sweep import remove_earlier_variants
     from pipeline.study.plan import Task
     v = tmp_path / "variants"
     for key in ("aaa", "bbb"):
         (v / key).mkdir(parents=True)
-        (v / key / MARKER).write_text("{}")
-    (v / "ccc.failed.json").write_text("{}")
-    (v / "ddd.failed.json").write_text("{}")
+        (v / key / MARKER).write_text(json.dumps({"tool": "crosshead"}))
+    (v / "fake").mkdir()
+    (v / "fake" / MARKER).write_text("{}")     # a marker the tool did not write
+    for key in ("ccc", "ddd"):
+        write_failure(v / f"{key}.failed.json", {"error": "x"})
+    (v / "eee.failed.json").write_text("{}")   # no checksum: not the tool's note
     (v / "users").mkdir()                      # no marker: not a variant's
     (v / "notes.txt").write_text("mine")
     said = []
     remove_earlier_variants(tmp_path, [Task("aaa", {}, None, (1.0,)), Task("ddd", {}, None, (1.0,))], said.append)
-    assert sorted(p.name for p in v.iterdir()) == ["aaa", "ddd.failed.json", "notes.txt", "users"]
+    assert sorted(p.name for p in v.iterdir()) == ["aaa", "ddd.failed.json", "eee.failed.json", "fake", "notes.txt",
+                                                   "users"]
     assert said == ["sweep: removed the results of 2 variants that this study does not have (earlier inputs or code)"]
     said.clear()
     remove_earlier_variants(tmp_path, [Task("aaa", {}, None, (1.0,))], said.append)
