@@ -1,5 +1,5 @@
 """Every failure line is true and names what failed; closed, full or narrow standard
-streams never give a traceback nor change the exit status (issue 42; docs/design.md §8,
+streams never give a traceback nor change the exit status (docs/design.md §8,
 pipeline/runtime/streams.py, pipeline/cli.py).
 
 - stdout on a full device: exit 2, "stdout" named, not ``--out``; "nothing written" only

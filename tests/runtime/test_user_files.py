@@ -1,5 +1,5 @@
 """A user's files survive every run, and only the tool's own marker makes a folder the tool's
-(issue 42; docs/design.md §8, pipeline/runtime/outdir.py).
+(docs/design.md §8, pipeline/runtime/outdir.py).
 
 - a re-run carries over the files the user added to a results folder (a file, a ParaView
   state in a subfolder); a user's file with a name a run writes is refused up front;
