@@ -3,6 +3,11 @@
 """
 from __future__ import annotations
 
+import re
+import time
+from dataclasses import dataclass
+from typing import Mapping
+
 import gmsh
 import numpy as np
 
@@ -53,13 +58,30 @@ def size_field(curves: list[int], size: float, size_far: float, dist_min: float,
     return thr
 
 
-def mesh(d: Dimensions, spec: MeshSpec) -> float:
+@dataclass(frozen=True)
+class Meshed:
+    """What :func:`mesh` leaves besides gmsh's mesh: the worst det J ratio of the tets (see
+    geometry.curved.jacobian_ratio; 1 for linear tets) and the wall time (s) of each of
+    gmsh's stages, in the order they ran (STAGES)."""
+
+    quality: float
+    stage_s: dict[str, float]
+
+
+STAGES = ("1d", "2d", "3d", "optimise", "order", "repair")
+
+
+def mesh(d: Dimensions, spec: MeshSpec, options: Mapping[str, float] | None = None) -> Meshed:
     """Mesh the current gmsh model: graded sizes, refined at the stress raisers.
 
     Size fields: distance from the bore edges, the seat band edges and the shoulder
     fillets; size_feature within that distance, growing linearly to size_body over
     ``grading``. Every size is multiplied by spec.factor. Second order if spec.order == 2.
-    Returns the mesh's worst det J ratio (see :func:`jacobian_ratio`; 1 for linear tets).
+    ``options``: gmsh options set after the project's own (:func:`_set_mesh_options`), for
+    measuring alternatives (bench/meshing.py); the runs pass none.
+
+    The stages (curves, surfaces, volumes, the optimisation passes, the element order, the
+    curved-tet repair) are timed: :func:`_generate_by_stage`.
     """
     f = spec.factor
     hmax = spec.size_body * f
@@ -67,11 +89,12 @@ def mesh(d: Dimensions, spec: MeshSpec) -> float:
     hmin = min([spec.size_feature, spec.size_fillet]
                + ([spec.size_hotspot, spec.size_edge_hotspot] if spec.hotspots else [])) * f
     _set_mesh_options(spec.order, hmax, hmin)
-    try:
-        gmsh.model.mesh.generate(3)
-    except Exception as exc:
-        raise GeometryError(f"gmsh could not mesh the part: {exc}") from None
+    for name, value in (options or {}).items():
+        gmsh.option.setNumber(name, value)
+    stage_s = _generate_by_stage(spec.order)
+    t0 = time.perf_counter()
     quality = ensure_curved_quality(spec.order) if spec.order >= 2 else 1.0
+    stage_s["repair"] = time.perf_counter() - t0
     # DOLFINx's importer needs contiguous node tags.
     gmsh.model.mesh.renumberNodes()
     gmsh.model.mesh.renumberElements()
@@ -81,7 +104,64 @@ def mesh(d: Dimensions, spec: MeshSpec) -> float:
     # call removed its own).
     for tag in range(1, fmin + 1):
         gmsh.model.mesh.field.remove(tag)
-    return quality
+    return Meshed(quality=quality, stage_s=stage_s)
+
+
+# Mesh.HighOrderOptimize's values as gmsh.model.mesh.optimize methods, in gmsh's order.
+_HIGH_ORDER_METHODS = {1: ("HighOrder",), 2: ("HighOrderElastic", "HighOrder"), 3: ("HighOrderElastic",),
+                       4: ("HighOrderFastCurving",)}
+
+
+_DONE = re.compile(r"Done meshing ([123])D \(Wall ([0-9.eE+-]+)s")
+
+
+def _generate_by_stage(order: int) -> dict[str, float]:
+    """gmsh's ``generate(3)`` under the options set, in stages; the wall time (s) of each.
+
+    The option values that generate(3) acts on at its end (optimisation passes, element
+    order, high-order optimisation) are read, zeroed while one generate(3) call makes the
+    linear mesh, acted on by their own calls, then put back: the same mesh, node for node,
+    as a single generate(3). (Three calls generate(1), (2), (3) gave another mesh, one tet
+    fewer on No. 05 ×1.69.) The 1-D, 2-D and 3-D times are gmsh's own, from its log."""
+    get, opt = gmsh.option.getNumber, gmsh.option.setNumber
+    passes = int(get("Mesh.Optimize")), int(get("Mesh.OptimizeNetgen"))
+    high_order = int(get("Mesh.HighOrderOptimize"))
+    for name in ("Mesh.Optimize", "Mesh.OptimizeNetgen", "Mesh.HighOrderOptimize"):
+        opt(name, 0)
+    opt("Mesh.ElementOrder", 1)
+    stage_s: dict[str, float] = {}
+    try:
+        gmsh.logger.start()
+        try:
+            gmsh.model.mesh.generate(3)
+        except Exception as exc:
+            raise GeometryError(f"gmsh could not mesh the part: {exc}") from None
+        finally:
+            log = gmsh.logger.get()
+            gmsh.logger.stop()
+        for line in log:
+            done = _DONE.search(line)
+            if done:
+                stage_s[f"{done.group(1)}d"] = float(done.group(2))
+        t0 = time.perf_counter()
+        for i in range(max(passes)):
+            if passes[0] > i:
+                gmsh.model.mesh.optimize("")
+            if passes[1] > i:
+                gmsh.model.mesh.optimize("Netgen")
+        stage_s["optimise"] = time.perf_counter() - t0
+        t0 = time.perf_counter()
+        if order >= 2:
+            gmsh.model.mesh.setOrder(order)
+            for method in _HIGH_ORDER_METHODS.get(high_order, ()):
+                gmsh.model.mesh.optimize(method)
+        stage_s["order"] = time.perf_counter() - t0
+    finally:
+        opt("Mesh.Optimize", passes[0])
+        opt("Mesh.OptimizeNetgen", passes[1])
+        opt("Mesh.HighOrderOptimize", high_order)
+        opt("Mesh.ElementOrder", order)
+    return stage_s
 
 
 def _size_fields(d: Dimensions, spec: MeshSpec, hmax: float) -> list[int]:

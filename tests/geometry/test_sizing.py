@@ -1,0 +1,65 @@
+"""geometry.sizing.mesh meshes in timed stages: the same mesh as gmsh's own one-call
+generate(3), every stage timed, gmsh's options left as they were."""
+import hashlib
+from dataclasses import replace
+
+import gmsh
+import numpy as np
+import pytest
+
+from geometry import sizing
+from geometry.meshspec import MeshSpec
+from geometry.part import build
+from geometry.table import lookup
+
+D05 = lookup("05").dims
+PLACES = ((0.0, 10.5, 0.0), (23.25, 8.0, 6.25))  # mm, as a pilot finds them on No. 05
+
+
+def _digest() -> tuple[int, str]:
+    """Number of nodes and a digest of their coordinates and of the tets' nodes."""
+    _, xyz, _ = gmsh.model.mesh.getNodes()
+    _, _, nodes = gmsh.model.mesh.getElements(3)
+    h = hashlib.sha1(np.asarray(xyz).tobytes() + np.asarray(nodes[0]).tobytes()).hexdigest()
+    return len(xyz) // 3, h
+
+
+def _mesh(spec: MeshSpec, staged: bool, monkeypatch) -> tuple[tuple[int, str], dict]:
+    """Mesh No. 05 in a new session, staged (sizing's path) or by one generate(3) (gmsh's
+    own path, under the options sizing sets), both without the project's curved-tet repair
+    (not gmsh's, so not part of the comparison); the mesh's digest and the stage times."""
+    gmsh.initialize(readConfigFiles=False)
+    gmsh.option.setNumber("General.Terminal", 0)
+    try:
+        build(D05, "quarter")
+        with monkeypatch.context() as m:
+            m.setattr(sizing, "ensure_curved_quality", lambda order: 1.0)
+            if not staged:
+                m.setattr(sizing, "_generate_by_stage", lambda order: gmsh.model.mesh.generate(3) or {})
+            done = sizing.mesh(D05, spec)
+        return _digest(), done.stage_s
+    finally:
+        gmsh.finalize()
+
+
+@pytest.mark.slow
+def test_staged_mesh_is_gmshs_one_call_mesh(monkeypatch):
+    """The stages (one linear generate(3), then gmsh's Optimize pass, then setOrder) give
+    gmsh's one-call generate(3) mesh node for node, and every stage is timed."""
+    spec = replace(MeshSpec.default_for(D05, 3.0), hotspots=PLACES, size_hotspot=0.5, hotspot_radius=0.6,
+                   size_edge_hotspot=0.5, edge_hotspot_radius=0.6)
+    staged, stage_s = _mesh(spec, True, monkeypatch)
+    one_call, _ = _mesh(spec, False, monkeypatch)
+    assert staged[0] > 1000
+    assert staged == one_call
+    assert set(stage_s) == set(sizing.STAGES) and all(t >= 0.0 for t in stage_s.values())
+
+
+@pytest.mark.slow
+def test_stages_leave_gmshs_options_as_set(gmsh_session):
+    """The order, optimisation and high-order options are back at their values after a mesh."""
+    build(D05, "quarter")
+    sizing.mesh(D05, MeshSpec.default_for(D05, 4.0), {"Mesh.HighOrderOptimize": 0})
+    assert gmsh.option.getNumber("Mesh.ElementOrder") == 2
+    assert gmsh.option.getNumber("Mesh.Optimize") == 1   # gmsh's default, which the project keeps
+    assert gmsh.option.getNumber("Mesh.HighOrderOptimize") == 0
