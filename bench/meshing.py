@@ -7,9 +7,10 @@ and the full part (cases/05-full.toml at its own factor) on the pilot's refined 
 Timing (the default): every mesh in a gmsh session of its own, the part built first and
 not timed; the option sets interleaved (each repeat runs every set once, in an order
 rotated by one each repeat) so that the other load on the machine falls on all alike.
-Prints per set and mesh the median wall time (s) of each of gmsh's stages
-(geometry.sizing.STAGES), their sum, the ratio to the default set's, the P2 DOFs and
-whether the mesh is the default's node for node. ``--peaks``: each set's No. 05 run
+Prints per set and mesh the median CPU time (s) of each of gmsh's stages
+(geometry.sizing.STAGES), the sum's CPU and wall time, their ratios to the default set's
+(the median of each round's pair), the P2 DOFs and whether the mesh is the default's node
+for node. ``--peaks``: each set's No. 05 run
 (pilot, the ×1 mesh and its error bar, one rank) with the set's options on every mesh:
 global and critical peaks and bands (MPa) against the references 113.82 / 66.27 MPa.
 Lengths in mm, times in s, stresses in MPa. Results go to stdout, progress to stderr.
@@ -66,7 +67,7 @@ def places(case) -> tuple[tuple[float, float, float], ...]:
 
 
 def time_one(case, spec, options: dict[str, float]) -> dict:
-    """Build the part in a new gmsh session and mesh it under ``options``: stage times (s),
+    """Build the part in a new gmsh session and mesh it under ``options``: stage wall and CPU times (s),
     P2 DOFs, a digest of the node coordinates and the worst det J ratio."""
     from geometry.part import build
     from geometry.sizing import mesh
@@ -85,7 +86,8 @@ def time_one(case, spec, options: dict[str, float]) -> dict:
     finally:
         gmsh.finalize()
     xyz = np.round(np.asarray(xyz), 9)
-    return {"stage_s": done.stage_s, "total_s": sum(done.stage_s.values()), "dofs": 3 * (len(xyz) // 3),
+    return {"stage_s": done.stage_s, "stage_cpu_s": done.stage_cpu_s, "total_s": sum(done.stage_s.values()),
+            "total_cpu_s": sum(done.stage_cpu_s.values()), "dofs": 3 * (len(xyz) // 3),
             "tets": tets, "digest": hashlib.sha1(xyz.tobytes()).hexdigest()[:12], "quality": done.quality}
 
 
@@ -107,24 +109,27 @@ def timing(names: list[str], factors: list[float], full: bool, repeats: int) -> 
                     runs.setdefault((label, name), []).append({"error": str(exc)})
                 last = runs[(label, name)][-1]
                 print(f"round {r + 1} {label} {name}: " + (last["error"] if "error" in last else
-                      f"{last['total_s']:.2f} s"), file=sys.stderr)
+                      f"{last['total_s']:.2f} s wall, {last['total_cpu_s']:.2f} s CPU"), file=sys.stderr)
     rows = []
     for (label, name), got in runs.items():
         ok = [g for g in got if "error" not in g]
         if not ok:
             rows.append({"mesh": label, "variant": name, "error": got[0]["error"]})
             continue
-        stages = {k: statistics.median(g["stage_s"][k] for g in ok) for k in ok[0]["stage_s"]}
-        rows.append({"mesh": label, "variant": name, "runs": len(ok), "stage_s": stages,
-                     "total_s": statistics.median(g["total_s"] for g in ok), "dofs": ok[0]["dofs"],
-                     "tets": ok[0]["tets"], "quality": ok[0]["quality"],
-                     "digests": sorted({g["digest"] for g in ok})})
-    base = {r["mesh"]: r for r in rows if r["variant"] == "default" and "error" not in r}
-    for row in rows:
-        b = base.get(row["mesh"])
-        if b is not None and "error" not in row:
-            row["ratio"] = row["total_s"] / b["total_s"]
-            row["same_mesh"] = row["digests"] == b["digests"]
+        row = {"mesh": label, "variant": name, "runs": len(ok), "dofs": ok[0]["dofs"], "tets": ok[0]["tets"],
+               "quality": ok[0]["quality"], "digests": sorted({g["digest"] for g in ok})}
+        for key in ("stage_s", "stage_cpu_s"):
+            row[key] = {k: statistics.median(g[key][k] for g in ok) for k in ok[0][key]}
+        for key in ("total_s", "total_cpu_s"):
+            row[key] = statistics.median(g[key] for g in ok)
+            base = runs.get((label, "default"), [])
+            # Ratios of the same round's pair (interleaved), then their median.
+            pairs = [g[key] / b[key] for g, b in zip(got, base) if "error" not in g and "error" not in b]
+            if pairs:
+                row[key.replace("total", "ratio")] = statistics.median(pairs)
+        if base and "error" not in base[0]:
+            row["same_mesh"] = row["digests"] == sorted({b["digest"] for b in base if "error" not in b})
+        rows.append(row)
     return rows
 
 
@@ -161,17 +166,20 @@ def peaks(names: list[str]) -> list[dict]:
 
 
 def table(rows: list[dict]) -> str:
-    """The timing rows as a Markdown table."""
-    out = ["| mesh | options | DOFs | " + " | ".join(f"{s} (s)" for s in ("1d", "2d", "3d", "optimise", "order",
-                                                                      "repair"))
-           + " | total (s) | × default | same mesh |", "|---" * 12 + "|"]
+    """The timing rows as a Markdown table: CPU time of each stage (s, medians), the total's
+    CPU and wall time (s, medians) and their ratios to the default set's (medians of the
+    rounds' pairs)."""
+    stages = ("1d", "2d", "3d", "optimise", "order", "repair")
+    out = ["| mesh | options | DOFs | " + " | ".join(stages) + " | CPU (s) | × default | wall (s) | × default"
+           " | same mesh |", "|---" * 14 + "|"]
     for r in rows:
         if "error" in r:
-            out.append(f"| {r['mesh']} | {r['variant']} | failed: {r['error']} |" + " |" * 9)
+            out.append(f"| {r['mesh']} | {r['variant']} | failed: {r['error']} |" + " |" * 11)
             continue
-        st = " | ".join(f"{r['stage_s'].get(s, 0.0):.2f}" for s in ("1d", "2d", "3d", "optimise", "order", "repair"))
-        out.append(f"| {r['mesh']} | {r['variant']} | {r['dofs']} | {st} | {r['total_s']:.2f} | "
-                   f"{r.get('ratio', float('nan')):.2f} | {'yes' if r.get('same_mesh') else 'no'} |")
+        st = " | ".join(f"{r['stage_cpu_s'].get(s, 0.0):.2f}" for s in stages)
+        out.append(f"| {r['mesh']} | {r['variant']} | {r['dofs']} | {st} | {r['total_cpu_s']:.2f} | "
+                   f"{r.get('ratio_cpu_s', float('nan')):.2f} | {r['total_s']:.2f} | {r.get('ratio_s', float('nan')):.2f} | "
+                   f"{'yes' if r.get('same_mesh') else 'no'} |")
     return "\n".join(out)
 
 
