@@ -2,7 +2,7 @@
 and the full part (cases/05-full.toml at its own factor) on the pilot's refined places.
 
     CROSSHEAD_NO_CACHE=1 .venv/bin/python -m bench.meshing --repeats 5 --out /tmp/meshing.json
-    CROSSHEAD_NO_CACHE=1 .venv/bin/python -m bench.meshing --peaks --variants default,netgen
+    CROSSHEAD_NO_CACHE=1 .venv/bin/python -m bench.meshing --peaks --variants default,3d-hxt --factors 0.85,1
 
 Timing (the default): every mesh in a gmsh session of its own, the part built first and
 not timed; the option sets interleaved (each repeat runs every set once, in an order
@@ -133,9 +133,10 @@ def timing(names: list[str], factors: list[float], full: bool, repeats: int) -> 
     return rows
 
 
-def peaks(names: list[str]) -> list[dict]:
-    """Each set's No. 05 run (pilot, ×1 and its error bar, this process alone, the run
-    cache off): peaks and bands (MPa), finest DOFs, wall time (s)."""
+def peaks(names: list[str], factors: list[float]) -> list[dict]:
+    """Each set's No. 05 run at each mesh factor (pilot, the factor's mesh and its error
+    bar, this process alone, the run cache off): peaks and bands (MPa), finest DOFs, wall
+    time (s)."""
     import pipeline.fe.meshing as meshing
     from geometry.sizing import mesh
     from pipeline.analysis.analyse import analyse
@@ -143,14 +144,14 @@ def peaks(names: list[str]) -> list[dict]:
     from pipeline.post.errorbar import estimate_levels
 
     rows = []
-    for name in names:
+    for factor, name in [(f, n) for f in factors for n in names]:
         # Every mesh of the run (the pilot's included) made under the set's options.
         meshing.mesh = functools.partial(mesh, options=VARIANTS[name])
         try:
-            case = resolve("05")
+            case = resolve("05", overrides={"mesh_factor": factor})
             t0 = time.perf_counter()
             levels, pl = analyse(case, comm=MPI.COMM_SELF)
-            row = {"variant": name, "dofs": levels[0].dofs, "places": len(pl.hotspots),
+            row = {"variant": name, "factor": factor, "dofs": levels[0].dofs, "places": len(pl.hotspots),
                    "wall_s": time.perf_counter() - t0}
             for key in ("peak", "critical"):
                 est = estimate_levels(levels, case.order, key)
@@ -187,7 +188,7 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="python -m bench.meshing", description=__doc__.splitlines()[0])
     ap.add_argument("--variants", default=",".join(VARIANTS),
                     help=f"option sets, comma-separated (default all: {', '.join(VARIANTS)})")
-    ap.add_argument("--factors", default="1,1.69", help="No. 05's mesh factors (default 1,1.69)")
+    ap.add_argument("--factors", help="No. 05's mesh factors (default 1,1.69; with --peaks 1)")
     ap.add_argument("--no-full", action="store_true", help="leave out the full part")
     ap.add_argument("--repeats", type=int, default=3, help="rounds of every set on every mesh (default 3)")
     ap.add_argument("--peaks", action="store_true", help="each set's No. 05 peaks and bands instead of timing")
@@ -199,14 +200,14 @@ def main(argv: list[str] | None = None) -> int:
         print(f"--variants: unknown {', '.join(unknown)}" if unknown else "--repeats: at least 1", file=sys.stderr)
         return 2
     try:
-        factors = [float(f) for f in args.factors.split(",")]
+        factors = [float(f) for f in (args.factors or ("1" if args.peaks else "1,1.69")).split(",")]
     except ValueError:
         print(f"--factors: not numbers: {args.factors}", file=sys.stderr)
         return 2
     if args.peaks:
-        rows = peaks(names)
+        rows = peaks(names, factors)
         for r in rows:
-            print(f"{r['variant']}: " + ", ".join(
+            print(f"×{r['factor']:g} {r['variant']}: " + ", ".join(
                 f"{k} {r[k]['value_MPa']:.2f} ± {r[k]['band_MPa'] if r[k]['band_MPa'] is not None else float('nan'):.2f}"
                 f" MPa ({'covers' if r[k]['covers_reference'] else 'misses'} {REFERENCES_MPA[k]})"
                 for k in ("peak", "critical")) + f"; {r['dofs']} DOFs, {r['places']} places, {r['wall_s']:.1f} s")

@@ -3,6 +3,7 @@
 """
 from __future__ import annotations
 
+import math
 import re
 import time
 from dataclasses import dataclass
@@ -21,23 +22,34 @@ GRADE = 0.5  # largest growth of the element size per unit distance near the fil
 
 
 def _balls(point: tuple[float, float, float], size: float, size_far: float, radius: float,
-           thickness: float) -> list[int]:
-    """gmsh Ball fields (mm): ``size`` within ``radius`` of the point and of its mirror
-    images in the planes x = 0 and y = 0 (the part and its loads have that symmetry),
-    growing linearly to size_far over ``thickness``.
+           thickness: float, part_box: tuple[float, ...]) -> list[int]:
+    """gmsh Ball fields (mm): ``size`` within ``radius`` of the point and of those of its
+    mirror images in the planes x = 0 and y = 0 (the part and its loads have that symmetry)
+    that come within radius + thickness of the part's bounding box ``part_box`` (xmin,
+    ymin, zmin, xmax, ymax, zmax), growing linearly to size_far over ``thickness``.
 
     A Ball is the same size function as a Threshold on a MathEval distance, but gmsh
-    evaluates it natively, several times faster with ten refined places (docs/decisions/0004-curved-tet-repair.md)."""
+    evaluates it natively, several times faster with ten refined places (docs/decisions/0004-curved-tet-repair.md).
+    An image farther from the part is size_far = the largest size on all of it, which the
+    Min of the fields takes from the others anyway: leaving it out gives the same mesh, node
+    for node, and gmsh evaluates fewer fields at every point (docs/decisions/0031-meshing-options.md)."""
     x, y, z = abs(point[0]), abs(point[1]), point[2]
     field = gmsh.model.mesh.field
     tags = []
     for cx, cy in sorted({(sx * x, sy * y) for sx in (1, -1) for sy in (1, -1)}):
+        if _box_distance((cx, cy, z), part_box) >= radius + thickness:
+            continue
         tag = field.add("Ball")
         for name, value in (("XCenter", cx), ("YCenter", cy), ("ZCenter", z), ("Radius", radius),
                             ("Thickness", thickness), ("VIn", size), ("VOut", size_far)):
             field.setNumber(tag, name, value)
         tags.append(tag)
     return tags
+
+
+def _box_distance(p: tuple[float, float, float], box: tuple[float, ...]) -> float:
+    """Distance (mm) from point p to the box (xmin, ymin, zmin, xmax, ymax, zmax); 0 inside."""
+    return math.sqrt(sum(max(lo - c, 0.0, c - hi) ** 2 for c, lo, hi in zip(p, box[:3], box[3:])))
 
 
 def size_field(curves: list[int], size: float, size_far: float, dist_min: float,
@@ -185,13 +197,14 @@ def _size_fields(d: Dimensions, spec: MeshSpec, hmax: float) -> list[int]:
         h_f = spec.size_fillet * f
         fields_.append(size_field(fillets, h_f, hmax, 0.5 * d.rf, 0.5 * d.rf + (hmax - h_f) / GRADE))
     on_root = at_journal_root(d, np.array(spec.hotspots, dtype=float).reshape(-1, 3))
+    part_box = gmsh.model.getBoundingBox(-1, -1)
     for point, root in zip(spec.hotspots, on_root):
         # The radius is a region, not a size: it stays put while the sizes are scaled, so
         # the DOFs grow with refinement like everywhere else (a scaled radius kept the
         # number of elements in the ball constant and stalled the error-bar ratios).
         h_s = (spec.size_hotspot if root else spec.size_edge_hotspot) * f
         r_s = spec.hotspot_radius if root else spec.edge_hotspot_radius
-        fields_ += _balls(point, h_s, hmax, r_s, (hmax - h_s) / GRADE)
+        fields_ += _balls(point, h_s, hmax, r_s, (hmax - h_s) / GRADE, part_box)
     return fields_
 
 
