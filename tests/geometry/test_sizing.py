@@ -1,6 +1,7 @@
 """geometry.sizing.mesh meshes in timed stages: the same mesh as gmsh's own one-call
 generate(3), every stage timed, gmsh's options left as they were."""
 import hashlib
+import math
 from dataclasses import replace
 
 import gmsh
@@ -63,3 +64,47 @@ def test_stages_leave_gmshs_options_as_set(gmsh_session):
     assert gmsh.option.getNumber("Mesh.ElementOrder") == 2
     assert gmsh.option.getNumber("Mesh.Optimize") == 1   # gmsh's default, which the project keeps
     assert gmsh.option.getNumber("Mesh.HighOrderOptimize") == 0
+
+
+def test_box_distance_is_the_euclidean_distance_to_the_box():
+    box = (0.0, 0.0, 0.0, 35.0, 22.5, 25.0)
+    assert sizing._box_distance((10.0, 5.0, 3.0), box) == 0.0          # inside
+    assert sizing._box_distance((-3.0, 5.0, 3.0), box) == pytest.approx(3.0)
+    assert sizing._box_distance((-3.0, -4.0, 30.0), box) == pytest.approx(math.sqrt(9 + 16 + 25))
+
+
+@pytest.mark.slow
+def test_balls_left_out_do_not_change_the_mesh(monkeypatch):
+    """Leaving out the mirror images that cannot reach the part gives the mesh of every
+    image kept (a distance of 0 to the part keeps them all), node for node."""
+    spec = replace(MeshSpec.default_for(D05, 3.0), hotspots=PLACES, size_hotspot=0.5, hotspot_radius=0.6,
+                   size_edge_hotspot=0.5, edge_hotspot_radius=0.6)
+    counts, got = [], []
+    for keep_all in (False, True):
+        gmsh.initialize(readConfigFiles=False)
+        gmsh.option.setNumber("General.Terminal", 0)
+        try:
+            build(D05, "quarter")
+            made = []
+            balls = sizing._balls
+            with monkeypatch.context() as m:
+                if keep_all:
+                    m.setattr(sizing, "_box_distance", lambda p, box: 0.0)
+                m.setattr(sizing, "_balls", lambda *a: _counted(balls, made, *a))
+                sizing.mesh(D05, spec)
+            got.append(_digest())
+            counts.append(len(made))
+        finally:
+            gmsh.finalize()
+    # (0, 10.5, 0) has 2 images, both within reach; (23.25, 8, 6.25) has 4, and those at
+    # x = -23.25 lie 23.25 and 24.6 mm from the part, beyond radius + thickness =
+    # 0.6 + (12 - 1.5) / 0.5 = 21.6 mm (sizes x 3: hmax 0.16 h3 x 3 = 12 mm, h_s 1.5 mm).
+    assert counts == [4, 6]
+    assert got[0] == got[1]
+
+
+def _counted(balls, made: list, *args) -> list[int]:
+    """sizing._balls, its fields' tags also appended to ``made``."""
+    tags = balls(*args)
+    made.extend(tags)
+    return tags
