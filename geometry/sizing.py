@@ -198,7 +198,14 @@ def _size_fields(d: Dimensions, spec: MeshSpec, hmax: float) -> list[int]:
         fields_.append(size_field(fillets, h_f, hmax, 0.5 * d.rf, 0.5 * d.rf + (hmax - h_f) / GRADE))
     on_root = at_journal_root(d, np.array(spec.hotspots, dtype=float).reshape(-1, 3))
     part_box = gmsh.model.getBoundingBox(-1, -1)
+    made = set()
     for point, root in zip(spec.hotspots, on_root):
+        # A place whose mirror image is another place (the full part's pilot finds both)
+        # has the same Balls: made once, the Min is the same (docs/decisions/0031-meshing-options.md).
+        mirror_class = (abs(point[0]), abs(point[1]), point[2], bool(root))
+        if mirror_class in made:
+            continue
+        made.add(mirror_class)
         # The radius is a region, not a size: it stays put while the sizes are scaled, so
         # the DOFs grow with refinement like everywhere else (a scaled radius kept the
         # number of elements in the ball constant and stalled the error-bar ratios).

@@ -108,3 +108,30 @@ def _counted(balls, made: list, *args) -> list[int]:
     tags = balls(*args)
     made.extend(tags)
     return tags
+
+
+@pytest.mark.slow
+def test_a_place_and_its_mirror_image_make_one_set_of_balls(monkeypatch):
+    """The full part's pilot finds a place and its mirror images: their Balls are made once,
+    and the mesh is the one of the place alone (the Balls mirror every place anyway)."""
+    p = PLACES[1]
+    mirrored = (p, (-p[0], p[1], p[2]), (p[0], -p[1], p[2]))
+    calls, got = [], []
+    for places in ((p,), mirrored):
+        gmsh.initialize(readConfigFiles=False)
+        gmsh.option.setNumber("General.Terminal", 0)
+        try:
+            build(D05, "full")
+            spec = replace(MeshSpec.default_for(D05, 4.0), hotspots=places, size_hotspot=0.5, hotspot_radius=0.6,
+                           size_edge_hotspot=0.5, edge_hotspot_radius=0.6)
+            made = []
+            balls = sizing._balls
+            with monkeypatch.context() as m:
+                m.setattr(sizing, "_balls", lambda *a: _counted(balls, made, *a))
+                sizing.mesh(D05, spec)
+            got.append(_digest())
+            calls.append(len(made))
+        finally:
+            gmsh.finalize()
+    assert calls == [4, 4]        # the four images of one place, in the full part all within reach
+    assert got[0] == got[1]
