@@ -11,7 +11,7 @@ CROSSHEAD := .venv/bin/crosshead
 RUN := $(if $(filter 1,$(RANKS)),$(CROSSHEAD),$(PY) -m pipeline.runtime.launch $(RANKS))
 SIZES := $(shell awk -F, '!/^\#/ && $$1 != "size" && NF > 1 {print $$1}' geometry/sizes.csv)
 
-.PHONY: run test test-fast lint converge bench bench-sweeps reference load-reference sizes setup clean clean-cache $(SIZES)
+.PHONY: run test test-fast lint converge bench bench-peer bench-sweeps reference load-reference sizes setup clean clean-cache $(SIZES)
 
 run: $(SETUP)
 	$(RUN) run --size 05 --out results/05
@@ -41,9 +41,17 @@ BENCH_ARGS ?= --pilot on --factors 4.0,2.5,2.0,1.3,1.0 --p3-factors 3.0,2.5,2.0 
 # critical-peak target's own comparison (about a minute).
 BENCH_CRITICAL_ARGS ?= --orders 2 --solvers pmg --factors 10,8,6,5,4 --pilot on --want critical \
 	--repeats 3 --reference-values 113.82,66.27
+# Last, the fair peer: CalculiX as its users run it (a mesh graded at the raisers by size
+# fields, no pilot, peaks from its .frd) beside the pipeline and CalculiX on the pipeline's
+# meshes, interleaved (bench/peer.py; about 7 minutes on a quiet machine).
+BENCH_PEER_ARGS ?= --repeats 3 --reference-values 113.82,66.27
 bench: $(SETUP)
 	$(PY) -m bench --out results/bench --ranks 1,2 $(BENCH_ARGS)
 	$(PY) -m bench --out results/bench-critical $(BENCH_CRITICAL_ARGS)
+	$(PY) -m bench.peer --out results/bench-peer $(BENCH_PEER_ARGS)
+
+bench-peer: $(SETUP)
+	$(PY) -m bench.peer --out results/bench-peer $(BENCH_PEER_ARGS)
 
 # Design-study throughput: every size on 2 ranks and on 1, and a 24-variant rf x dj grid of
 # No. 05 (targets 60 s, 90 s, 2 ranks >= 1.8x): about 10 minutes per repeat on 2 cores.

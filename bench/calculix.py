@@ -238,6 +238,29 @@ def read_dat_displacements(path: Path, n_nodes: int) -> np.ndarray:
     return U
 
 
+def read_frd_stress(path: Path, n_nodes: int) -> np.ndarray:
+    """Nodal stresses (n_nodes × 6, MPa: xx, yy, zz, xy, yz, zx) from a CalculiX ASCII .frd
+    file (``*EL FILE`` with ``S``): the values ccx extrapolates from the integration points
+    to the nodes and averages over the elements that share a node, as CalculiX GraphiX
+    shows them. The last STRESS block is read (the end of the step)."""
+    lines = Path(path).read_text().splitlines()
+    heads = [k for k, s in enumerate(lines) if s.startswith(" -4") and s[3:].split()[:1] == ["STRESS"]]
+    if not heads:
+        raise NumericalError(f"no STRESS block in {path}")
+    S = np.full((n_nodes, 6), np.nan)
+    for s in lines[heads[-1] + 1:]:
+        if s.startswith(" -3"):
+            break
+        if not s.startswith(" -1"):
+            continue
+        # Fixed columns: " -1", the node number in 10 characters, then 12 per value.
+        node = int(s[3:13])
+        S[node - 1] = [float(s[13 + 12 * k:25 + 12 * k]) for k in range(6)]
+    if not np.all(np.isfinite(S)):
+        raise NumericalError(f"CalculiX .frd {path} lacks stresses for some nodes (or has NaN)")
+    return S
+
+
 @dataclass
 class CcxResult:
     """CalculiX's displacement as a DOLFINx P2 function, with what it took (s, KiB)."""
@@ -248,6 +271,7 @@ class CcxResult:
     ccx_maxrss_kib: int = 0
     inp_path: Path | None = None
     log: str = ""
+    nodal_stress: np.ndarray | None = None  # (N, 6) MPa from the .frd, when asked for
 
 
 def run_job(wd: Path, threads: int = 1, ccx: str = "ccx", job: str = "job") -> tuple[str, float, int]:
@@ -270,12 +294,13 @@ def run_job(wd: Path, threads: int = 1, ccx: str = "ccx", job: str = "job") -> t
 
 def solve_ccx(mesh, facet_tags, lc: LoadCase, mat: Material, threads: int = 1,
               solver: str = "spooles", workdir: Path | None = None, keep: bool = False,
-              ccx: str = "ccx") -> CcxResult:
+              ccx: str = "ccx", nodal_stress: bool = False) -> CcxResult:
     """Write the .inp, run ``ccx -i job`` and read U back into a DOLFINx P2 function.
 
     Times (s): ``loads`` (nodal loads and node sets from DOLFINx), ``write`` (the .inp
     text and file), ``ccx`` (wall time of the ccx process), ``read`` (parse .dat, fill
-    the function). ``threads`` sets OMP_NUM_THREADS and CCX_NPROC_* for ccx. The work
+    the function, and with ``nodal_stress`` ccx's nodal stresses from the .frd, which
+    ``*EL FILE`` asks ccx for: :func:`read_frd_stress`). ``threads`` sets OMP_NUM_THREADS and CCX_NPROC_* for ccx. The work
     folder is a temporary one, removed afterwards unless ``keep`` or ``workdir`` is given.
     """
     if shutil.which(ccx) is None:
@@ -290,7 +315,8 @@ def solve_ccx(mesh, facet_tags, lc: LoadCase, mat: Material, threads: int = 1,
     try:
         t0 = time.perf_counter()
         inp = wd / "job.inp"
-        inp.write_text(inp_text(model, mat, solver=solver))
+        inp.write_text(inp_text(model, mat, solver=solver,
+                                output_lines=("*EL FILE", "S") if nodal_stress else ()))
         timings["write"] = time.perf_counter() - t0
         log, timings["ccx"], maxrss = run_job(wd, threads, ccx)
         t0 = time.perf_counter()
@@ -298,13 +324,14 @@ def solve_ccx(mesh, facet_tags, lc: LoadCase, mat: Material, threads: int = 1,
         u = fem.Function(model.V, name="displacement_mm")
         u.x.array[:] = U[model.dof_node].ravel()
         u.x.scatter_forward()
+        S = read_frd_stress(wd / "job.frd", model.nodes.shape[0]) if nodal_stress else None
         timings["read"] = time.perf_counter() - t0
     finally:
         if own_tmp and not keep:
             shutil.rmtree(wd, ignore_errors=True)
     return CcxResult(u=u, model=model, timings=timings,
                      ccx_maxrss_kib=int(maxrss),
-                     inp_path=None if (own_tmp and not keep) else inp, log=log)
+                     inp_path=None if (own_tmp and not keep) else inp, log=log, nodal_stress=S)
 
 
 def compare(case, factor: float, threads: int = 1, solver: str = "mumps",

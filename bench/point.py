@@ -74,6 +74,7 @@ def _import_modules(kind: str) -> float:
     as ``imports_s``."""
     t_imp = time.perf_counter()
     solver = ("pipeline.analysis.level",) if kind == "dolfinx" else ("bench.calculix", "pipeline.analysis.level")
+    solver += ("bench.peer",) if kind == "peer" else ()
     for name in ("mpi4py.MPI", "pipeline.inputs.case", "pipeline.fe.meshing", "pipeline.analysis.pilot", *solver):
         importlib.import_module(name)
     return time.perf_counter() - t_imp
@@ -110,7 +111,9 @@ def _solve_calculix(spec: dict, case: Case, comm, hotspots: tuple, mesher: Meshe
                     t0: float) -> tuple[float, dict[str, float], dict]:
     """Solve the point with CalculiX on the pipeline's mesh, loads and supports, the peaks
     from its displacement as in the pipeline: wall time since t0 (s), stage times (s) and
-    result fields (as :func:`_solve_dolfinx`'s, plus ccx's own peak memory, MiB)."""
+    result fields (as :func:`_solve_dolfinx`'s, plus ccx's own peak memory, MiB). A "peer"
+    point (a user's mesh, bench.peer) reads its peaks from ccx's .frd nodal stresses
+    instead and keeps the pipeline's reading as ``pipeline_peak_MPa``, ``pipeline_critical_MPa``."""
     from bench.calculix import solve_ccx
     from pipeline.analysis.level import peaks_of, set_up
     if comm.size != 1:
@@ -119,18 +122,21 @@ def _solve_calculix(spec: dict, case: Case, comm, hotspots: tuple, mesher: Meshe
     mesher.close()
     m, mat = prob.mesh, prob.material
     cx = solve_ccx(m.mesh, m.facet_tags, prob.loads, mat, threads=int(spec.get("threads", 1)),
-                   solver=spec.get("ccx_solver", "spooles"))
+                   solver=spec.get("ccx_solver", "spooles"), nodal_stress=spec["kind"] == "peer")
     t1 = time.perf_counter()
     _, pk, cr = peaks_of(case, cx.u, mat)
+    read = {"peak_MPa": pk.value_MPa, "peak_location_mm": list(pk.location_mm),
+            "critical_MPa": cr.value_MPa, "critical_location_mm": list(cr.location_mm)}
+    if spec["kind"] == "peer":
+        from bench.peer import frd_peaks
+        read = dict(frd_peaks(case, cx.model.nodes, cx.nodal_stress),
+                    pipeline_peak_MPa=pk.value_MPa, pipeline_critical_MPa=cr.value_MPa)
     t_post = time.perf_counter() - t1
     total = time.perf_counter() - t0
     stages = dict(m.timings, **cx.timings, post=t_post)
     stages["loads"] += prob.loads_s
     n_nodes = cx.model.nodes.shape[0]
-    fields = {"dofs": 3 * n_nodes, "cells": cx.model.elements.shape[0], "iterations": None,
-              "peak_MPa": pk.value_MPa, "critical_MPa": cr.value_MPa,
-              "peak_location_mm": list(pk.location_mm),
-              "critical_location_mm": list(cr.location_mm),
+    fields = {"dofs": 3 * n_nodes, "cells": cx.model.elements.shape[0], "iterations": None, **read,
               "ccx_maxrss_MiB": cx.ccx_maxrss_kib / 1024}
     return total, stages, fields
 

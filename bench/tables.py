@@ -32,14 +32,14 @@ def aggregate(spec: dict, ranks: int, threads: int, runs: list[dict], ref: dict)
         row[f"t_{st}"] = med(vals) if vals else None
     row["t_total"] = med([r["total_s"] for r in ok])
     row["t_core"] = (med([r["stages_s"]["write"] + r["stages_s"]["ccx"] + r["stages_s"]["read"] for r in ok])
-                     if spec["kind"] == "calculix" else row["t_total"])
+                     if spec["kind"] != "dolfinx" else row["t_total"])
     row["t_total_min"] = min(r["total_s"] for r in ok)
     row["t_total_max"] = max(r["total_s"] for r in ok)
     row["t_imports"] = med([r["imports_s"] for r in ok])
     row["t_interpreter"] = med([max(r["wall_s"] - r["process_s"], 0.0) for r in ok])
     row["mem_MiB"] = max(r["maxrss_MiB"] for r in ok)
     row["mem_sum_MiB"] = max(r["maxrss_sum_MiB"] for r in ok)
-    if spec["kind"] == "calculix":
+    if spec["kind"] != "dolfinx":
         row["ccx_mem_MiB"] = max(r.get("ccx_maxrss_MiB", 0.0) for r in ok)
     row["repeats"] = len(ok)
     row["peak_err"] = (row["peak_MPa"] - ref["peak"]) / ref["peak"]
@@ -63,6 +63,8 @@ def time_to_error(rows: list[dict], kinds: set[str], keys: tuple[str, ...], tol:
 
 def label(r: dict) -> str:
     places = (" +bore edges" if r.get("want") == "critical" else " +pilot") if r.get("pilot") else ""
+    if r["kind"] == "peer":
+        return f"CalculiX C3D10 {r['solver'][4:]} user mesh" + (", bore edges" if r.get("want") == "critical" else "")
     if r["kind"] == "calculix":
         s = f"CalculiX C3D10 {r['solver'][4:]}" + places
         return s + (f" {r['threads']}thr" if r.get("threads", 1) != 1 else "")
