@@ -53,7 +53,8 @@ def run_point(spec: dict) -> dict | None:
     order = int(spec.get("order", 2))
     case = resolve(spec.get("size", "05"),
                    overrides={"mesh_factor": spec["factor"], "order": order,
-                              "solver": spec.get("solver") or "pmg", "want": spec.get("want", "both")})
+                              "solver": spec.get("solver") or "pmg", "want": spec.get("want", "both"),
+                              **({"size_fillet_mm": spec["size_fillet_mm"]} if spec.get("size_fillet_mm") else {})})
     out: dict = {"spec": spec, "ranks": comm.size, "imports_s": imports}
     comm.barrier()
     t0 = time.perf_counter()

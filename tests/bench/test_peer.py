@@ -127,3 +127,15 @@ def test_points_cover_three_kinds_on_one_core():
     assert kinds == {("dolfinx", "both", True), ("calculix", "both", True), ("dolfinx", "critical", True),
                      ("calculix", "critical", True), ("peer", "both", False), ("peer", "critical", False)}
     assert sum(p["kind"] == "peer" for p in pts) == 2 * 3  # two ccx solvers × three user meshes
+
+
+def test_stays_within_needs_every_finer_mesh():
+    """A family within 1 % at ×4, 1.5 % at ×2, within at ×1.3 and ×1: the bench's rule takes
+    ×4, "stays within" takes ×1.3 (the finest, ×1, has no finer mesh to stay on)."""
+    from bench.peer import cheapest
+    errs = {4.0: 0.005, 2.0: 0.015, 1.3: -0.004, 1.0: 0.002}
+    rows = [{"kind": "peer", "solver": "ccx-spooles", "want": "both", "factor": f, "dofs": int(1e4 / f ** 3),
+             "t_wall": 10.0 / f, "peak_err": e, "critical_err": 0.0} for f, e in errs.items()]
+    assert cheapest(rows, ("peak_err",), 0.01, stays=False)["factor"] == 4.0
+    assert cheapest(rows, ("peak_err",), 0.01, stays=True)["factor"] == 1.3
+    assert cheapest(rows[-1:], ("peak_err",), 0.01, stays=True) is None
