@@ -208,11 +208,8 @@ def markdown(rows: list[dict], comp: dict) -> str:
     return "\n".join(lines)
 
 
-def _csv(conv):
-    return lambda s: [conv(x) for x in s.split(",") if x.strip()]
-
-
 def make_parser() -> argparse.ArgumentParser:
+    from bench.run import csv_list as _csv
     p = argparse.ArgumentParser(prog="python -m bench.peer", description=__doc__,
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--out", type=Path, default=Path("results/bench-peer"), help="output folder")

@@ -158,7 +158,8 @@ def build_matrix(args) -> list[tuple[dict, int, int]]:
     return pts
 
 
-def _csv_list(conv):
+def csv_list(conv):
+    """An argparse type: a comma-separated list, each item converted by ``conv``."""
     return lambda s: [conv(x) for x in s.split(",") if x.strip()]
 
 
@@ -169,11 +170,11 @@ def make_parser() -> argparse.ArgumentParser:
     p.add_argument("--quick", action="store_true",
                    help="2 coarse levels, 1 repeat, P2 pmg + mumps + CalculiX (for tests)")
     p.add_argument("--repeats", type=int, help="runs per point, median taken (default 3; --quick 1)")
-    p.add_argument("--factors", type=_csv_list(float), help="mesh factors (default 2.0,1.5,1.15,0.9,0.7)")
-    p.add_argument("--p3-factors", type=_csv_list(float), help="mesh factors for P3 (default 2.0,1.5)")
-    p.add_argument("--orders", type=_csv_list(int), help="element orders (default 1,2,3)")
-    p.add_argument("--solvers", type=_csv_list(str), help="pmg,gamg,hypre,mumps (default all)")
-    p.add_argument("--ccx-solvers", type=_csv_list(str),
+    p.add_argument("--factors", type=csv_list(float), help="mesh factors (default 2.0,1.5,1.15,0.9,0.7)")
+    p.add_argument("--p3-factors", type=csv_list(float), help="mesh factors for P3 (default 2.0,1.5)")
+    p.add_argument("--orders", type=csv_list(int), help="element orders (default 1,2,3)")
+    p.add_argument("--solvers", type=csv_list(str), help="pmg,gamg,hypre,mumps (default all)")
+    p.add_argument("--ccx-solvers", type=csv_list(str),
                    help="CalculiX solvers: spooles (direct), iterative (ITERATIVE CHOLESKY); "
                         "default both (--quick: spooles)")
     p.add_argument("--no-ccx", dest="ccx", action="store_false", help="skip CalculiX")
@@ -183,7 +184,7 @@ def make_parser() -> argparse.ArgumentParser:
     p.add_argument("--want", choices=("both", "critical"), default="both",
                    help="the peaks every point's mesh is made for (the run's scene): both (default), or "
                         "critical (with --pilot on: the known bore edges refined, no pilot solve)")
-    p.add_argument("--ranks", type=_csv_list(int), default=[1],
+    p.add_argument("--ranks", type=csv_list(int), default=[1],
                    help="MPI rank counts for the finest P2 mesh, e.g. 1,2 (default 1)")
     p.add_argument("--ranks-at", choices=("finest", "targets", "all"), default="finest",
                    help="where the --ranks counts above 1 run: the finest P2 mesh only (default); "
@@ -192,7 +193,7 @@ def make_parser() -> argparse.ArgumentParser:
     p.add_argument("--threads", type=int, default=1, help="threads per rank and for ccx (default 1)")
     p.add_argument("--reference", type=Path, default=DEFAULT_REFERENCE,
                    help="convergence-study results.json with the extrapolated peaks")
-    p.add_argument("--reference-values", type=_csv_list(float),
+    p.add_argument("--reference-values", type=csv_list(float),
                    help="GLOBAL,CRITICAL peaks (MPa) of an independent solution to measure errors "
                         "against instead of the study's extrapolation")
     p.add_argument("--remake-reference", action="store_true",
