@@ -43,8 +43,7 @@ BENCH_CRITICAL_ARGS ?= --orders 2 --solvers pmg --factors 10,8,6,5,4 --pilot on 
 	--repeats 3 --reference-values 113.82,66.27
 # Last, the fair peer: CalculiX as its users run it (a mesh graded at the raisers by size
 # fields, no pilot, peaks from its .frd) beside the pipeline and CalculiX on the pipeline's
-# meshes, interleaved (bench/peer.py; 20 min measured on a loaded machine, an estimated
-# 5-7 min on a quiet one).
+# meshes, interleaved (bench/peer.py; 8 min measured at load average 4-7 on 2 cores).
 BENCH_PEER_ARGS ?= --repeats 3 --reference-values 113.82,66.27
 bench: $(SETUP)
 	$(PY) -m bench --out results/bench --ranks 1,2 $(BENCH_ARGS)
