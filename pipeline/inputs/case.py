@@ -20,6 +20,24 @@ from pipeline.inputs.tomlfile import read_toml
 DIMENSION_KEYS = tuple(f.name for f in fields(Dimensions))
 # The inputs a case may give a sensitivity range for ([sensitivity] in a case file, --vary).
 SENSITIVITY_KEYS = ("dj", "rf", "seat_inner", "seat_outer", "bearing_centre_mm", "bearing_length_mm")
+# The report's title block ([document] in a case file): what the part is, its drawing or
+# document number, revision, who made and who checked the calculation.
+DOCUMENT_KEYS = ("part", "number", "revision", "author", "checker")
+
+
+@dataclass(frozen=True)
+class Document:
+    """The title block of a run's report, as the case file gives it; a key not given is
+    None (a blank field to fill by hand, never an invented value). No effect on any number."""
+
+    part: str | None = None
+    number: str | None = None
+    revision: str | None = None
+    author: str | None = None
+    checker: str | None = None
+
+    def as_dict(self) -> dict[str, str | None]:
+        return asdict(self)
 
 
 @dataclass(frozen=True)
@@ -58,6 +76,9 @@ class Case:
     # (input, low, high) in the input's unit: the ranges the sensitivity analysis uses
     # instead of its defaults, and the user-set inputs it varies (docs/design.md §10).
     sensitivity_ranges: tuple[tuple[str, float, float], ...] = ()
+    # The report's title block: results.json's about.document, not an input of the analysis
+    # (as_dict leaves it out, so a study variant's key does not depend on it).
+    document: Document = field(default_factory=Document)
 
     def load_model(self) -> dict[str, Any]:
         """What of the journal load a cache key must hold besides the support: the bearing
@@ -88,6 +109,7 @@ class Case:
 
     def as_dict(self) -> dict[str, Any]:
         out = asdict(self)
+        del out["document"]
         out["dims"] = asdict(self.dims)
         out["assumed"] = list(self.assumed)
         spec = self.mesh_spec()
@@ -117,6 +139,7 @@ SCHEMA: dict[str, dict[str, tuple[str, tuple[type, ...]]]] = {
     "analytic": {"approximate_span_mm": ("approximate_span_mm", _NUM),
                  "exact_span_mm": ("exact_span_mm", _NUM)},
     "sensitivity": {k: (f"sensitivity.{k}", (list,)) for k in SENSITIVITY_KEYS},
+    "document": {k: (f"document.{k}", (str,)) for k in DOCUMENT_KEYS},
 }
 
 
@@ -260,11 +283,13 @@ def resolve(size: str | None = None, case_file: Path | None = None,
             del values[k]
     dims = replace(row.dims, **dim_over)
     ranges = sensitivity_ranges({k: values.pop(k) for k in list(values) if k.startswith("sensitivity.")})
+    document = Document(**{k.split(".", 1)[1]: values.pop(k).strip() or None
+                           for k in list(values) if k.startswith("document.")})
     name = values.pop("name", None) or row.size
     load = values.pop("load_N", row.load_N)
     assumed = tuple(k for k in ("dj", "rf", "seat_inner", "seat_outer") if k not in dim_over)
     case = Case(name=str(name), size=row.size, source=row.source, dims=dims, load_N=load,
-                assumed=assumed, sensitivity_ranges=ranges, **values)
+                assumed=assumed, sensitivity_ranges=ranges, document=document, **values)
     return check(case)
 
 

@@ -34,13 +34,15 @@ def _versions() -> dict[str, str]:
             "numpy": numpy.__version__}
 
 
-def about(argv: list[str] | None = None) -> dict:
+def about(document: dict[str, str | None], argv: list[str] | None = None) -> dict:
     """results.json's ``about`` block: schema version, tool and version, UTC time of
-    writing, the command line (``crosshead`` and its arguments) and software versions."""
+    writing, the command line (``crosshead`` and its arguments), software versions and the
+    report's title block ``document`` (pipeline.inputs.case.Document: part, number,
+    revision, author, checker; None where the case file does not give one)."""
     args = sys.argv[1:] if argv is None else argv
     return {"schema_version": SCHEMA_VERSION, "tool": "crosshead", "tool_version": __version__,
             "created_utc": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
-            "command_line": ["crosshead", *args], "software": _versions()}
+            "command_line": ["crosshead", *args], "software": _versions(), "document": dict(document)}
 
 
 def complete(res: dict, summary_row: dict) -> dict:

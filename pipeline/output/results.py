@@ -49,7 +49,7 @@ def build_results(case: Case, levels: list[Level], timings: dict[str, float],
             block["not_wanted"] = (f"want = {case.want}: the run did not refine for the {name} peak; "
                                    "shown for orientation only")
     return {
-        "about": about(),
+        "about": about(case.document.as_dict()),
         "units": {"length": "mm", "force": "N", "stress": "MPa"},
         "case": case.as_dict(),
         "analytic": _analytic_block(case, hand),
