@@ -2,22 +2,31 @@
 from __future__ import annotations
 
 import json
+import re
 import sys
 from pathlib import Path
 
 from geometry.table import is_scaled_row
-from pipeline.post.errorbar import STATUS_TEXT, TREND_TEXT
+from pipeline.output import appendix
 
+# Why a dimension was assumed: the paper's table does not give it; its default rule.
 ASSUMED_WHY = {
-    "dj": "journal diameter, 0.8·h (docs/design.md §2)",
-    "rf": "shoulder fillet radius, 0.06·h (docs/design.md §2)",
-    "seat_inner": "seat annulus inner diameter (docs/design.md §2)",
-    "seat_outer": "seat annulus outer diameter (docs/design.md §2)",
+    "dj": "journal diameter, 0.8·h (not in the paper's table)",
+    "rf": "shoulder fillet radius, 0.06·h (not in the paper's table)",
+    "seat_inner": "seat annulus inner diameter (not in the paper's table)",
+    "seat_outer": "seat annulus outer diameter (not in the paper's table)",
 }
 DIM_NAMES = {"b1": "body width and length", "b2": "journal length", "b6": "tip-to-tip length",
              "d14": "bearing track mean diameter Dm", "d2": "bore diameter di",
              "h3": "body height h", "dj": "journal diameter", "rf": "shoulder fillet radius",
              "seat_inner": "seat annulus inner diameter", "seat_outer": "seat annulus outer diameter"}
+
+
+def without_docs_links(text: str) -> str:
+    """``text`` without its parenthesised pointers into the repository's docs/ (the size
+    table's notes carry them): the report's reader has the report alone, whose appendix and
+    Inputs table state what those pages say."""
+    return re.sub(r"\s*\((?:see )?docs/[^)]*\)", "", text)
 
 
 def _f(x, nd=2) -> str:
@@ -178,7 +187,7 @@ def formula_load_lines(rows: dict | None) -> list[str]:
     if not rows:
         return []
     L = ["### Each formula against the FE under its own load position\n",
-         "The paper puts the journal load at a different place in each formula (docs/design.md §4). "
+         f"The paper puts the journal load at a different place in each formula ({appendix.FORMULAS}). "
          "Here the FE part is solved again with the bearing load on a band at each formula's own "
          "position (same mesh and stiffness matrix, only the load differs), so that formula and FE "
          "differ in the theory only, not in where the load sits. A band cannot be centred on the "
@@ -319,12 +328,44 @@ def sensitivity_section(res: dict) -> str:
     return "\n".join(L)
 
 
+# The title block's rows: (label, the about.document key), then the automatic ones.
+TITLE_FIELDS = (("Part", "part"), ("Document number", "number"), ("Revision", "revision"),
+                ("Author", "author"), ("Checked by", "checker"))
+
+
+def _cell(text: str | None) -> str:
+    """A case file's text as a Markdown table cell: HTML and the cell separator escaped, a
+    missing value blank (to fill by hand)."""
+    import html
+    return "" if text is None else html.escape(text).replace("|", "\\|").replace("\n", " ")
+
+
+def title_block_lines(res: dict) -> list[str]:
+    """The title block: part, document number, revision, author and checker from the case
+    file (results.json about.document; blank where not given), the date (UTC) and the tool
+    and software versions the run recorded. Empty rows stay empty: no value is invented."""
+    about = res.get("about") or {}
+    doc = about.get("document") or {}
+    sw = about.get("software") or {}
+    L = ["| Calculation note | |", "|---|---|"]
+    L += [f"| {label} | {_cell(doc.get(key))} |" for label, key in TITLE_FIELDS]
+    L.append(f"| Date (UTC) | {_cell((about.get('created_utc') or '')[:10] or None)} |")
+    versions = ", ".join(f"{name} {sw[key]}" for name, key in (("DOLFINx", "dolfinx"), ("PETSc", "petsc"),
+                                                               ("gmsh", "gmsh"), ("Python", "python")) if key in sw)
+    tool = f"{about.get('tool', 'crosshead')} {about['tool_version']}" if "tool_version" in about else None
+    L.append(f"| Tool | {_cell(tool)}{' (' + versions + ')' if tool and versions else ''} |")
+    L.append("")
+    return L
+
+
 def _summary_lines(res: dict) -> list[str]:
-    """Title, the summary table, the like-with-like and verdict sections, warnings, safety factors, the picture."""
+    """Title, title block, the summary table, the like-with-like and verdict sections,
+    warnings, safety factors, the pictures."""
     L: list[str] = []
     add = L.append
     c, an, fe, cmp_ = res["case"], res["analytic"], res["fe"], res["comparison_pct"]
     add(f"# Crosshead stress report: hook No. {c['size']} (case `{c['name']}`)\n")
+    L += title_block_lines(res)
     add("Units: lengths mm, forces N, stresses MPa. Locations (x, y, z) in mm: x along the crosshead "
         "(the journal axis), y across it, z up; origin on the bore axis at the bottom face.\n")
     if is_scaled_row(c.get("source", "")):
@@ -367,6 +408,11 @@ def _summary_lines(res: dict) -> list[str]:
     add("Colours: the element-node von Mises values without averaging, so the colour scale's top is the "
         "unaveraged reading; the global peak reported at the fillet is the midpoint of the unaveraged and "
         "averaged readings and lies below it.\n")
+    if (res.get("files") or {}).get("mesh_closeup"):
+        add(f"![the mesh at the two peaks, element edges drawn]({res['files']['mesh_closeup']})\n")
+        add("The mesh at each peak, seen along the surface's normal there (undeformed, element-node von Mises, "
+            "the surface triangles' edges drawn: the curved elements' straight chords), the peak's node marked: "
+            "how many elements resolve each peak.\n")
     return L
 
 
@@ -377,7 +423,7 @@ def _inputs_lines(res: dict) -> list[str]:
     c, fe = res["case"], res["fe"]
     d = c["dims"]
     add("## Inputs\n")
-    add(f"Hook No. {c['size']}; row source: {c['source']}\n")
+    add(f"Hook No. {c['size']}; row source: {without_docs_links(c['source'])}\n")
     add("| symbol | meaning | value (mm) | origin |")
     add("|---|---|---|---|")
     for k, v in d.items():
@@ -388,7 +434,7 @@ def _inputs_lines(res: dict) -> list[str]:
         f"Support: `{c['support']}`"
         + (" (cos θ bearing pressure on the lower half of each journal, resultant Q/2 each, "
            "scaled to balance the seat load on the actual mesh)" if c["support"] == "bearing" else
-           " (u_z = 0 on the lower half of each journal)") + ".\n")
+           " (u_z = 0 on the lower half of each journal)") + f"; {appendix.LOADS}.\n")
     add(f"Material: E = {_f(c['E_MPa'], 0)} MPa, ν = {c['nu']}. Model: `{c['model']}`"
         + (" (x ≥ 0, y ≥ 0 with symmetry planes; carries Q/4)" if c["model"] == "quarter" else "")
         + f". Elements: P{c['order']} tetrahedra. Solver: `{c['solver']}`.\n")
@@ -422,7 +468,7 @@ def _formulas_lines(res: dict) -> list[str]:
     add = L.append
     an = res["analytic"]
     pub = an.get("published")
-    add("## Hand formulas (paper, docs/design.md §4)\n")
+    add(f"## Hand formulas (paper; {appendix.FORMULAS})\n")
     at = an["approximate_terms"]
     add(f"Approximate: Me = Q/2·(l/2 − Dm/π) with l = {_f(an['approximate_span_mm'], 2)} mm: "
         f"lever {_f(at['lever_mm'], 3)} mm, Me = {_f(at['Me_Nmm'], 0)} N·mm, "
@@ -469,9 +515,7 @@ def _fe_lines(res: dict) -> list[str]:
         f"model (share {fe['model_load_share']:g} of Q); imbalance {fe['equilibrium_error_N']:.2e} N; force "
         f"carried by the rigid-motion constraint {fe['constraint_reaction_N']:.2e} N (limit 1e-6·Q).\n")
     add("### How the peaks are read\n")
-    add("Each peak is read two ways at the nodes: the largest element-node value of von Mises "
-        "interpolated into a discontinuous space (*unaveraged*), and the largest von Mises of the "
-        "stress averaged over the elements meeting at each node (*averaged*).\n")
+    add(f"Each peak is read two ways, unaveraged and averaged ({appendix.ERROR_BAR}):\n")
     for key, label in (("peak", "Global peak"), ("critical", "Critical peak")):
         b = fe[key]
         if "definition" in b:
@@ -479,7 +523,7 @@ def _fe_lines(res: dict) -> list[str]:
                 f"{_f(b['unaveraged_MPa'])} MPa, averaged {_f(b['averaged_MPa'])} MPa, reported "
                 f"**{_f(b['value_MPa'])}** MPa {error_bar_text(b)}.")
     add("")
-    add(TREND_TEXT + "\n")
+    add(f"The error bar: the trend over the meshes below ({appendix.ERROR_BAR}).\n")
     add("| mesh factor | DOFs | global peak (MPa) | unaveraged | averaged | critical peak (MPa) | iterations | time (s) |")
     add("|---|---|---|---|---|---|---|---|")
     for lv in fe["levels"]:
@@ -489,7 +533,7 @@ def _fe_lines(res: dict) -> list[str]:
     add("")
     if "peaks_plot" in res.get("files", {}):
         add("![peaks against degrees of freedom](peaks.png)\n")
-        add(f"The status in each panel's title: {STATUS_TEXT}\n")
+        add(f"The status in each panel's title: see {appendix.ERROR_BAR}.\n")
     return L
 
 
@@ -546,7 +590,7 @@ def _study_timings_files_lines(res: dict) -> list[str]:
 def render_markdown(res: dict) -> str:
     """The whole report as Markdown text."""
     return "\n".join([*_summary_lines(res), *_inputs_lines(res), *_formulas_lines(res), *_fe_lines(res),
-                      *_load_sweep_lines(res), *_study_timings_files_lines(res)])
+                      *_load_sweep_lines(res), *_study_timings_files_lines(res), *appendix.appendix_lines(res)])
 
 
 def convergence_table(conv: dict) -> str:
@@ -572,20 +616,54 @@ def _loc(xyz) -> str:
 
 HTML_STYLE = """body{font-family:sans-serif;max-width:70em;margin:2em auto;line-height:1.45;color:#222}
 table{border-collapse:collapse;margin:1em 0}th,td{border:1px solid #bbb;padding:.3em .6em;vertical-align:top}
-th{background:#eee}img{max-width:100%}blockquote{border-left:4px solid #c60;margin:1em 0;padding:.2em 1em;background:#fff6ee}"""
+th{background:#eee}img{max-width:100%}blockquote{border-left:4px solid #c60;margin:1em 0;padding:.2em 1em;background:#fff6ee}
+table.title-block{border:2px solid #222;min-width:60%}table.title-block td{height:1.5em}
+table.title-block td:first-child{font-weight:bold;width:12em;background:#f6f6f6}
+pre{background:#f6f6f6;padding:.5em 1em}"""
+# Print (A4): no table, picture or quotation split over two pages, headings kept with what
+# follows them, table headers repeated, the appendix on a page of its own, and a footer
+# with the report's name and "page X of Y" (CSS page-margin boxes, Chromium 131 and later).
+PRINT_STYLE = """@page{size:A4;margin:16mm 14mm 18mm 14mm;
+@bottom-left{content:FOOTER;font:8pt sans-serif;color:#444}
+@bottom-right{content:"page " counter(page) " of " counter(pages);font:8pt sans-serif;color:#444}}
+@media print{body{max-width:none;margin:0;font-size:9.5pt;line-height:1.3}
+table{font-size:8pt}th,td{padding:.15em .35em}thead{display:table-header-group}
+table,tr,img,blockquote,pre,li{break-inside:avoid}p:has(img){break-inside:avoid}
+h1,h2,h3{break-after:avoid}h2.appendix{break-before:page}img{max-height:125mm;object-fit:contain}}"""
 
 
-def html_document(markdown_text: str, folder: Path, title: str) -> str:
-    """report.md as one self-contained HTML page (Python-Markdown; pictures embedded)."""
+def css_string(text: str) -> str:
+    """``text`` as a quoted CSS string (backslashes, quotes, newlines and '<' escaped, so
+    that a case file's text can neither end the string nor the style element)."""
+    escaped = (text.replace("\\", "\\\\").replace('"', '\\"').replace("\n", " ")
+               .replace("<", "\\3C "))
+    return f'"{escaped}"'
+
+
+def footer_text(res: dict, title: str) -> str:
+    """The printed pages' footer: the report's title, and its document number and revision
+    where the case file gives them."""
+    doc = (res.get("about") or {}).get("document") or {}
+    number = " · ".join(x for x in (doc.get("number"), doc.get("revision") and f"rev. {doc['revision']}") if x)
+    return title + (f" · {number}" if number else "")
+
+
+def html_document(markdown_text: str, folder: Path, title: str, footer: str | None = None) -> str:
+    """report.md as one self-contained HTML page (Python-Markdown; pictures embedded), styled
+    for the screen and for print (``footer``: the printed pages' footer, else ``title``)."""
     import base64
+    import html
 
     import markdown
     body = markdown.markdown(markdown_text, extensions=["tables"])
     for png in sorted(Path(folder).glob("*.png")):
         data = base64.b64encode(png.read_bytes()).decode("ascii")
         body = body.replace(f'src="{png.name}"', f'src="data:image/png;base64,{data}"')
-    return (f"<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\"><title>{title}</title>"
-            f"<style>{HTML_STYLE}</style></head><body>\n{body}\n</body></html>\n")
+    body = body.replace("<table>", '<table class="title-block">', 1) if "<th>Calculation note</th>" in body else body
+    body = body.replace("<h2>Appendix", '<h2 class="appendix">Appendix', 1)
+    style = HTML_STYLE + "\n" + PRINT_STYLE.replace("FOOTER", css_string(footer or title))
+    return (f"<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\"><title>{html.escape(title)}</title>"
+            f"<style>{style}</style></head><body>\n{body}\n</body></html>\n")
 
 
 def write_report(folder: Path) -> Path:
@@ -595,7 +673,8 @@ def write_report(folder: Path) -> Path:
     text = render_markdown(res)
     out.write_text(text, encoding="utf-8")
     title = f"Crosshead stress report: hook No. {res['case']['size']}"
-    (Path(folder) / "report.html").write_text(html_document(text, Path(folder), title), encoding="utf-8")
+    (Path(folder) / "report.html").write_text(html_document(text, Path(folder), title, footer_text(res, title)),
+                                              encoding="utf-8")
     return out
 
 

@@ -79,23 +79,22 @@ def with_bracket(est: Estimate, half_width_MPa: float) -> Estimate:
 # Kept free of DOLFINx (no import of pipeline.post.peaks) for the processes that only judge.
 METHOD_TEXT = {
     "midpoint": "the larger of the trend of the values over the requested mesh and the coarser ones "
-              "and half the gap between the unaveraged and averaged readings on the requested mesh "
-              "(docs/design.md §5)",
-    "unaveraged": "the trend of the values over the requested mesh and the coarser ones (docs/design.md §5)",
+              "and half the gap between the unaveraged and averaged readings on the requested mesh",
+    "unaveraged": "the trend of the values over the requested mesh and the coarser ones",
 }
 
-# The same method for a person (the report), in two paragraphs.
+# The same method for a person (the report's appendix), in two paragraphs; self-contained
+# (the report is read without the repository's docs).
 TREND_TEXT = ("The trend over the meshes (the same case on coarser meshes, every size × the ratio in the "
               "table): with three meshes Richardson extrapolation and Roache's GCI (Fs = 1.25, Celik et "
               "al. 2008); with four or more a weighted least-squares fit f = f0 + C·h^p (Eça & Hoekstra "
               "2014) whose band adds the data's scatter about the fit and uses Fs = 3 when they scatter; "
-              "for a midpoint the fit takes both readings with one common limit f0. "
-              "Why the two readings and this rule: docs/design.md §5, measured in docs/accuracy.md.")
+              "for a midpoint the fit takes both readings with one common limit f0.")
 STATUS_TEXT = ("*converged* (monotone, observed order ≥ 0.5: GCI band), "
                "*settled* (every mesh within 0.1 %), *oscillatory* (the changes alternate in sign: band = "
                "largest change), *unsettled* (not yet in the asymptotic range: band = largest change, no "
                "extrapolation), *scattered* (four or more meshes about a fit: band with Fs = 3), *singular* "
-               "(grows under refinement: no finite value); docs/design.md §5.")
+               "(grows under refinement: no finite value).")
 
 
 def estimate_levels(levels: Sequence[Level], order: int, attr: str) -> Estimate:

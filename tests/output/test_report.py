@@ -2,8 +2,10 @@
 fields, the sections plot (docs/design.md §7)."""
 from __future__ import annotations
 
+import datetime
 import json
 import re
+import shutil
 import subprocess
 import sys
 from html.parser import HTMLParser
@@ -84,12 +86,22 @@ class _Html(HTMLParser):
             self.headings[-1] += data
 
 
+# The title block a case file gives (the checker left out: a blank field to sign by hand).
+DOCUMENT = {"part": "Crosshead DIN 15412 No. 05 | type A <b>", "number": "CN-0815", "revision": "B",
+            "author": "A. Engineer"}
+
+
 @pytest.fixture(scope="module")
 def run_folder(tmp_path_factory):
-    out = tmp_path_factory.mktemp("report") / "05"
-    p = subprocess.run([sys.executable, "-m", "pipeline", "run", "--size", "05", "--mesh-factor", "3",
+    base = tmp_path_factory.mktemp("report")
+    case = base / "05.toml"
+    case.write_text('size = "05"\n\n[document]\n' + "".join(f'{k} = "{v}"\n' for k, v in DOCUMENT.items()))
+    out = base / "05"
+    day = datetime.datetime.now(datetime.timezone.utc).date().isoformat()
+    p = subprocess.run([sys.executable, "-m", "pipeline", "run", "--case", str(case), "--mesh-factor", "3",
                         "--out", str(out), "--quiet"], cwd=ROOT, capture_output=True, text=True, timeout=600)
     assert p.returncode == 0, p.stderr
+    out.joinpath(".day").write_text(day)  # the UTC day the run started (the date in the title block)
     return out
 
 
@@ -100,7 +112,8 @@ def test_html_report_has_every_section_and_embeds_every_picture(run_folder):
     sections = [ln.lstrip("# ").strip().replace("`", "") for ln in md.splitlines() if re.match(r"^#{1,2} ", ln)]
     assert sections and [h.strip() for h in doc.headings] == sections
     pictures = re.findall(r"!\[[^\]]*\]\(([^)]+)\)", md)
-    assert len(doc.images) == len(pictures) >= 2  # the von Mises picture and the sections plot
+    assert len(doc.images) == len(pictures) >= 3  # the von Mises picture, the mesh close-ups, the sections plot
+    assert "mesh_closeup.png" in pictures
     assert all(src.startswith("data:image/png;base64,") for src in doc.images)
 
 
@@ -227,3 +240,76 @@ def test_a_peak_not_asked_for_gets_no_band_or_limit_in_the_convergence_study():
     table = convergence_table(dict(conv, levels=[{"mesh_factor": 1.0, "dofs": 1, "peak_MPa": 100.0,
                                                   "critical_peak_MPa": 60.0, "time_s": 1.0}]))
     assert "- global peak: not resolved (want = critical" in table and "status `scattered`" not in table.split("- critical")[0]
+
+
+def _title_block(md: str) -> dict[str, str]:
+    """The title block's rows of report.md (label → cell text), from its first table."""
+    table = md.split("| Calculation note | |", 1)[1].split("\n\n", 1)[0]
+    rows = [ln.strip("|").split(" | ", 1) for ln in table.strip().splitlines()[1:]]
+    return {label.strip(): value.strip() for label, value in rows}
+
+
+def test_title_block_comes_from_the_case_file_and_leaves_missing_fields_blank(run_folder):
+    """Part, number, revision and author as the case file wrote them (escaped for Markdown and
+    HTML), the checker it left out blank, the run's UTC day and the package's version; the
+    same document fields in results.json's about block."""
+    from pipeline import __version__
+    md = (run_folder / "report.md").read_text()
+    block = _title_block(md)
+    assert block["Part"] == "Crosshead DIN 15412 No. 05 \\| type A &lt;b&gt;"
+    assert (block["Document number"], block["Revision"], block["Author"]) == ("CN-0815", "B", "A. Engineer")
+    assert block["Checked by"] == ""
+    day = (run_folder / ".day").read_text()
+    assert block["Date (UTC)"] in (day, datetime.datetime.now(datetime.timezone.utc).date().isoformat())
+    assert block["Tool"].startswith(f"crosshead {__version__} (DOLFINx ")
+    about = json.loads((run_folder / "results.json").read_text())["about"]
+    assert about["document"] == {**DOCUMENT, "checker": None}
+    html = (run_folder / "report.html").read_text()
+    assert "<b>" not in html.split("</h1>", 1)[1].split("</table>", 1)[0]  # the case file's text is text
+
+
+def test_the_report_stands_alone_with_its_method_in_an_appendix(run_folder):
+    """No link into docs/ (a reviewer outside the repository cannot open it); the appendix
+    carries the load model, the error-bar method, the formulas and the sensitivity method,
+    the error bar's texts quoted from their one home once each."""
+    from pipeline.post.errorbar import STATUS_TEXT, TREND_TEXT
+    md, html = (run_folder / "report.md").read_text(), (run_folder / "report.html").read_text()
+    assert "docs/" not in md and "docs/" not in html
+    appendix = md.split("## Appendix", 1)[1]
+    for heading in ("### A.1 Load model", "### A.2 Peaks and their error bar", "### A.3 The two hand formulas",
+                    "### A.4 Sensitivity"):
+        assert heading in appendix
+    assert md.count(TREND_TEXT) == 1 and md.count(STATUS_TEXT) == 1 and TREND_TEXT in appendix
+    assert "M2 = 2·N1·R − (l/(4R) + 1/π)·Q·R − M1" in appendix  # the paper's eq. for the exact method
+
+
+def _pdf_pages(pdf: bytes) -> int:
+    """Pages of a PDF, by its page objects (/Type /Page, not /Pages)."""
+    return len(re.findall(rb"/Type\s*/Page(?![s\w])", pdf))
+
+
+@pytest.mark.skipif(shutil.which("chromium") is None,
+                    reason="no chromium: tools/setup.sh installs it (Debian's chromium package)")
+def test_a_headless_browser_prints_the_report_with_page_numbers_and_title_block(run_folder, tmp_path):
+    """Chromium prints report.html to a PDF that opens (pages > 0); with poppler's pdftotext
+    (installed with it) each page's footer reads "page k of N" and the first page holds
+    the title block."""
+    pdf = tmp_path / "report.pdf"
+    p = subprocess.run(["chromium", "--headless", "--no-sandbox", "--disable-gpu", "--no-pdf-header-footer",
+                        f"--print-to-pdf={pdf}", (run_folder / "report.html").as_uri()],
+                       capture_output=True, text=True, timeout=180)
+    assert p.returncode == 0 and pdf.exists(), p.stderr[-2000:]
+    data = pdf.read_bytes()
+    assert data.startswith(b"%PDF-")
+    n = _pdf_pages(data)
+    assert n > 0
+    if shutil.which("pdftotext") is None:
+        pytest.skip("no pdftotext (poppler-utils): the page count is checked, not the text")
+    pages = subprocess.run(["pdftotext", "-layout", str(pdf), "-"], capture_output=True, text=True,
+                           check=True).stdout.split("\f")
+    pages = [pg for pg in pages if pg.strip()]
+    assert len(pages) == n
+    for k, page in enumerate(pages, start=1):
+        assert f"page {k} of {n}" in page
+    first = " ".join(pages[0].split())
+    assert "Document number CN-0815" in first and "Revision B" in first and "Checked by" in first
