@@ -128,8 +128,8 @@ class _RequestedOutput:
         write_json(self.stage / "results.json", res, self.comm.rank)
         res["timings_s"]["picture"] = finish_picture(self.picture, self.stage)
         for key, name in (("sections_plot", "sections.png"), ("peaks_plot", "peaks.png"),
-                          ("sensitivity_plot", "sensitivity.png")):
-            if (self.stage / name).exists():  # drawn by the plots process
+                          ("sensitivity_plot", "sensitivity.png"), ("mesh_closeup", "mesh_closeup.png")):
+            if (self.stage / name).exists():  # drawn by the plots or the close-up process
                 self.files[key] = name
 
 

@@ -1,5 +1,6 @@
-"""The drawing processes of a run: the picture (pipeline.output.picture, VTK) and the plots
-(pipeline.output.plots, matplotlib), each in a process of its own started beside the error-bar
+"""The drawing processes of a run: the picture (pipeline.output.picture, VTK), the plots
+(pipeline.output.plots, matplotlib) and the mesh close-ups at the peaks
+(pipeline.output.closeup, VTK), each in a process of its own started beside the error-bar
 solves; they read only the files the run wrote."""
 from __future__ import annotations
 
@@ -14,7 +15,8 @@ from pathlib import Path
 
 @dataclass
 class Picture:
-    """The drawing processes started by :func:`start_picture` (the picture, the plots), and
+    """The drawing processes started by :func:`start_picture` (the picture, the plots, the
+    close-ups), and
     when (perf_counter, s)."""
 
     procs: list[subprocess.Popen]
@@ -32,13 +34,14 @@ class Picture:
 
 
 def start_picture(folder: Path) -> Picture:
-    """Start pipeline.output.picture (VTK: it cannot share a process with DOLFINx) and
-    pipeline.output.plots (matplotlib) in two processes of their own: side by side they finish
-    sooner than one after the other once the ranks' solves leave the cores free."""
+    """Start pipeline.output.picture and pipeline.output.closeup (VTK: it cannot share a
+    process with DOLFINx) and pipeline.output.plots (matplotlib) in processes of their own:
+    side by side they finish sooner than one after the other once the ranks' solves leave
+    the cores free."""
     procs = [subprocess.Popen([sys.executable, "-m", module, str(folder)],
                               stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
                               cwd=Path(__file__).resolve().parents[2])
-             for module in ("pipeline.output.picture", "pipeline.output.plots")]
+             for module in ("pipeline.output.picture", "pipeline.output.plots", "pipeline.output.closeup")]
     # mpirun binds each rank to one core, and a child inherits its parent's binding: the
     # drawing then shared rank 0's core while rank 1's core idled once its mesh was
     # solved. Let them run on any core.
