@@ -1,14 +1,15 @@
 #!/usr/bin/env bash
 # Install what crosshead needs on Debian 12, skipping whatever is already there.
 #   Debian: python3-dolfinx (0.5.2, PETSc with MUMPS/hypre), python3-gmsh, python3-meshio, python3-matplotlib,
-#           an optimised BLAS (MUMPS is ~5x slower on the reference BLAS), calculix-ccx (bench).
+#           an optimised BLAS (MUMPS is ~5x slower on the reference BLAS), calculix-ccx (bench),
+#           chromium and poppler-utils (the test that prints report.html to PDF and reads it back).
 #   .venv:  made from /usr/bin/python3 with --system-site-packages; pyvista, pytest, ruff, ...
 #           from PyPI, constrained to Debian's numpy (numpy 2 breaks Debian's petsc4py);
 #           the crosshead command (pyproject.toml), installed editable.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
-APT_PKGS="python3-dolfinx python3-gmsh python3-meshio python3-markdown python3-matplotlib python3-venv python3-pip libopenblas0-pthread calculix-ccx mpi-default-bin"
+APT_PKGS="python3-dolfinx python3-gmsh python3-meshio python3-markdown python3-matplotlib python3-venv python3-pip libopenblas0-pthread calculix-ccx mpi-default-bin chromium poppler-utils"
 missing=""
 for p in $APT_PKGS; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing="$missing $p"
