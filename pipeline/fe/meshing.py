@@ -214,9 +214,7 @@ class Mesher:
         with heartbeat(self.progress, f"meshing ×{spec.factor:.3g}"):
             quality = mesh(dn, spec_n).quality
         if msh_path is not None:
-            gmsh.option.setNumber("Mesh.ScalingFactor", self.scale)  # write in mm
-            gmsh.write(str(msh_path))
-            gmsh.option.setNumber("Mesh.ScalingFactor", 1.0)
+            write_msh(Path(msh_path), self.model, self.scale)
         names = {gmsh.model.getPhysicalName(dim, tag): tag for dim, tag in gmsh.model.getPhysicalGroups(2)}
         x = gmshio.extract_geometry(gmsh.model) * self.scale
         topo = gmshio.extract_topology_and_markers(gmsh.model)
@@ -238,6 +236,30 @@ class Mesher:
             fields = {k: v for k, v in vars(part).items() if k != "timings"}
             meshcache.store(cache_key, fields, Path(msh_path).read_bytes() if msh_path is not None else None)
         return part
+
+
+# mesh.msh's note on what it holds: a section gmsh and meshio skip (the MSH 4.1 format
+# ignores a section whose header it does not know), read by a person or a program.
+MSH_PART = {"quarter": "quarter model x >= 0, y >= 0 of the crosshead; symmetry planes x = 0 and y = 0 "
+                       "(the whole part is its mirror images in both planes); mm",
+            "full": "the whole crosshead; mm"}
+
+
+def write_msh(path: Path, model: str, scale: float) -> None:
+    """Write gmsh's current mesh to ``path`` in mm (gmsh works in units of ``scale``, see
+    :func:`meshing_scale`), MSH 4.1 binary, with a $Comments section after the format
+    line saying which part it holds (MSH_PART of ``model``)."""
+    gmsh.option.setNumber("Mesh.ScalingFactor", scale)  # write in mm
+    gmsh.option.setNumber("Mesh.Binary", 1)
+    try:
+        gmsh.write(str(path))
+    finally:
+        gmsh.option.setNumber("Mesh.Binary", 0)
+        gmsh.option.setNumber("Mesh.ScalingFactor", 1.0)
+    data = path.read_bytes()
+    end = data.index(b"$EndMeshFormat\n") + len(b"$EndMeshFormat\n")
+    note = f"$Comments\ncrosshead mesh.msh: {MSH_PART[model]}\n$EndComments\n".encode("ascii")
+    path.write_bytes(data[:end] + note + data[end:])
 
 
 def given_or_new(mesher: Mesher | None, d: Dimensions, model: str) -> contextlib.AbstractContextManager[Mesher]:

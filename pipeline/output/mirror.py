@@ -6,7 +6,7 @@ import numpy as np
 
 # A singly reflected tet swaps vertices 1 and 2 to keep its orientation; in VTK's 10-node
 # order (mid-edge nodes of (0,1), (1,2), (2,0), (0,3), (1,3), (2,3)) their edges follow.
-_SWAP = {4: [0, 2, 1, 3], 10: [0, 2, 1, 3, 6, 5, 4, 7, 9, 8]}
+TET_SWAP = {4: [0, 2, 1, 3], 10: [0, 2, 1, 3, 6, 5, 4, 7, 9, 8]}
 COPIES = ((1, 1), (-1, 1), (1, -1), (-1, -1))  # (sign of x, sign of y) of each quarter
 # A node this close to a symmetry plane (relative to the part's size) lies on it: gmsh and
 # DOLFINx place such nodes within ~1e-13 of the plane, never exactly on it.
@@ -56,5 +56,5 @@ def mirror_quarter(points: np.ndarray, cells: np.ndarray, point_data: dict[str, 
     C = []
     for k, (sx, sy) in enumerate(COPIES):
         c = ids[k][cells]
-        C.append(c[:, _SWAP[cells.shape[1]]] if sx * sy < 0 else c)
+        C.append(c[:, TET_SWAP[cells.shape[1]]] if sx * sy < 0 else c)
     return all_points, np.vstack(C), data, ids

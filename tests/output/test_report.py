@@ -313,3 +313,59 @@ def test_a_headless_browser_prints_the_report_with_page_numbers_and_title_block(
         assert f"page {k} of {n}" in page
     first = " ".join(pages[0].split())
     assert "Document number CN-0815" in first and "Revision B" in first and "Checked by" in first
+
+
+def test_mesh_msh_says_it_holds_the_quarter_and_opens_in_gmsh_and_meshio(run_folder):
+    """mesh.msh is MSH 4.1 binary with a $Comments note naming the quarter and its symmetry
+    planes; meshio and gmsh read past the note, and the nodes they find do lie in x, y >= 0
+    with some on each symmetry plane (the quarter the note names)."""
+    import gmsh
+    import meshio
+    path = run_folder / "mesh.msh"
+    head = path.read_bytes()[:400].decode("ascii", "replace")
+    assert head.startswith("$MeshFormat\n4.1 1 8\n")  # version 4.1, binary, 8-byte size_t
+    note = head.split("$Comments\n", 1)[1].split("\n$EndComments", 1)[0]
+    assert "quarter model x >= 0, y >= 0" in note and "symmetry planes x = 0 and y = 0" in note
+    pts = meshio.read(path).points
+    assert pts[:, 0].min() > -1e-9 and pts[:, 1].min() > -1e-9
+    assert np.sum(np.abs(pts[:, 0]) < 1e-9) > 0 and np.sum(np.abs(pts[:, 1]) < 1e-9) > 0
+    gmsh.initialize(readConfigFiles=False)
+    try:
+        gmsh.option.setNumber("General.Terminal", 0)
+        gmsh.open(str(path))
+        assert len(gmsh.model.mesh.getNodes()[0]) == len(pts)
+        assert "body" in {gmsh.model.getPhysicalName(d, t) for d, t in gmsh.model.getPhysicalGroups()}
+    finally:
+        gmsh.finalize()
+
+
+def test_the_whole_part_s_mesh_is_four_connected_quarters_with_their_groups(run_folder, tmp_path):
+    """pipeline.output.wholemesh from the run's mesh.msh: four times the quarter's tets and
+    volume (tet corners' volumes summed here), every tet positively oriented, no face on a
+    symmetry plane left on the outside (the quarters share those nodes) and none shared by
+    more than two tets; the seat and the bearing keep their groups, the symmetry planes' go."""
+    import meshio
+
+    from pipeline.output.wholemesh import whole_mesh
+    out = tmp_path / "whole.msh"
+    whole_mesh(run_folder / "mesh.msh", out)
+
+    def tets_of(m):
+        return np.vstack([b.data[:, :4] for b in m.cells if b.type.startswith("tetra")])
+
+    def volumes(pts, t):
+        a, b, c, d = (pts[t[:, i]] for i in range(4))
+        return np.einsum("ij,ij->i", np.cross(b - a, c - a), d - a) / 6.0
+
+    q, w = meshio.read(run_folder / "mesh.msh"), meshio.read(out)
+    vq, vw = volumes(q.points, tets_of(q)), volumes(w.points, tets_of(w))
+    assert len(vw) == 4 * len(vq) and (vw > 0).all() and (vq > 0).all()
+    assert vw.sum() == pytest.approx(4 * vq.sum(), rel=1e-12)
+    faces = np.sort(tets_of(w)[:, [[1, 2, 3], [0, 2, 3], [0, 1, 3], [0, 1, 2]]].reshape(-1, 3), axis=1)
+    _, counts = np.unique(faces, axis=0, return_counts=True)
+    assert counts.max() == 2
+    outer = np.unique(faces, axis=0)[counts == 1]
+    on_plane = [np.all(np.abs(w.points[outer][:, :, k]) < 1e-9, axis=1).sum() for k in (0, 1)]
+    assert on_plane == [0, 0]
+    assert {"seat", "journal_bearing", "body"} <= set(w.field_data) and "symmetry_x" not in w.field_data
+    assert b"mirrored in x = 0 and y = 0" in out.read_bytes()[:400]
