@@ -22,7 +22,7 @@ from pipeline.output.picture import (COLOURS, _scale_column, _surface_actor, _te
                                      boundary_surface, element_nodes)
 
 FILE = "mesh_closeup.png"
-PANEL_PX, SCALE_PX, HEIGHT_PX = 1000, 240, 800  # the scale column as wide as picture.py's
+PANEL_PX, SCALE_PX, HEIGHT_PX = 720, 240, 560  # 0.6 MB of PNG for No. 05
 WINDOW = (2 * PANEL_PX + SCALE_PX, HEIGHT_PX)  # pixels
 PANELS = tuple((k * PANEL_PX / WINDOW[0], (k + 1) * PANEL_PX / WINDOW[0]) for k in range(2))
 ELEMENTS_ACROSS = 8     # the view's half-height in local surface edge lengths
@@ -97,7 +97,7 @@ def _panel(window, col: int, surface, view: View, title: str, colour: tuple[floa
     cam.SetViewUp(*up)
     cam.SetParallelScale(view.half_height_mm)
     ren.ResetCameraClippingRange()
-    text = _text(title, 20, (0.0, 0.0, 0.0), box=True)
+    text = _text(title, 16, (0.0, 0.0, 0.0), box=True)
     text.GetPositionCoordinate().SetCoordinateSystemToNormalizedViewport()
     text.GetPositionCoordinate().SetValue(0.02, 0.86)
     ren.AddViewProp(text)
@@ -106,7 +106,7 @@ def _panel(window, col: int, surface, view: View, title: str, colour: tuple[floa
 
 def panel_title(label: str, block: dict, view: View) -> str:
     """A panel's title: which peak, its reported value (MPa), where (mm), and the scale."""
-    loc = ", ".join(f"{v:.2f}" for v in block["location_mm"])
+    loc = ", ".join(f"{v + 0.0:.2f}" for v in np.round(block["location_mm"], 2))  # no "-0.00"
     return (f"{label}: {block['value_MPa']:.2f} MPa, {block['feature']}\nat ({loc}) mm; "
             f"view {2 * view.half_height_mm:.2f} mm high, surface edges ~{view.edge_mm:.2f} mm")
 
@@ -134,7 +134,9 @@ def render_closeup(folder: Path) -> Path:
         view = peak_view(points, tri, block["location_mm"], h)
         _panel(window, col, _edged_surface(points, tri, vm, lut), view, panel_title(label, block, view),
                COLOURS[colour])
-    window.AddRenderer(_scale_column(lut))
+    scale = _scale_column(lut)
+    scale.SetViewport(2 * PANEL_PX / WINDOW[0], 0.0, 1.0, 1.0)  # this window's column, no gap
+    window.AddRenderer(scale)
     out = folder / FILE
     _write_png(window, out)
     window.Finalize()
