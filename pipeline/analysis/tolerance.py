@@ -42,8 +42,8 @@ class Accuracy:
     """What the run was asked and what it reached: the tolerance (% of each wanted peak's
     value), each wanted peak's band (%; None when the peak has no band: one mesh, or a
     singular feature), whether every band is within the tolerance, whether the mesh was
-    pinned, the mesh factors of the error bar (finest first) and every mesh the run solved,
-    and each step the run took, in words."""
+    pinned, the mesh factors of the error bar (finest first), every mesh the run solved
+    (its factor and DOFs, in order) and each step the run took, in words."""
 
     tolerance_pct: float
     bands_pct: dict[str, float | None]
@@ -51,13 +51,15 @@ class Accuracy:
     pinned: bool
     factors: tuple[float, ...]
     solved: tuple[float, ...]
+    solved_dofs: tuple[int, ...]
     steps: tuple[str, ...]
     note: str = ""   # why the tolerance was not met, empty when it was
 
     def as_dict(self) -> dict:
         return {"tolerance_pct": self.tolerance_pct, "bands_pct": dict(self.bands_pct), "met": self.met,
                 "mesh_pinned": self.pinned, "mesh_factors": list(self.factors),
-                "meshes_solved": list(self.solved), "steps": list(self.steps), "note": self.note}
+                "meshes_solved": list(self.solved), "meshes_solved_dofs": list(self.solved_dofs),
+                "steps": list(self.steps), "note": self.note}
 
 
 def wanted_peaks(case: Case) -> tuple[str, ...]:
@@ -120,9 +122,10 @@ def analyse_to_tolerance(case: Case, levels: int = 3, ratio: float = 1.3, msh_pa
     lv, pl = analyse(case, levels, ratio, msh_path, progress, comm, pl, on_requested, mesher, load_variants,
                      load_variants_at, formula_loads)
     solved = [x.factor for x in lv]
+    dofs = [x.dofs for x in lv]
     if levels < 3:
         return lv, pl, case, Accuracy(tol, {p: None for p in wanted_peaks(case)}, False, case.mesh_pinned,
-                                      tuple(solved), tuple(solved), (),
+                                      tuple(solved), tuple(solved), tuple(dofs), (),
                                       "one mesh: no error bar, so the tolerance is not checked")
     bands = bands_of(case, lv)
     steps = [f"meshes ×{', ×'.join(f'{x.factor:.4g}' for x in lv)}: {_fmt_bands(bands)}"]
@@ -140,6 +143,7 @@ def analyse_to_tolerance(case: Case, levels: int = 3, ratio: float = 1.3, msh_pa
             mid = solve_level(case, f_mid, comm=comm, progress=progress, hotspots=pl.hotspots, mesher=mesher,
                               formula_loads=False)
             solved.append(f_mid)
+            dofs.append(mid.dofs)
             nxt = next(x for x in lv if math.isclose(x.factor, fine.factor * ratio, rel_tol=1e-9))
             lv = [fine, mid, nxt]
             halved = True
@@ -149,7 +153,8 @@ def analyse_to_tolerance(case: Case, levels: int = 3, ratio: float = 1.3, msh_pa
             new, pl = analyse(case, 1, ratio, msh_path, progress, comm, pl, on_requested, mesher, (),
                               None, formula_loads)
             solved.append(case.mesh_factor)
-            nxt = next(x for x in [fine, *lv] if math.isclose(x.factor, fine.factor * ratio, rel_tol=1e-9))
+            dofs.append(new[0].dofs)
+            nxt = next(x for x in lv if math.isclose(x.factor, fine.factor * ratio, rel_tol=1e-9))
             lv = [new[0], fine, nxt]
             refinements += 1
             halved = False
@@ -168,4 +173,4 @@ def analyse_to_tolerance(case: Case, levels: int = 3, ratio: float = 1.3, msh_pa
     if not met:
         say(f"tolerance {tol:g} % not reached ({_fmt_bands(bands)}): {note}")
     return lv, pl, case, Accuracy(tol, bands, met, case.mesh_pinned, tuple(x.factor for x in lv),
-                                  tuple(solved), tuple(steps), note)
+                                  tuple(solved), tuple(dofs), tuple(steps), note)

@@ -102,13 +102,11 @@ def test_an_unpinned_run_refines_until_within_and_a_tighter_tolerance_solves_mor
     stand_in.state["scatter"] = 0.0
     loose = replace(resolve("05"), mesh_factor=1.3, mesh_pinned=False, tolerance_pct=5.0)
     _, _, _, acc_loose = _run(loose)   # ×1.3, ×1.69, ×2.197: GCI 0.28 %
-    dofs_loose = sum(stand_in_level(f, 0).dofs for f in stand_in.solved)
-    stand_in.solved.clear()
     # 0.25 %: ×1.3's meshes give 0.28 % (both steps); ×1, ×1.3, ×1.69 the half gap 0.2 %.
     lv, _, out, acc = _run(replace(loose, tolerance_pct=0.25))
-    dofs_tight = sum(stand_in_level(f, 0).dofs for f in stand_in.solved)
     assert acc_loose.met and acc.met and acc.bands_pct["global"] <= 0.25
-    assert out.mesh_factor == pytest.approx(1.0) and lv[0].factor == out.mesh_factor and dofs_tight > dofs_loose
+    assert out.mesh_factor == pytest.approx(1.0) and lv[0].factor == out.mesh_factor
+    assert sum(acc.solved_dofs) > sum(acc_loose.solved_dofs) and lv[0].dofs > DOFS_AT_1 * 1.3 ** -3
 
 
 def test_refinement_stops_after_its_limit_and_says_so(stand_in):
@@ -148,16 +146,20 @@ def test_a_run_ends_within_its_tolerance_or_says_it_could_not(tmp_path):
 
 @pytest.mark.slow
 def test_a_tighter_tolerance_solves_more_dofs():
+    """The global peak alone from a coarse start (×2.5, unpinned): a 50 % tolerance keeps
+    the first three meshes, a 3 % one adds meshes (beyond ×1.3 the fillet is not resolved
+    and the coarse meshes' band is several %, docs/accuracy.md)."""
     from mpi4py import MPI
-    base = replace(resolve("05", overrides={"want": "critical"}), mesh_factor=3.0, mesh_pinned=False)
-    dofs = {}
-    for tol in (5.0, 0.1):
+    base = replace(resolve("05", overrides={"want": "global"}), mesh_factor=2.5, mesh_pinned=False)
+    got = {}
+    for tol in (50.0, 3.0):
         lv, _, out, acc = tolerance.analyse_to_tolerance(replace(base, tolerance_pct=tol), comm=MPI.COMM_WORLD,
                                                          formula_loads=False)
+        assert acc.met == (acc.bands_pct["global"] is not None and acc.bands_pct["global"] <= tol), tol
         assert acc.met or acc.note, tol
-        assert acc.met == all(b <= tol for b in acc.bands_pct.values())
-        dofs[tol] = lv[0].dofs
-    assert dofs[0.1] > dofs[5.0]
+        got[tol] = acc
+    assert got[50.0].met and len(got[50.0].solved) == 3
+    assert sum(got[3.0].solved_dofs) > sum(got[50.0].solved_dofs)
 
 
 @pytest.mark.slow
