@@ -10,7 +10,9 @@ the luckiest scatter):
    The meshes beyond ×1.3 do not resolve the shoulder fillet, and with them the global
    peak's trend scatters by more than it converges (docs/accuracy.md, measured);
 3. unless the mesh is pinned (``case.mesh_pinned``: a given --mesh-factor), a finer mesh
-   f/r, with f and f·r, and then its smaller step again; at most MAX_REFINEMENTS times.
+   f/r, with f and f·r, and then its smaller step again; at most MAX_REFINEMENTS times,
+   each within the case's checks and the memory free. Without a given mesh factor the run
+   starts at ×1.0 (docs/decisions/0028-default-start-stays-at-one.md).
 
 A pinned mesh is never refined: the run reports the band it reached and says that it stays
 above the tolerance (docs/decisions/0027-tolerance-chooses-the-meshes.md).
@@ -95,13 +97,19 @@ def _fmt_bands(bands: dict[str, float | None]) -> str:
     return ", ".join(f"{p} {'none' if b is None else f'{b:.2f} %'}" for p, b in bands.items())
 
 
-def allowed(case: Case, factor: float) -> bool:
-    """Whether the case's checks accept a mesh of ``factor`` (the run never solves one they refuse)."""
-    try:
-        check(replace(case, mesh_factor=factor))
-    except InputError:
-        return False
-    return True
+def allowed(case: Case, factor: float, comm: MPI.Comm = MPI.COMM_WORLD) -> bool:
+    """Whether the run may solve the case at a finer ``factor``: the case's checks accept it
+    and its meshes' memory estimate (pipeline/runtime/resources.py, the memory free now)
+    fits; decided on rank 0 for every rank."""
+    from pipeline.runtime.resources import check_fits
+    ok = True
+    if comm.rank == 0:
+        try:
+            finer = check(replace(case, mesh_factor=factor))
+            check_fits(finer, [factor, factor * 1.3], None)
+        except InputError:
+            ok = False
+    return bool(comm.bcast(ok, root=0))
 
 
 def analyse_to_tolerance(case: Case, levels: int = 3, ratio: float = 1.3, msh_path: Path | None = None,
@@ -148,7 +156,7 @@ def analyse_to_tolerance(case: Case, levels: int = 3, ratio: float = 1.3, msh_pa
             lv = [fine, mid, nxt]
             halved = True
             why = "a smaller step between the meshes"
-        elif not case.mesh_pinned and refinements < MAX_REFINEMENTS and allowed(case, fine.factor / ratio):
+        elif not case.mesh_pinned and refinements < MAX_REFINEMENTS and allowed(case, fine.factor / ratio, comm):
             case = replace(case, mesh_factor=fine.factor / ratio)
             new, pl = analyse(case, 1, ratio, msh_path, progress, comm, pl, on_requested, mesher, (),
                               None, formula_loads)
@@ -162,7 +170,8 @@ def analyse_to_tolerance(case: Case, levels: int = 3, ratio: float = 1.3, msh_pa
         else:
             note = (f"the mesh factor {fine.factor:g} is pinned (--mesh-factor): the run does not refine past it"
                     if case.mesh_pinned else
-                    f"no finer mesh allowed (at most {MAX_REFINEMENTS} refinements, within the case's mesh limits)")
+                    f"no finer mesh allowed (at most {MAX_REFINEMENTS} refinements, within the case's mesh limits "
+                    "and the memory free)")
             break
         bands = bands_of(case, lv)
         steps.append(f"{why}, meshes ×{', ×'.join(f'{x.factor:.4g}' for x in lv)}: {_fmt_bands(bands)}")
