@@ -69,10 +69,12 @@ def execute_run(case: Case, out_dir: Path, levels: int = 3, ratio: float = 1.3,
                        load_variants_at=case.mesh_factor * MESH_RATIO)
             accuracy: Accuracy | None = None
             if to_tolerance:
-                lv, pl, case, accuracy = analyse_to_tolerance(case, **how)
+                lv, pl, case, accuracy, every = analyse_to_tolerance(case, **how)
             else:
                 lv, pl = analyse(case, **how)
-            sens = analyse_sensitivity(case, comm=comm, progress=say, levels=lv) if vary else None
+                every = lv
+            # every mesh solved: the load model's variants stay on the mesh that solved them
+            sens = analyse_sensitivity(case, comm=comm, progress=say, levels=every) if vary else None
         except BaseException:
             requested.abandon()  # the run failed: no picture either
             raise

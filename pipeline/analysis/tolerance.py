@@ -22,7 +22,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import Callable, Sequence
+from typing import Callable, NamedTuple, Sequence
 
 from mpi4py import MPI
 
@@ -62,6 +62,18 @@ class Accuracy:
                 "mesh_pinned": self.pinned, "mesh_factors": list(self.factors),
                 "meshes_solved": list(self.solved), "meshes_solved_dofs": list(self.solved_dofs),
                 "steps": list(self.steps), "note": self.note}
+
+
+class Outcome(NamedTuple):
+    """What :func:`analyse_to_tolerance` returns: the error bar's levels (finest first), the
+    pilot, the case at the finest mesh's factor, what was reached, and every level the run
+    solved (in order; the sensitivity analysis finds its load-model variants among them)."""
+
+    levels: list[Level]
+    pilot: Pilot
+    case: Case
+    accuracy: Accuracy
+    solved: list[Level]
 
 
 def wanted_peaks(case: Case) -> tuple[str, ...]:
@@ -118,23 +130,22 @@ def analyse_to_tolerance(case: Case, levels: int = 3, ratio: float = 1.3, msh_pa
                          on_requested: Callable[[Level, Pilot], None] | None = None,
                          mesher: Mesher | None = None, load_variants: Sequence[Case] = (),
                          load_variants_at: float | None = None, formula_loads: bool = True
-                         ) -> tuple[list[Level], Pilot, Case, Accuracy]:
+                         ) -> Outcome:
     """:func:`analyse.analyse` of ``case`` (its arguments), then more meshes until each wanted
     peak's band is at most ``case.tolerance_pct`` (the module's steps) or no step is left.
-    Returns the levels of the error bar (finest first), the pilot, the case at the finest
-    mesh's factor (a refined run's requested mesh) and what was reached. ``on_requested``
+    Returns the :class:`Outcome` (the case in it at the finest mesh's factor: a refined
+    run's requested mesh). ``on_requested``
     is called again for each new finest mesh (its fields replace the earlier ones); the
     load-model variants stay on the mesh that first solved them."""
     say = progress or (lambda s: None)
     tol = case.tolerance_pct
     lv, pl = analyse(case, levels, ratio, msh_path, progress, comm, pl, on_requested, mesher, load_variants,
                      load_variants_at, formula_loads)
-    solved = [x.factor for x in lv]
-    dofs = [x.dofs for x in lv]
+    every = list(lv)
     if levels < 3:
-        return lv, pl, case, Accuracy(tol, {p: None for p in wanted_peaks(case)}, False, case.mesh_pinned,
-                                      tuple(solved), tuple(solved), tuple(dofs), (),
-                                      "one mesh: no error bar, so the tolerance is not checked")
+        return Outcome(lv, pl, case, Accuracy(tol, {p: None for p in wanted_peaks(case)}, False, case.mesh_pinned,
+                                              _factors(lv), _factors(lv), _dofs(lv), (),
+                                              "one mesh: no error bar, so the tolerance is not checked"), every)
     bands = bands_of(case, lv)
     steps = [f"meshes ×{', ×'.join(f'{x.factor:.4g}' for x in lv)}: {_fmt_bands(bands)}"]
     say(f"tolerance {tol:g} %: {steps[-1]}")
@@ -150,8 +161,7 @@ def analyse_to_tolerance(case: Case, levels: int = 3, ratio: float = 1.3, msh_pa
             f_mid = fine.factor * step
             mid = solve_level(case, f_mid, comm=comm, progress=progress, hotspots=pl.hotspots, mesher=mesher,
                               formula_loads=False)
-            solved.append(f_mid)
-            dofs.append(mid.dofs)
+            every.append(mid)
             nxt = next(x for x in lv if math.isclose(x.factor, fine.factor * ratio, rel_tol=1e-9))
             lv = [fine, mid, nxt]
             halved = True
@@ -160,8 +170,7 @@ def analyse_to_tolerance(case: Case, levels: int = 3, ratio: float = 1.3, msh_pa
             case = replace(case, mesh_factor=fine.factor / ratio)
             new, pl = analyse(case, 1, ratio, msh_path, progress, comm, pl, on_requested, mesher, (),
                               None, formula_loads)
-            solved.append(case.mesh_factor)
-            dofs.append(new[0].dofs)
+            every.append(new[0])
             nxt = next(x for x in lv if math.isclose(x.factor, fine.factor * ratio, rel_tol=1e-9))
             lv = [new[0], fine, nxt]
             refinements += 1
@@ -181,5 +190,13 @@ def analyse_to_tolerance(case: Case, levels: int = 3, ratio: float = 1.3, msh_pa
     met = within(bands, tol)
     if not met:
         say(f"tolerance {tol:g} % not reached ({_fmt_bands(bands)}): {note}")
-    return lv, pl, case, Accuracy(tol, bands, met, case.mesh_pinned, tuple(x.factor for x in lv),
-                                  tuple(solved), tuple(dofs), tuple(steps), note)
+    return Outcome(lv, pl, case, Accuracy(tol, bands, met, case.mesh_pinned, _factors(lv), _factors(every),
+                                          _dofs(every), tuple(steps), note), every)
+
+
+def _factors(levels: Sequence[Level]) -> tuple[float, ...]:
+    return tuple(x.factor for x in levels)
+
+
+def _dofs(levels: Sequence[Level]) -> tuple[int, ...]:
+    return tuple(x.dofs for x in levels)

@@ -55,6 +55,8 @@ def accuracy_text(acc: dict) -> str:
     solved = f" ({len(acc['meshes_solved'])} solved in all)" if extra > 0 else ""
     if acc["met"]:
         return f"tolerance {acc['tolerance_pct']:g} %: reached, band {bands}, on {meshes}{solved}"
+    if all(b is None for b in acc["bands_pct"].values()):
+        return f"tolerance {acc['tolerance_pct']:g} %: not checked, {acc['note']}"
     return (f"tolerance {acc['tolerance_pct']:g} %: NOT reached, band {bands}, on {meshes}{solved}: "
             f"{acc['note']}")
 

@@ -73,7 +73,7 @@ def _run(case, **kw):
 
 def test_a_loose_tolerance_keeps_today_s_three_meshes(stand_in):
     case = replace(resolve("05"), mesh_factor=0.85, mesh_pinned=True, tolerance_pct=20.0)
-    lv, _, out, acc = _run(case)
+    lv, _, out, acc, _ = _run(case)
     assert acc.met and stand_in.solved == pytest.approx([0.85, 1.105, 1.4365])
     assert out.mesh_factor == 0.85 and not acc.note
 
@@ -83,7 +83,7 @@ def test_a_pinned_mesh_takes_the_smaller_step_and_never_refines(stand_in):
     # ×0.969, ×1.105 carry no scatter: GCI 1.25·0.029/(1.3 − 1) = 0.12 MPa, below the
     # readings' half gap 0.17 MPa, so the band is 0.17 %.
     case = replace(resolve("05"), mesh_factor=0.85, mesh_pinned=True, tolerance_pct=1.0)
-    lv, _, out, acc = _run(case)
+    lv, _, out, acc, _ = _run(case)
     assert stand_in.solved == pytest.approx([0.85, 1.105, 1.4365, 0.85 * 1.3 ** 0.5])
     assert [x.factor for x in lv] == pytest.approx([0.85, 0.85 * 1.3 ** 0.5, 1.105])
     assert acc.met and acc.bands_pct["global"] <= 1.0 and len(acc.steps) == 2
@@ -93,7 +93,7 @@ def test_a_pinned_mesh_takes_the_smaller_step_and_never_refines(stand_in):
 def test_a_pinned_mesh_says_when_the_band_stays_above(stand_in):
     stand_in.state["scatter"] = 0.0
     case = replace(resolve("05"), mesh_factor=1.3, mesh_pinned=True, tolerance_pct=0.1)
-    lv, _, out, acc = _run(case)
+    lv, _, out, acc, _ = _run(case)
     assert not acc.met and "pinned" in acc.note and acc.bands_pct["global"] > 0.1
     assert min(stand_in.solved) == 1.3 and out.mesh_factor == 1.3
 
@@ -101,9 +101,9 @@ def test_a_pinned_mesh_says_when_the_band_stays_above(stand_in):
 def test_an_unpinned_run_refines_until_within_and_a_tighter_tolerance_solves_more(stand_in):
     stand_in.state["scatter"] = 0.0
     loose = replace(resolve("05"), mesh_factor=1.3, mesh_pinned=False, tolerance_pct=5.0)
-    _, _, _, acc_loose = _run(loose)   # ×1.3, ×1.69, ×2.197: GCI 0.28 %
+    _, _, _, acc_loose, _ = _run(loose)   # ×1.3, ×1.69, ×2.197: GCI 0.28 %
     # 0.25 %: ×1.3's meshes give 0.28 % (both steps); ×1, ×1.3, ×1.69 the half gap 0.2 %.
-    lv, _, out, acc = _run(replace(loose, tolerance_pct=0.25))
+    lv, _, out, acc, _ = _run(replace(loose, tolerance_pct=0.25))
     assert acc_loose.met and acc.met and acc.bands_pct["global"] <= 0.25
     assert out.mesh_factor == pytest.approx(1.0) and lv[0].factor == out.mesh_factor
     assert sum(acc.solved_dofs) > sum(acc_loose.solved_dofs) and lv[0].dofs > DOFS_AT_1 * 1.3 ** -3
@@ -112,14 +112,14 @@ def test_an_unpinned_run_refines_until_within_and_a_tighter_tolerance_solves_mor
 def test_refinement_stops_after_its_limit_and_says_so(stand_in):
     stand_in.state["scatter"] = 0.0   # the half gap 0.2·factor MPa stays above 0.1 % to ×0.77
     case = replace(resolve("05"), mesh_factor=1.3, mesh_pinned=False, tolerance_pct=0.1)
-    _, _, out, acc = _run(case)
+    _, _, out, acc, _ = _run(case)
     assert not acc.met and "refinements" in acc.note
     assert out.mesh_factor == pytest.approx(1.3 / 1.3 ** tolerance.MAX_REFINEMENTS)
 
 
 def test_one_mesh_checks_no_tolerance(stand_in):
     case = replace(resolve("05"), tolerance_pct=1.0)
-    _, _, _, acc = tolerance.analyse_to_tolerance(case, levels=1)
+    _, _, _, acc, _ = tolerance.analyse_to_tolerance(case, levels=1)
     assert not acc.met and "no error bar" in acc.note and acc.bands_pct == {"global": None, "critical": None}
 
 
@@ -153,7 +153,7 @@ def test_a_tighter_tolerance_solves_more_dofs():
     base = replace(resolve("05", overrides={"want": "global"}), mesh_factor=2.5, mesh_pinned=False)
     got = {}
     for tol in (50.0, 3.0):
-        lv, _, out, acc = tolerance.analyse_to_tolerance(replace(base, tolerance_pct=tol), comm=MPI.COMM_WORLD,
+        lv, _, out, acc, _ = tolerance.analyse_to_tolerance(replace(base, tolerance_pct=tol), comm=MPI.COMM_WORLD,
                                                          formula_loads=False)
         assert acc.met == (acc.bands_pct["global"] is not None and acc.bands_pct["global"] <= tol), tol
         assert acc.met or acc.note, tol
