@@ -6,9 +6,11 @@ bands are within the tolerance (the estimate is never chosen among sets, which w
 the luckiest scatter):
 
 1. the requested mesh f and two coarser ones, f·r and f·r² (r the run's ratio, 1.3);
-2. a smaller step: f, f·√r and f·r (one new mesh, 0.67 of the finest's cost at r = 1.3).
-   The meshes beyond ×1.3 do not resolve the shoulder fillet, and with them the global
-   peak's trend scatters by more than it converges (docs/accuracy.md, measured);
+2. a smaller step: f, f·√r and f·r (one new mesh, 0.67 of the finest's cost at r = 1.3),
+   unless the requested mesh's own half gap between a midpoint's two readings is above
+   the tolerance (no coarser mesh can bring the band below it). Not a fourth, coarser
+   mesh: beyond ×1.3 the shoulder fillet is not resolved, and with such meshes the global
+   peak's trend scatters by more than it converges (measured in decision 0027);
 3. unless the mesh is pinned (``case.mesh_pinned``: a given --mesh-factor), a finer mesh
    f/r, with f and f·r, and then its smaller step again; at most MAX_REFINEMENTS times,
    each within the case's checks and the memory free. Without a given mesh factor the run
@@ -100,6 +102,17 @@ def bands_of(case: Case, levels: Sequence[Level]) -> dict[str, float | None]:
     return {p: band_pct(case, levels, p) for p in wanted_peaks(case)}
 
 
+def half_gap_pct(case: Case, fine: Level) -> float:
+    """The largest half gap between the two readings (% of the value) of a wanted peak
+    read by their midpoint on the mesh ``fine``: a floor under that peak's band on any
+    set of meshes with ``fine`` as the finest (errorbar.with_bracket), so coarser meshes
+    cannot bring the band below it."""
+    from pipeline.post.peaks import MIDPOINT
+    peaks = [getattr(fine, PEAKS[p]) for p in wanted_peaks(case)]
+    return max([100.0 * p.half_width_MPa / max(abs(p.value_MPa), 1e-300) for p in peaks if p.rule == MIDPOINT],
+               default=0.0)
+
+
 def within(bands: dict[str, float | None], tolerance_pct: float) -> bool:
     """True when every band exists and is at most the tolerance (%)."""
     return all(b is not None and b <= tolerance_pct for b in bands.values())
@@ -157,6 +170,10 @@ def analyse_to_tolerance(case: Case, levels: int = 3, ratio: float = 1.3, msh_pa
             note = "a wanted peak has no band (a singular feature): no mesh brings it within the tolerance"
             break
         fine = lv[0]
+        if not halved and half_gap_pct(case, fine) > tol:
+            halved = True   # no coarser mesh brings the band below the finest mesh's half gap
+            say(f"tolerance {tol:g} %: the half gap of the requested mesh's two readings, "
+                f"{half_gap_pct(case, fine):.2f} %, is above it: no smaller step")
         if not halved:
             f_mid = fine.factor * step
             mid = solve_level(case, f_mid, comm=comm, progress=progress, hotspots=pl.hotspots, mesher=mesher,
@@ -178,6 +195,8 @@ def analyse_to_tolerance(case: Case, levels: int = 3, ratio: float = 1.3, msh_pa
             why = "a finer mesh"
         else:
             note = (f"the mesh factor {fine.factor:g} is pinned (--mesh-factor): the run does not refine past it"
+                    + (f", and its two readings' half gap ({half_gap_pct(case, fine):.2f} %) is above the tolerance"
+                       if half_gap_pct(case, fine) > tol else "")
                     if case.mesh_pinned else
                     f"no finer mesh allowed (at most {MAX_REFINEMENTS} refinements, within the case's mesh limits "
                     "and the memory free)")

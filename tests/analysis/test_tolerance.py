@@ -96,6 +96,8 @@ def test_a_pinned_mesh_says_when_the_band_stays_above(stand_in):
     lv, _, out, acc, _ = _run(case)
     assert not acc.met and "pinned" in acc.note and acc.bands_pct["global"] > 0.1
     assert min(stand_in.solved) == 1.3 and out.mesh_factor == 1.3
+    # the requested mesh's half gap, 0.26 MPa (0.26 %), is a floor above 0.1 %: no smaller step
+    assert len(stand_in.solved) == 3 and "half gap" in acc.note
 
 
 def test_an_unpinned_run_refines_until_within_and_a_tighter_tolerance_solves_more(stand_in):
