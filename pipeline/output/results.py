@@ -72,7 +72,8 @@ def _like_with_like_pct(fine: Level) -> dict[str, float]:
     ``section_vs_exact_same_load``: they differ in their theory only. None without those
     sections (support rigid)."""
     rows = (fine.sections or {}).get("formula_load") or {}
-    return {f"section_vs_{k}_same_load": pct(r["fe_MPa"], r["formula_at_fe_load_MPa"]) for k, r in rows.items()}
+    return {f"section_vs_{k}_same_load": pct(rows[k]["fe_MPa"], rows[k]["formula_at_fe_load_MPa"]) if k in rows else None
+            for k in ("approximate", "exact")}
 
 
 def peak_block(case: Case, p: NodalPeak, est: Estimate | None, refined: bool = True) -> dict:
@@ -121,7 +122,7 @@ def _fe_block(case: Case, levels: list[Level], peak_b: dict, crit_b: dict, comm,
         "refined_bridging_places": None if pl is None else pl.bridging,
         "pilot_mesh_factor": None if pl is None else pl.factor,
         "pilot_fraction": PILOT_FRACTION,
-        "sections": fine.sections,
+        "sections": None if fine.sections is None else {"formula_load": None, **fine.sections},
         "verdict": verdict(case.allowable_MPa, case.load_N, _checked_stresses(fine, peak_b, crit_b)),
         "levels": [_level_row(lv) for lv in levels],
         "accuracy": None,   # set by add_accuracy for a run asked for a tolerance
@@ -177,6 +178,7 @@ def safety_factors(allowable_MPa: float, peaks: dict[str, tuple[float, dict]]) -
     for key, (value, block) in peaks.items():
         where = block.get("singular_feature")
         out[key] = None if where or block.get("not_wanted") else allowable_MPa / value
+        out[f"{key}_note"] = None
         # A peak the run did not refine for says so first: its trend over the meshes, singular
         # or not, is that of an unrefined mesh.
         if block.get("not_wanted"):
@@ -197,7 +199,8 @@ def verdict(allowable_MPa: float, load_N: float, checks: dict[str, tuple[float, 
         if block is not None and (block.get("singular_feature") or block.get("not_wanted")):
             why = (block["not_wanted"] if block.get("not_wanted") else
                    f"the peak sits at a singular feature ({block['singular_feature']}): no finite value")
-            out[name] = {"value_MPa": value, "verdict": "none", "why": why}
+            out[name] = {"value_MPa": value, "band_MPa": None, "verdict": "none", "margin_pct": None,
+                         "capacity_N": None, "capacity_range_N": None, "why": why}
             continue
         # No band (a nominal stress, or a peak read on one mesh): null, not a band of zero.
         band = ((block or {}).get("error_estimate") or {}).get("band")
@@ -207,7 +210,7 @@ def verdict(allowable_MPa: float, load_N: float, checks: dict[str, tuple[float, 
                      "margin_pct": 100 * (allowable_MPa / value - 1),
                      "capacity_N": load_N * allowable_MPa / value,
                      "capacity_range_N": [load_N * allowable_MPa / hi, load_N * allowable_MPa / lo]
-                     if band is not None and lo > 0 else None}
+                     if band is not None and lo > 0 else None, "why": None}
     return out
 
 

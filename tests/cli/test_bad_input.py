@@ -674,7 +674,7 @@ def test_singular_peak_has_no_safety_factor():
     sf = safety_factors(80.0, {"safety_factor": (812.0, {"singular_feature": "edge of the rigid patch"}),
                                "critical_safety_factor": (40.0, {})})
     assert sf["safety_factor"] is None and "singular" in sf["safety_factor_note"]
-    assert sf["critical_safety_factor"] == 2.0 and "critical_safety_factor_note" not in sf
+    assert sf["critical_safety_factor"] == 2.0 and sf["critical_safety_factor_note"] is None
     assert safety_text(sf, "safety_factor").startswith("**none**")
     assert safety_text(sf, "critical_safety_factor") == "**2.00**"
 
@@ -694,7 +694,8 @@ def test_verdict_pass_fail_undecided_and_capacity():
     assert v["a"]["capacity_range_N"] == pytest.approx([80e4 / 41, 80e4 / 39])
     assert v["b"]["verdict"] == "fail" and v["b"]["margin_pct"] == pytest.approx(-20.0)
     assert v["c"]["verdict"] == "undecided"
-    assert v["s"]["verdict"] == "none" and "capacity_N" not in v["s"]
+    assert v["s"]["verdict"] == "none" and v["s"]["capacity_N"] is None and "singular" in v["s"]["why"]
+    assert v["a"]["why"] is None and set(v["a"]) == set(v["s"])  # the same keys, null where none applies
     assert v["n"]["verdict"] == "pass" and v["n"]["band_MPa"] is None and v["n"]["capacity_range_N"] is None
     assert v["b"]["band_MPa"] is None and v["b"]["capacity_range_N"] is None  # one mesh: no band, not a band of 0
 

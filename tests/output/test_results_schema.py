@@ -55,6 +55,12 @@ def test_the_same_keys_in_every_run(written):
         for key in ("peak", "critical"):
             assert set(res["fe"][key]) == set(first["fe"][key]), (name, key)
         assert set(res["about"]) == set(first["about"]), name
+        assert set(res["fe"]) == set(first["fe"]), name
+        assert set(res["comparison_pct"]) == set(first["comparison_pct"]), name
+        for check in res["fe"]["verdict"].values():  # a peak without a verdict has the same keys, null
+            assert set(check) == set(first["fe"]["verdict"]["global_peak"]), name
+        if res["fe"]["sections"] is not None:
+            assert "formula_load" in res["fe"]["sections"], name
 
 
 def test_about_says_where_the_numbers_come_from(written):
