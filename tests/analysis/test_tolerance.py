@@ -176,3 +176,24 @@ def test_the_issue_s_mesh_ends_within_one_percent_and_covers_the_references(tmp_
         band = fe[key]["error_estimate"]["band"]
         assert band <= 0.01 * fe[key]["value_MPa"]
         assert abs(fe[key]["value_MPa"] - ref) <= band, (key, fe[key]["value_MPa"], band)
+
+
+def test_the_tolerance_is_an_input_with_its_default_its_key_and_its_check(tmp_path):
+    from pipeline.errors import InputError
+    assert resolve("05").tolerance_pct == 1.0 and not resolve("05").mesh_pinned
+    assert resolve("05", overrides={"mesh_factor": 1.0}).mesh_pinned   # given, even at the default value
+    f = tmp_path / "c.toml"
+    f.write_text('size = "05"\n[mesh]\ntolerance_pct = 0.5\nfactor = 0.9\n')
+    case = resolve(case_file=f)
+    assert case.tolerance_pct == 0.5 and case.mesh_pinned and case.mesh_factor == 0.9
+    for bad in (0.0, 0.05, 60.0, float("nan")):
+        with pytest.raises(InputError, match="tolerance_pct"):
+            resolve("05", overrides={"tolerance_pct": bad})
+
+
+def test_a_bad_tolerance_exits_2_with_one_line(tmp_path):
+    out = tmp_path / "never"
+    p = subprocess.run([sys.executable, "-m", "pipeline", "run", "--size", "05", "--tolerance", "0", "--out", str(out)],
+                       cwd=ROOT, capture_output=True, text=True, timeout=300)
+    assert p.returncode == 2 and len(p.stderr.strip().splitlines()) == 1 and "tolerance_pct" in p.stderr
+    assert not out.exists()
