@@ -212,7 +212,7 @@ class Mesher:
         t0 = time.perf_counter()
         # Every curved tet leaves the builder with a det J ratio >= HO_TARGET (0.3).
         with heartbeat(self.progress, f"meshing ×{spec.factor:.3g}"):
-            quality = mesh(dn, spec_n)
+            quality = mesh(dn, spec_n).quality
         if msh_path is not None:
             gmsh.option.setNumber("Mesh.ScalingFactor", self.scale)  # write in mm
             gmsh.write(str(msh_path))

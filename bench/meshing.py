@@ -1,0 +1,223 @@
+"""gmsh's options against meshing time and peaks: each option set meshes No. 05 (×1, ×1.69)
+and the full part (cases/05-full.toml at its own factor) on the pilot's refined places.
+
+    CROSSHEAD_NO_CACHE=1 .venv/bin/python -m bench.meshing --repeats 5 --out /tmp/meshing.json
+    CROSSHEAD_NO_CACHE=1 .venv/bin/python -m bench.meshing --peaks --variants default,3d-hxt --factors 0.85,1
+
+Timing (the default): every mesh in a gmsh session of its own, the part built first and
+not timed; the option sets interleaved (each repeat runs every set once, in an order
+rotated by one each repeat) so that the other load on the machine falls on all alike.
+Prints per set and mesh the median CPU time (s) of each of gmsh's stages
+(geometry.sizing.STAGES), the sum's CPU and wall time, their ratios to the default set's
+(the median of each round's pair), the P2 DOFs and whether the mesh is the default's node
+for node. ``--peaks``: each set's No. 05 run
+(pilot, the ×1 mesh and its error bar, one rank) with the set's options on every mesh:
+global and critical peaks and bands (MPa) against the references 113.82 / 66.27 MPa.
+Lengths in mm, times in s, stresses in MPa. Results go to stdout, progress to stderr.
+"""
+from __future__ import annotations
+
+import argparse
+import functools
+import hashlib
+import json
+import statistics
+import sys
+import time
+from dataclasses import replace
+from pathlib import Path
+
+import gmsh
+import numpy as np
+from mpi4py import MPI
+
+# Option sets: gmsh options set after the project's own (geometry.sizing._set_mesh_options).
+VARIANTS: dict[str, dict[str, float]] = {
+    "default": {},
+    "no-optimise": {"Mesh.Optimize": 0},
+    "netgen": {"Mesh.OptimizeNetgen": 1},
+    "2d-delaunay": {"Mesh.Algorithm": 5},
+    "2d-meshadapt": {"Mesh.Algorithm": 1},
+    "3d-hxt": {"Mesh.Algorithm3D": 10},
+    "3d-hxt-2threads": {"Mesh.Algorithm3D": 10, "General.NumThreads": 2, "Mesh.MaxNumThreads3D": 2},
+    "2threads": {"General.NumThreads": 2, "Mesh.MaxNumThreads1D": 2, "Mesh.MaxNumThreads2D": 2},
+    "from-boundary": {"Mesh.MeshSizeExtendFromBoundary": 1},
+    "ho-fastcurving": {"Mesh.HighOrderOptimize": 4},
+    "order-straight": {"Mesh.SecondOrderLinear": 1},
+    "2d-delaunay+3d-hxt": {"Mesh.Algorithm": 5, "Mesh.Algorithm3D": 10},
+}
+REFERENCES_MPA = {"peak": 113.82, "critical": 66.27}  # No. 05 at 10 kN (docs/accuracy.md)
+
+
+def meshes(factors: list[float], full: bool) -> list[tuple[str, object, float]]:
+    """(label, case, factor) of each mesh to time: No. 05 at ``factors``, and the full part
+    at its case file's factor."""
+    from pipeline.inputs.case import resolve
+    out = [(f"05 ×{f:g}", resolve("05"), f) for f in factors]
+    if full:
+        case = resolve(case_file=Path(__file__).resolve().parent.parent / "cases" / "05-full.toml")
+        out.append((f"05-full ×{case.mesh_factor:g}", case, case.mesh_factor))
+    return out
+
+
+def places(case) -> tuple[tuple[float, float, float], ...]:
+    """The pilot's refined places of ``case`` (mm), as a run finds them (one rank)."""
+    from pipeline.analysis.pilot import pilot
+    return pilot(case, comm=MPI.COMM_SELF).hotspots
+
+
+def time_one(case, spec, options: dict[str, float]) -> dict:
+    """Build the part in a new gmsh session and mesh it under ``options``: stage wall and CPU times (s),
+    P2 DOFs, a digest of the node coordinates and the worst det J ratio."""
+    from geometry.part import build
+    from geometry.sizing import mesh
+    from pipeline.fe.meshing import _normalised, meshing_scale
+
+    dn, spec_n = _normalised(case.dims, spec, meshing_scale(case.dims))
+    gmsh.initialize(readConfigFiles=False)
+    try:
+        gmsh.option.setNumber("General.Terminal", 0)
+        gmsh.model.add("bench")
+        build(dn, case.model)
+        done = mesh(dn, spec_n, options)
+        _, xyz, _ = gmsh.model.mesh.getNodes()
+        types, tags, _ = gmsh.model.mesh.getElements(3)
+        tets = sum(len(t) for t in tags)
+    finally:
+        gmsh.finalize()
+    xyz = np.round(np.asarray(xyz), 9)
+    return {"stage_s": done.stage_s, "stage_cpu_s": done.stage_cpu_s, "total_s": sum(done.stage_s.values()),
+            "total_cpu_s": sum(done.stage_cpu_s.values()), "dofs": 3 * (len(xyz) // 3),
+            "tets": tets, "digest": hashlib.sha1(xyz.tobytes()).hexdigest()[:12], "quality": done.quality}
+
+
+def timing(names: list[str], factors: list[float], full: bool, repeats: int) -> list[dict]:
+    """Every option set on every mesh, ``repeats`` rounds, the sets' order rotated each round."""
+    targets = []
+    for label, case, f in meshes(factors, full):
+        hot = places(case)
+        targets.append((label, case, replace(case.mesh_spec(f), hotspots=hot)))
+        print(f"{label}: {len(hot)} places", file=sys.stderr)
+    runs: dict[tuple[str, str], list[dict]] = {}
+    for r in range(repeats):
+        order = names[r % len(names):] + names[:r % len(names)]
+        for label, case, spec in targets:
+            for name in order:
+                try:
+                    runs.setdefault((label, name), []).append(time_one(case, spec, VARIANTS[name]))
+                except Exception as exc:  # a set gmsh cannot mesh with is a result, not a stop
+                    runs.setdefault((label, name), []).append({"error": str(exc)})
+                last = runs[(label, name)][-1]
+                print(f"round {r + 1} {label} {name}: " + (last["error"] if "error" in last else
+                      f"{last['total_s']:.2f} s wall, {last['total_cpu_s']:.2f} s CPU"), file=sys.stderr)
+    rows = []
+    for (label, name), got in runs.items():
+        ok = [g for g in got if "error" not in g]
+        if not ok:
+            rows.append({"mesh": label, "variant": name, "error": got[0]["error"]})
+            continue
+        row = {"mesh": label, "variant": name, "runs": len(ok), "dofs": ok[0]["dofs"], "tets": ok[0]["tets"],
+               "quality": ok[0]["quality"], "digests": sorted({g["digest"] for g in ok})}
+        for key in ("stage_s", "stage_cpu_s"):
+            row[key] = {k: statistics.median(g[key][k] for g in ok) for k in ok[0][key]}
+        for key in ("total_s", "total_cpu_s"):
+            row[key] = statistics.median(g[key] for g in ok)
+            base = runs.get((label, "default"), [])
+            # Ratios of the same round's pair (interleaved), then their median.
+            pairs = [g[key] / b[key] for g, b in zip(got, base) if "error" not in g and "error" not in b]
+            if pairs:
+                row[key.replace("total", "ratio")] = statistics.median(pairs)
+        if base and "error" not in base[0]:
+            row["same_mesh"] = row["digests"] == sorted({b["digest"] for b in base if "error" not in b})
+        rows.append(row)
+    return rows
+
+
+def peaks(names: list[str], factors: list[float]) -> list[dict]:
+    """Each set's No. 05 run at each mesh factor (pilot, the factor's mesh and its error
+    bar, this process alone, the run cache off): peaks and bands (MPa), finest DOFs, wall
+    time (s)."""
+    import pipeline.fe.meshing as meshing
+    from geometry.sizing import mesh
+    from pipeline.analysis.analyse import analyse
+    from pipeline.inputs.case import resolve
+    from pipeline.post.errorbar import estimate_levels
+
+    rows = []
+    for factor, name in [(f, n) for f in factors for n in names]:
+        # Every mesh of the run (the pilot's included) made under the set's options.
+        meshing.mesh = functools.partial(mesh, options=VARIANTS[name])
+        try:
+            case = resolve("05", overrides={"mesh_factor": factor})
+            t0 = time.perf_counter()
+            levels, pl = analyse(case, comm=MPI.COMM_SELF)
+            row = {"variant": name, "factor": factor, "dofs": levels[0].dofs, "places": len(pl.hotspots),
+                   "wall_s": time.perf_counter() - t0}
+            for key in ("peak", "critical"):
+                est = estimate_levels(levels, case.order, key)
+                value = getattr(levels[0], key).value_MPa
+                row[key] = {"value_MPa": value, "band_MPa": est.band, "status": est.status,
+                            "covers_reference": est.band is not None
+                            and abs(value - REFERENCES_MPA[key]) <= est.band}
+        finally:
+            meshing.mesh = mesh
+        rows.append(row)
+        print(json.dumps(row), file=sys.stderr)
+    return rows
+
+
+def table(rows: list[dict]) -> str:
+    """The timing rows as a Markdown table: CPU time of each stage (s, medians), the total's
+    CPU and wall time (s, medians) and their ratios to the default set's (medians of the
+    rounds' pairs)."""
+    stages = ("1d", "2d", "3d", "optimise", "order", "repair")
+    out = ["| mesh | options | DOFs | " + " | ".join(stages) + " | CPU (s) | × default | wall (s) | × default"
+           " | same mesh |", "|---" * 14 + "|"]
+    for r in rows:
+        if "error" in r:
+            out.append(f"| {r['mesh']} | {r['variant']} | failed: {r['error']} |" + " |" * 11)
+            continue
+        st = " | ".join(f"{r['stage_cpu_s'].get(s, 0.0):.2f}" for s in stages)
+        out.append(f"| {r['mesh']} | {r['variant']} | {r['dofs']} | {st} | {r['total_cpu_s']:.2f} | "
+                   f"{r.get('ratio_cpu_s', float('nan')):.2f} | {r['total_s']:.2f} | {r.get('ratio_s', float('nan')):.2f} | "
+                   f"{'yes' if r.get('same_mesh') else 'no'} |")
+    return "\n".join(out)
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(prog="python -m bench.meshing", description=__doc__.splitlines()[0])
+    ap.add_argument("--variants", default=",".join(VARIANTS),
+                    help=f"option sets, comma-separated (default all: {', '.join(VARIANTS)})")
+    ap.add_argument("--factors", help="No. 05's mesh factors (default 1,1.69; with --peaks 1)")
+    ap.add_argument("--no-full", action="store_true", help="leave out the full part")
+    ap.add_argument("--repeats", type=int, default=3, help="rounds of every set on every mesh (default 3)")
+    ap.add_argument("--peaks", action="store_true", help="each set's No. 05 peaks and bands instead of timing")
+    ap.add_argument("--out", type=Path, help="write the rows as JSON here")
+    args = ap.parse_args(argv)
+    names = [n.strip() for n in args.variants.split(",") if n.strip()]
+    unknown = [n for n in names if n not in VARIANTS]
+    if unknown or args.repeats < 1:
+        print(f"--variants: unknown {', '.join(unknown)}" if unknown else "--repeats: at least 1", file=sys.stderr)
+        return 2
+    try:
+        factors = [float(f) for f in (args.factors or ("1" if args.peaks else "1,1.69")).split(",")]
+    except ValueError:
+        print(f"--factors: not numbers: {args.factors}", file=sys.stderr)
+        return 2
+    if args.peaks:
+        rows = peaks(names, factors)
+        for r in rows:
+            print(f"×{r['factor']:g} {r['variant']}: " + ", ".join(
+                f"{k} {r[k]['value_MPa']:.2f} ± {r[k]['band_MPa'] if r[k]['band_MPa'] is not None else float('nan'):.2f}"
+                f" MPa ({'covers' if r[k]['covers_reference'] else 'misses'} {REFERENCES_MPA[k]})"
+                for k in ("peak", "critical")) + f"; {r['dofs']} DOFs, {r['places']} places, {r['wall_s']:.1f} s")
+    else:
+        rows = timing(names, factors, not args.no_full, args.repeats)
+        print(table(rows))
+    if args.out is not None:
+        args.out.write_text(json.dumps(rows, indent=1))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
