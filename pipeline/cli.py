@@ -205,6 +205,10 @@ def make_parser() -> argparse.ArgumentParser:
                      help="meshes solved for the error bar: the requested one and coarser ones "
                           "(default 3, up to 8; 1 = no error bar; 2 is refused)")
     run.add_argument("--ratio", type=_number, default=1.3, help="mesh-size ratio between those meshes (default 1.3)")
+    run.add_argument("--tolerance", type=_number, dest="tolerance_pct", metavar="PCT",
+                     help="the accuracy asked: each wanted peak's error-bar band at most PCT %% of its value; the run "
+                          "adds meshes (a smaller step, then finer ones) until it is, but never refines past a given "
+                          "--mesh-factor (default 1; docs/design.md §5)")
     run.add_argument("--no-fields", action="store_true", help="skip ParaView files, picture and report (benchmarks)")
     run.add_argument("--no-sensitivity", action="store_true",
                      help="skip varying the assumed inputs (dj, rf, seat, the bearing load model) over their "
@@ -345,7 +349,7 @@ def _run_or_converge(args: argparse.Namespace, rank0: bool, stack: contextlib.Ex
         from pipeline.commands import execute_run
         execute_run(case, out, levels=args.levels, ratio=args.ratio, progress=say,
                     write_fields=not args.no_fields, loads=loads if len(loads) > 1 else None,
-                    quarter_fields=args.quarter_fields, sensitivity=not args.no_sensitivity)
+                    quarter_fields=args.quarter_fields, sensitivity=not args.no_sensitivity, to_tolerance=True)
     else:
         from pipeline.commands import execute_converge
         execute_converge(case, out, levels=args.levels, ratio=args.ratio, progress=say)
@@ -365,6 +369,7 @@ def _case_of(args: argparse.Namespace) -> tuple[Case, list[float]]:
     overrides = {k: getattr(args, k) for k in CASE_KEYS}
     overrides.update({f"dims.{k}": v for k, v in args.dim})
     overrides.update({f"sensitivity.{k}": v for k, v in getattr(args, "vary", [])})
+    overrides["tolerance_pct"] = getattr(args, "tolerance_pct", None)
     loads = args.loads or []
     if loads:
         overrides["load_N"] = loads[0]
@@ -588,11 +593,13 @@ def _summary(out: Path) -> None:
     memory: the lines say what the file says)."""
     import json
 
-    from pipeline.output.report import error_bar_text, feature_text, no_safety_factor_reason, pm
+    from pipeline.output.report import accuracy_text, error_bar_text, feature_text, no_safety_factor_reason, pm
     res = json.loads((out / "results.json").read_text(encoding="utf-8"))
     fe = res["fe"]
     for name, key in (("global peak  ", "peak"), ("critical peak", "critical")):
         _print(f"{name} {fe[key]['value_MPa']:8.2f} MPa  {error_bar_text(fe[key])}  [{feature_text(fe[key])}]")
+    if fe.get("accuracy"):
+        _print(accuracy_text(fe["accuracy"]))
     an = res["analytic"]
 
     def sf(key: str) -> str:

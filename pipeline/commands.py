@@ -23,7 +23,8 @@ from pipeline.output.fields import write_fields as write_field_files
 from pipeline.output.report import write_report
 from pipeline.analysis.level import Level, Progress
 from pipeline.analysis.analyse import analyse
-from pipeline.output.results import add_sensitivity, build_results, load_sweep, sum_timings
+from pipeline.analysis.tolerance import Accuracy, analyse_to_tolerance
+from pipeline.output.results import add_accuracy, add_sensitivity, build_results, load_sweep, sum_timings
 from pipeline.analysis.sensitivity import MESH_RATIO, analyse_sensitivity, load_variant_cases
 from pipeline.output.drawing import Picture, finish_picture, start_picture
 from pipeline.post.features import describe_location
@@ -33,7 +34,7 @@ from pipeline.analysis.pilot import Pilot, refinement_places
 def execute_run(case: Case, out_dir: Path, levels: int = 3, ratio: float = 1.3,
                 progress: Progress | None = None, write_fields: bool = True,
                 loads: list[float] | None = None, comm: MPI.Comm = MPI.COMM_WORLD, quarter_fields: bool = False,
-                write_mesh: bool = True, sensitivity: bool = False) -> dict:
+                write_mesh: bool = True, sensitivity: bool = False, to_tolerance: bool = False) -> dict:
     """Analyse ``case`` and write results.json, report.md, mesh.msh, VTK fields and a PNG
     (without ``write_fields`` only results.json and mesh.msh; without ``write_mesh`` no
     mesh.msh: a design study's variant, whose question is its peaks).
@@ -44,6 +45,10 @@ def execute_run(case: Case, out_dir: Path, levels: int = 3, ratio: float = 1.3,
     shows the requested mesh's field and peaks, which those solves do not change.
     ``sensitivity``: vary the assumed inputs (pipeline/analysis/sensitivity.py) after the
     error bar, when both peaks are wanted (a scene, ``want``, skips it).
+    ``to_tolerance``: add meshes until each wanted peak's band is at most
+    case.tolerance_pct (pipeline/analysis/tolerance.py); the results then carry what was
+    asked and reached, and describe the finest mesh solved. Without it the run solves the
+    ``levels`` meshes it is given (a design study's variant).
     """
     say = progress or (lambda s: None)
     t_all = time.perf_counter()
@@ -58,15 +63,24 @@ def execute_run(case: Case, out_dir: Path, levels: int = 3, ratio: float = 1.3,
             # The load model's variants change only the right-hand side: solved on the
             # operator of the error-bar mesh at the dimension variants' factor, on its own
             # rank beside the others (or of the requested mesh when the run has no such mesh).
-            lv, pl = analyse(case, levels=levels, ratio=ratio, msh_path=stage / files["mesh"] if write_mesh else None,
-                             progress=say, comm=comm, pl=pl, on_requested=requested.write,
-                             mesher=mesher, load_variants=load_variant_cases(case) if vary else (),
-                             load_variants_at=case.mesh_factor * MESH_RATIO)
-            sens = analyse_sensitivity(case, comm=comm, progress=say, levels=lv) if vary else None
+            how = dict(levels=levels, ratio=ratio, msh_path=stage / files["mesh"] if write_mesh else None,
+                       progress=say, comm=comm, pl=pl, on_requested=requested.write,
+                       mesher=mesher, load_variants=load_variant_cases(case) if vary else (),
+                       load_variants_at=case.mesh_factor * MESH_RATIO)
+            accuracy: Accuracy | None = None
+            if to_tolerance:
+                lv, pl, case, accuracy, every = analyse_to_tolerance(case, **how)
+            else:
+                lv, pl = analyse(case, **how)
+                every = lv
+            # every mesh solved: the load model's variants stay on the mesh that solved them
+            sens = analyse_sensitivity(case, comm=comm, progress=say, levels=every) if vary else None
         except BaseException:
             requested.abandon()  # the run failed: no picture either
             raise
         res = _run_results(case, lv, pl, comm, loads, write_fields, requested.files, requested.t_output)
+        if accuracy is not None:
+            add_accuracy(res, accuracy)
         if sens is not None:
             add_sensitivity(res, sens, case)
         requested.finish(res)
@@ -103,13 +117,16 @@ class _RequestedOutput:
         at), then start the drawing (rank 0)."""
         if not self.write_fields:
             return
+        if self.picture is not None:  # a finer mesh replaces the one drawn (analysis/tolerance.py)
+            self.abandon()
+            self.picture = None
         t0 = time.perf_counter()
         self.files.update(write_field_files(self.stage, *fine.fields, Material(E=self.case.E_MPa, nu=self.case.nu),
                                             whole_part=self.case.model == "quarter" and not self.quarter_fields))
         # The picture process reads results.json: the requested mesh's peaks for now,
         # the full results (same peaks) replace it below.
         write_json(self.stage / "results.json", build_results(self.case, [fine], {}, self.comm, pl), self.comm.rank)
-        self.t_output = time.perf_counter() - t0
+        self.t_output += time.perf_counter() - t0
         if self.comm.rank == 0:
             self.picture = start_picture(self.stage)
             self.stack.enter_context(on_stop(self.picture.kill))  # a stopped run draws nothing

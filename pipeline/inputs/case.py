@@ -58,6 +58,11 @@ class Case:
     solver: str = "pmg"
     rtol: float = 1e-8
     mesh_factor: float = 1.0
+    # The accuracy asked of each wanted peak: its error bar's band at most this percentage of
+    # its value (docs/design.md §5, pipeline/analysis/tolerance.py). ``mesh_pinned``: the mesh
+    # factor was given (option or case file), so the run never refines past it.
+    tolerance_pct: float = 1.0
+    mesh_pinned: bool = False
     size_body_mm: float | None = None
     size_feature_mm: float | None = None
     size_fillet_mm: float | None = None
@@ -132,7 +137,7 @@ SCHEMA: dict[str, dict[str, tuple[str, tuple[type, ...]]]] = {
     "model": {"model": ("model", (str,)), "support": ("support", (str,)), "want": ("want", (str,)),
               "bearing_shape": ("bearing_shape", (str,)), "bearing_length_mm": ("bearing_length_mm", _NUM),
               "bearing_centre_mm": ("bearing_centre_mm", _NUM)},
-    "mesh": {"order": ("order", (int,)), "factor": ("mesh_factor", _NUM),
+    "mesh": {"order": ("order", (int,)), "factor": ("mesh_factor", _NUM), "tolerance_pct": ("tolerance_pct", _NUM),
              "size_body_mm": ("size_body_mm", _NUM), "size_feature_mm": ("size_feature_mm", _NUM),
              "size_fillet_mm": ("size_fillet_mm", _NUM), "grading_mm": ("grading_mm", _NUM)},
     "solver": {"solver": ("solver", (str,)), "rtol": ("rtol", _NUM)},
@@ -288,6 +293,7 @@ def resolve(size: str | None = None, case_file: Path | None = None,
     name = values.pop("name", None) or row.size
     load = values.pop("load_N", row.load_N)
     assumed = tuple(k for k in ("dj", "rf", "seat_inner", "seat_outer") if k not in dim_over)
+    values.setdefault("mesh_pinned", "mesh_factor" in values)
     case = Case(name=str(name), size=row.size, source=row.source, dims=dims, load_N=load,
                 assumed=assumed, sensitivity_ranges=ranges, document=document, **values)
     return check(case)
@@ -321,6 +327,10 @@ def _finite_positive(name: str, v: Any, allow_zero: bool = False) -> None:
     if v < 0 or (v == 0 and not allow_zero):
         raise InputError(f"{name}: must be > 0, got {v:g}")
 
+
+# A band below 0.1 % is below a nodal peak's mesh-to-mesh noise (errorbar.SETTLED): no mesh
+# reaches it; above 50 % the band says nothing.
+TOLERANCE_RANGE_PCT = (0.1, 50.0)
 
 # Ranges (N, MPa) outside which the numbers lose meaning in double precision: a load of
 # 1e-300 N made a safety factor divide by zero, E = 1e-300 MPa stopped PETSc (error 77).
@@ -480,6 +490,10 @@ def check(case: Case) -> Case:
     _finite_positive("mesh_factor", case.mesh_factor)
     if not 0.05 <= case.mesh_factor <= 20:
         raise InputError(f"mesh_factor: must lie in [0.05, 20], got {case.mesh_factor:g}")
+    _finite_positive("tolerance_pct", case.tolerance_pct)
+    if not TOLERANCE_RANGE_PCT[0] <= case.tolerance_pct <= TOLERANCE_RANGE_PCT[1]:
+        raise InputError(f"tolerance_pct: must lie in [{TOLERANCE_RANGE_PCT[0]:g}, {TOLERANCE_RANGE_PCT[1]:g}] %, "
+                         f"got {case.tolerance_pct:g}")
     for k in ("size_body_mm", "size_feature_mm", "size_fillet_mm", "grading_mm",
               "approximate_span_mm", "exact_span_mm"):
         v = getattr(case, k)

@@ -54,6 +54,22 @@ def error_bar_text(block: dict) -> str:
     return _trend_text(est)
 
 
+def accuracy_text(acc: dict) -> str:
+    """One line on the accuracy asked and reached (results.json's fe.accuracy): the
+    tolerance, each wanted peak's band (%), the meshes of the error bar and, when the bands
+    stay above the tolerance, why."""
+    bands = ", ".join(f"{p} {'no band' if b is None else f'{b:.2f} %'}" for p, b in acc["bands_pct"].items())
+    meshes = f"meshes ×{', ×'.join(f'{f:.4g}' for f in acc['mesh_factors'])}"
+    extra = len(acc["meshes_solved"]) - len(acc["mesh_factors"])
+    solved = f" ({len(acc['meshes_solved'])} solved in all)" if extra > 0 else ""
+    if acc["met"]:
+        return f"tolerance {acc['tolerance_pct']:g} %: reached, band {bands}, on {meshes}{solved}"
+    if all(b is None for b in acc["bands_pct"].values()):
+        return f"tolerance {acc['tolerance_pct']:g} %: not checked, {acc['note']}"
+    return (f"tolerance {acc['tolerance_pct']:g} %: NOT reached, band {bands}, on {meshes}{solved}: "
+            f"{acc['note']}")
+
+
 def _trend_text(est: dict) -> str:
     """error_bar_text of an estimate's band from the meshes' trend."""
     st = est["status"]
@@ -384,6 +400,8 @@ def _summary_lines(res: dict) -> list[str]:
     add(f"| exact formula (span {_f(an['exact_span_mm'], 1)} mm) | {_f(an['exact_MPa'])} | "
         f"{'published ' + _f(pub['exact_MPa']) if pub else ''} | nominal, ring ligament |")
     add("")
+    if fe.get("accuracy"):
+        add(f"Accuracy: {accuracy_text(fe['accuracy'])}.\n")
     add(comparison_section(res))
     add(verdict_section(res))
     add(sensitivity_section(res))

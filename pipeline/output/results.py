@@ -13,6 +13,7 @@ from pipeline.post.features import describe_location, singular_feature
 from pipeline.analysis.level import Level
 from pipeline.post.peaks import MIDPOINT, UNAVERAGED, NodalPeak
 from pipeline.analysis.pilot import PILOT_FRACTION, Pilot
+from pipeline.analysis.tolerance import Accuracy
 from pipeline.analysis.sensitivity import CHECKED, Sensitivity, journal_root
 from pipeline.output.report import range_text, value_text
 
@@ -124,6 +125,7 @@ def _fe_block(case: Case, levels: list[Level], peak_b: dict, crit_b: dict, comm,
         "sections": None if fine.sections is None else {"formula_load": None, **fine.sections},
         "verdict": verdict(case.allowable_MPa, case.load_N, _checked_stresses(fine, peak_b, crit_b)),
         "levels": [_level_row(lv) for lv in levels],
+        "accuracy": None,   # set by add_accuracy for a run asked for a tolerance
     }
 
 
@@ -240,6 +242,15 @@ def load_sweep(res: dict, case: Case, loads: list[float]) -> list[dict]:
             row[key] = None if fe[key] is None else case.allowable_MPa / row[peak]
         rows.append(row)
     return rows
+
+
+def add_accuracy(res: dict, acc: Accuracy) -> None:
+    """Put what the run was asked and reached into ``res["fe"]["accuracy"]``
+    (pipeline/analysis/tolerance.py): the tolerance and each wanted peak's band (% of its
+    value), whether every band is within it, whether the mesh was pinned, the error bar's
+    mesh factors, every mesh factor solved, the steps taken and why the tolerance was not
+    met (empty when it was)."""
+    res["fe"]["accuracy"] = acc.as_dict()
 
 
 def add_sensitivity(res: dict, sens: Sensitivity, case: Case) -> None:
