@@ -41,14 +41,19 @@ BENCH_ARGS ?= --pilot on --factors 4.0,2.5,2.0,1.3,1.0 --p3-factors 3.0,2.5,2.0 
 # critical-peak target's own comparison (about a minute).
 BENCH_CRITICAL_ARGS ?= --orders 2 --solvers pmg --factors 10,8,6,5,4 --pilot on --want critical \
 	--repeats 3 --reference-values 113.82,66.27
-# Last, the fair peer: CalculiX as its users run it (a mesh graded at the raisers by size
+# Then the fair peer: CalculiX as its users run it (a mesh graded at the raisers by size
 # fields, no pilot, peaks from its .frd) beside the pipeline and CalculiX on the pipeline's
 # meshes, interleaved (bench/peer.py; 8 min measured at load average 4-7 on 2 cores).
 BENCH_PEER_ARGS ?= --repeats 3 --reference-values 113.82,66.27
+# Last, the sensitivity section's cost: make run with it, without it (--no-sensitivity) and
+# the make run of the round before it (version 0.6), interleaved, cache off, medians of 3;
+# target: with the section <= 2x the earlier run (about 5 minutes on a quiet machine).
+RUN_COST_ARGS ?= --repeats 3
 bench: $(SETUP)
 	$(PY) -m bench --out results/bench --ranks 1,2 $(BENCH_ARGS)
 	$(PY) -m bench --out results/bench-critical $(BENCH_CRITICAL_ARGS)
 	$(PY) -m bench.peer --out results/bench-peer $(BENCH_PEER_ARGS)
+	$(PY) -m bench.run_cost --out results/bench-run $(RUN_COST_ARGS)
 
 bench-peer: $(SETUP)
 	$(PY) -m bench.peer --out results/bench-peer $(BENCH_PEER_ARGS)
