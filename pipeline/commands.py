@@ -25,7 +25,7 @@ from pipeline.analysis.level import Level, Progress
 from pipeline.analysis.analyse import analyse
 from pipeline.analysis.tolerance import Accuracy, analyse_to_tolerance
 from pipeline.output.results import add_accuracy, add_sensitivity, build_results, load_sweep, sum_timings
-from pipeline.analysis.sensitivity import MESH_RATIO, analyse_sensitivity, load_variant_cases
+from pipeline.analysis.sensitivity import LOAD_MESH_RATIO, analyse_sensitivity, load_variant_cases
 from pipeline.output.drawing import Picture, finish_picture, start_picture
 from pipeline.post.features import describe_location
 from pipeline.analysis.pilot import Pilot, refinement_places
@@ -61,12 +61,12 @@ def execute_run(case: Case, out_dir: Path, levels: int = 3, ratio: float = 1.3,
         vary = sensitivity and case.want == "both"
         try:
             # The load model's variants change only the right-hand side: solved on the
-            # operator of the error-bar mesh at the dimension variants' factor, on its own
-            # rank beside the others (or of the requested mesh when the run has no such mesh).
+            # operator of the coarsest default error-bar mesh, on its own rank beside the
+            # others (or of the requested mesh when the run has no such mesh).
             how = dict(levels=levels, ratio=ratio, msh_path=stage / files["mesh"] if write_mesh else None,
                        progress=say, comm=comm, pl=pl, on_requested=requested.write,
                        mesher=mesher, load_variants=load_variant_cases(case) if vary else (),
-                       load_variants_at=case.mesh_factor * MESH_RATIO)
+                       load_variants_at=case.mesh_factor * LOAD_MESH_RATIO)
             accuracy: Accuracy | None = None
             if to_tolerance:
                 lv, pl, case, accuracy, every = analyse_to_tolerance(case, **how)
@@ -74,7 +74,7 @@ def execute_run(case: Case, out_dir: Path, levels: int = 3, ratio: float = 1.3,
                 lv, pl = analyse(case, **how)
                 every = lv
             # every mesh solved: the load model's variants stay on the mesh that solved them
-            sens = analyse_sensitivity(case, comm=comm, progress=say, levels=every) if vary else None
+            sens = analyse_sensitivity(case, comm=comm, progress=say, levels=every, places=pl) if vary else None
         except BaseException:
             requested.abandon()  # the run failed: no picture either
             raise

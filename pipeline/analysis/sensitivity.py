@@ -6,13 +6,16 @@ Why: the error bar says how far the answer is from the exact solution of *this* 
 (±0.64 % on No. 05); the assumed journal diameter, fillet radius and seat move the global
 peak by −7 % to +31 % over plausible values. A reader must see both.
 
-Each end of a range is one variant: the case with that one input changed, analysed on a
-single mesh coarser than the run's (its own pilot, no error bar) over the MPI ranks, one
-variant per rank. The nominal case is analysed the same way, and its values are the
-baseline the variants are compared with, so the mesh's bias cancels: an end's value is
-the run's value × variant / baseline. The nominal case on a second mesh (the run's own
-error-bar mesh of the same size, refined at the run's places, or one slightly coarser)
-measures the noise of such single meshes, stated beside the differences.
+Each end of a dimension's range is one variant: the case with that one input changed,
+analysed on a single mesh coarser than the run's, refined at the places its dimensions
+name (features.known_raisers: no pilot solve), over the MPI ranks, one variant per rank.
+The nominal case is analysed the same way, and its values are the baseline the variants
+are compared with, so the mesh's bias cancels: an end's value is the run's value ×
+variant / baseline. The nominal case on a second mesh of the same size, refined at the
+run's own pilot places instead, measures the noise of such single meshes (how far another
+choice of places moves one reading), stated beside the differences. A load-model choice
+changes only the right-hand side: its ends are solved on the operator of one of the run's
+own meshes (analysis.analyse's ``load_variants``).
 """
 from __future__ import annotations
 
@@ -28,16 +31,18 @@ from geometry.table import Dimensions, InputError, validate
 from pipeline.inputs.case import Case, check, journal_bearing_surface
 from pipeline.inputs.choices import BEARING_SHAPES
 from pipeline.analysis.level import Level, Progress
-from pipeline.analysis.pilot import pilot_factor
+from pipeline.analysis.pilot import KNOWN, Pilot, known_places
 from pipeline.fe.meshing import owners
 from pipeline.post.sections import journal_nominal
 from pipeline.runtime.idle import wait_for_ranks
 
-# The variants' mesh: the run's mesh factor × this, the coarsest mesh of a default error
-# bar (ratio 1.3, three meshes). On No. 05 its peaks lie within 0.2 % of the run's mesh
-# (113.96 against 113.77 MPa, 66.24 against 66.22 MPa) at a third of its DOFs.
-MESH_RATIO = 1.69
-NOISE_RATIO = 1.1  # the second nominal mesh, × the variants' factor: measures their noise
+# The dimension variants' mesh: the run's mesh factor × this, refined at the places the
+# dimensions name (docs/design.md §10 gives its noise against the changes it reports).
+MESH_RATIO = 2.2
+# The load-model variants' mesh: the run's coarsest error-bar mesh of the default three at
+# ratio 1.3, whose operator they are solved on beside the other error-bar mesh.
+LOAD_MESH_RATIO = 1.69
+NOISE_RATIO = 1.1  # without the run's pilot places, the second nominal mesh is this much coarser
 # Default ranges stop this far (× h3, mm) inside a geometry rule of geometry/table.py: a
 # fillet that runs out exactly at a face is degenerate geometry (docs/design.md §2).
 RULE_MARGIN = 0.02
@@ -212,28 +217,79 @@ def ranges_of(case: Case) -> tuple[list[Range], dict[str, str]]:
 LOAD_MODEL_INPUTS = ("bearing_shape", "bearing_centre_mm", "bearing_length_mm")
 
 
+@dataclass(frozen=True)
+class ContactStudy:
+    """The measured figures of the CalculiX contact study of the bearing load model (a
+    documented reference study, like the paper's published values: kept here, never
+    computed at run time). Lengths as fractions of the journal's bearing length
+    Lj = b6/2 − b1/2 − rf, from the fillet's run-out; peaks as the contact model's change
+    against this pipeline's cos θ model on the same mesh (%)."""
+
+    source: str
+    size: str  # the one size it was measured on
+    centre_hanging: tuple[float, float]  # the contact force's centre / Lj, plate hanging from its top
+    centre_standing: tuple[float, float]  # the same, plate standing on its bottom
+    peak_line_load: float  # the largest line load along the journal / its mean (innermost eighth)
+    fillet_peak_pct: dict[str, tuple[float, float]]  # per fit, over plate supports and the finer meshes
+    critical_peak_pct: tuple[float, float]  # every fit, support and mesh
+    edge_of_contact_pct: tuple[float, float]  # H9/d9: the plate bore's sharp edge as the global peak
+
+    @property
+    def fillet_range_pct(self) -> tuple[float, float]:
+        """The fillet peak's change over every fit (%)."""
+        return min(lo for lo, _ in self.fillet_peak_pct.values()), max(hi for _, hi in self.fillet_peak_pct.values())
+
+
+# docs/load-reference.md, "Results" and "Ranges for the load model's inputs" (make load-reference).
+CONTACT_STUDY = ContactStudy(
+    source="CalculiX contact, the journal in a side-plate bore (docs/load-reference.md, make load-reference)",
+    size="05",
+    centre_hanging=(0.387, 0.408),  # x_c 28.25–28.49 mm, lever 5.75–5.99 mm, every fit and mesh
+    centre_standing=(0.277, 0.347),  # x_c 27.05–27.82 mm, lever 4.55–5.32 mm
+    peak_line_load=2.5,  # standing plate, zero clearance (hanging: 1.55–1.8)
+    fillet_peak_pct={"zero clearance": (-7.1, 2.3), "H7/g6": (-10.7, -6.2), "H9/d9": (-3.4, 6.9)},
+    critical_peak_pct=(-13.2, -4.3),
+    edge_of_contact_pct=(28.0, 49.0),
+)
+
+
 def load_model_ranges(case: Case) -> dict[str, Range]:
-    """The plausible range of each load-model choice of support "bearing", from the geometry
-    (until a contact study bounds them): the pressure's shape, both; its centre from the
-    quarter-point of the journal's bearing surface nearest the shoulder to its middle; the
-    loaded length from half the bearing surface to all of it (mm)."""
+    """The plausible range of each load-model choice of support "bearing", set by the
+    contact study (CONTACT_STUDY, measured on No. 05 and applied to every size as fractions
+    of the journal's bearing length Lj): the pressure's shape, both; its centre from the
+    contact's nearest centre of pressure to the middle of the bearing surface (this model's,
+    a journal that does not bend against its plate); the loaded length from the band as
+    concentrated as the contact's largest line load to all of it (mm)."""
     start, end = journal_bearing_surface(case.dims)
     length = end - start
     band = case.bearing_band()
+    cs = CONTACT_STUDY
+    where = "" if str(case.size) == cs.size else f"; measured on No. {cs.size}, applied as fractions of Lj"
+
+    def mm(v: float) -> float:
+        return round(round(v / STEP_MM) * STEP_MM, 9)
+
+    nearest = min(cs.centre_standing[0], cs.centre_hanging[0])
     return {
         "bearing_shape": Range("bearing_shape", LOAD_MODEL, "", case.bearing_shape, BEARING_SHAPES[0],
-                               BEARING_SHAPES[-1], "both shapes of the bearing pressure: how the side plate's "
-                               "bore bears on the journal is not known"),
+                               BEARING_SHAPES[-1], "both shapes of the bearing pressure: the contact study's pressure "
+                               "around the journal at zero clearance lies between them (standing plate within 2.5 "
+                               "points of cos θ's share per 15° band, hanging plate flat to 63°); with clearance it "
+                               "narrows to a Hertz contact of ±17–40°, which neither shape is (see the contact "
+                               "study's effect below)"),
         "bearing_centre_mm": Range("bearing_centre_mm", LOAD_MODEL, "mm", band.centre_mm,
-                                   round(start + length / 4, 9), round(start + length / 2, 9),
-                                   "the centre of pressure from the bearing surface's quarter-point nearest the "
-                                   "shoulder (a plate that bears on its inner edge as the journal bends) to its "
-                                   "middle (pressure spread over the whole plate); from the geometry, no contact "
-                                   "study yet"),
+                                   mm(start + nearest * length), mm(start + length / 2),
+                                   f"the contact study's centre of pressure lies {cs.centre_hanging[0]:.3g}–"
+                                   f"{cs.centre_hanging[1]:.3g} of the bearing length Lj from the fillet's run-out "
+                                   f"with a hanging side plate, {cs.centre_standing[0]:.3g}–{cs.centre_standing[1]:.3g}"
+                                   f" with a standing one (every fit, mesh, μ 0 and 0.1): from its nearest, "
+                                   f"{nearest:.3g}·Lj, to the middle, 0.5·Lj (this model's){where}"),
         "bearing_length_mm": Range("bearing_length_mm", LOAD_MODEL, "mm", band.length_mm,
-                                   round(length / 2, 9), round(length, 9),
-                                   "the loaded length from half the journal's bearing surface (a thinner side "
-                                   "plate, centred) to all of it; from the geometry, no contact study yet"),
+                                   mm(length / cs.peak_line_load), mm(length),
+                                   f"the contact study spreads the load over the whole bearing length, its line load "
+                                   f"largest next to the fillet, up to {cs.peak_line_load:g}× its mean (standing "
+                                   f"plate; hanging 1.55–1.8×): from a band as concentrated, Lj/{cs.peak_line_load:g}, "
+                                   f"to all of it{where}"),
     }
 
 
@@ -268,9 +324,12 @@ def journal_root(case: Case) -> float:
     return journal_nominal(case.dims, case.load_N, case.bearing_band().centre_mm)[1]
 
 
-def analyse_variant(case: Case, factor: float) -> Reading:
-    """One variant on this rank alone: its own pilot and a single mesh at ``factor``; a
-    variant that breaks a geometry rule, or whose mesh or solve fails, says so."""
+def analyse_variant(case: Case, factor: float, places: Sequence[tuple[float, float, float]] | None = None
+                    ) -> Reading:
+    """One variant on this rank alone: a single mesh at ``factor`` refined at ``places``
+    (mm; None: the places its own dimensions name, features.known_raisers, with the pilot
+    as analyse's fallback when the critical peak falls outside them); a variant that breaks
+    a geometry rule, or whose mesh or solve fails, says so."""
     from geometry.part import GeometryError
 
     from pipeline.analysis.analyse import analyse
@@ -280,23 +339,27 @@ def analyse_variant(case: Case, factor: float) -> Reading:
     except InputError as exc:
         return Reading(invalid=" ".join(str(exc).split()))
     variant = replace(case, mesh_factor=factor)
+    pl = known_places(variant) if places is None else Pilot(factor=None, hotspots=tuple(places), time_s=0.0)
     try:
-        lv, _ = analyse(variant, levels=1, comm=MPI.COMM_SELF, formula_loads=False)
+        lv, _ = analyse(variant, levels=1, comm=MPI.COMM_SELF, formula_loads=False, pl=pl)
     except (NumericalError, GeometryError) as exc:
         return Reading(failed=" ".join(str(exc).split()))
     return read_level(variant, lv[0])
 
 
+Places = Sequence[tuple[float, float, float]]
+
+
 def analyse_sensitivity(case: Case, comm: MPI.Comm = MPI.COMM_WORLD, progress: Progress | None = None,
-                        analyse_one: Callable[[Case, float], Reading] = analyse_variant,
-                        levels: Sequence[Level] = ()) -> Sensitivity:
+                        analyse_one: Callable[[Case, float, Places | None], Reading] = analyse_variant,
+                        levels: Sequence[Level] = (), places: Pilot | None = None) -> Sensitivity:
     """Every range's two ends and the nominal case, spread over the ranks (one variant per
     rank at a time, each on MPI.COMM_SELF), gathered on every rank.
 
-    The noise is the nominal case's value on a second mesh at the same factor: the run's
-    own error-bar mesh there, if ``levels`` (the run's) has one and the run's pilot ran at
-    another factor than the variants' (other refined places: another mesh of the same part,
-    no solve needed), else a mesh NOISE_RATIO coarser, solved here."""
+    The noise is the nominal case's value on a second mesh at the same factor refined at
+    the run's pilot places (``places``, the run's), or, when the run has none or they are
+    the dimensions' own, at the dimensions' places on a mesh NOISE_RATIO coarser. The load
+    model's ends come from ``levels`` (the run's: the one that solved them)."""
     say = progress or (lambda s: None)
     t0 = time.perf_counter()
     ranges, skipped = ranges_of(case)
@@ -304,23 +367,23 @@ def analyse_sensitivity(case: Case, comm: MPI.Comm = MPI.COMM_WORLD, progress: P
         skipped.update({r.input: "no requested mesh to solve it on" for r in ranges if r.kind == LOAD_MODEL})
         ranges = [r for r in ranges if r.kind == DIMENSION]
     factor = case.mesh_factor * MESH_RATIO
-    same = next((lv for lv in levels if math.isclose(lv.factor, factor, rel_tol=1e-9)), None)
-    if math.isclose(pilot_factor(case), pilot_factor(replace(case, mesh_factor=factor)), rel_tol=1e-9):
-        same = None  # the same pilot, the same places: the very mesh of the baseline
-    jobs: list[tuple[Case, float, str]] = [(case, factor, "nominal")]
-    if same is None:
-        jobs.append((case, factor * NOISE_RATIO, "nominal, 2nd mesh"))
+    known = known_places(replace(case, mesh_factor=factor)).hotspots
+    own = places is not None and places.source != KNOWN and tuple(places.hotspots) != tuple(known)
+    jobs: list[tuple[Case, float, Places | None, str]] = [
+        (case, factor, None, "nominal"),
+        (case, factor, places.hotspots, "nominal, the run's places") if own
+        else (case, factor * NOISE_RATIO, None, "nominal, 2nd mesh")]
     for r in (r for r in ranges if r.kind == DIMENSION):
-        jobs += [(r.variant(case, r.low), factor, f"{r.input} = {r.low:.4g} {r.unit}"),
-                 (r.variant(case, r.high), factor, f"{r.input} = {r.high:.4g} {r.unit}")]
+        jobs += [(r.variant(case, r.low), factor, None, f"{r.input} = {r.low:.4g} {r.unit}"),
+                 (r.variant(case, r.high), factor, None, f"{r.input} = {r.high:.4g} {r.unit}")]
     who = owners([1.0] * len(jobs), comm.size)
     mine: dict[int, Reading] = {}
     error = None
-    for k, (c, f, label) in enumerate(jobs):
+    for k, (c, f, at, label) in enumerate(jobs):
         if who[k] != comm.rank or error is not None:
             continue
         try:
-            mine[k] = analyse_one(c, f)
+            mine[k] = analyse_one(c, f, at)
         except Exception as exc:  # re-raised on every rank below
             error = exc
             continue
@@ -332,11 +395,11 @@ def analyse_sensitivity(case: Case, comm: MPI.Comm = MPI.COMM_WORLD, progress: P
     if errors:
         raise errors[0]
     readings = {k: rd for m, _ in gathered for k, rd in m.items()}
-    for k, (_, _, label) in enumerate(jobs):
+    for k, (_, _, _, label) in enumerate(jobs):
         if who[k] != 0:  # rank 0 said its own
             say(_line(label, who[k], readings[k]))
-    second = read_level(case, same) if same is not None else readings[1]
-    k = 1 if same is not None else 2  # the first dimension variant's job
+    second = readings[1]
+    k = 2  # the first dimension variant's job
     # The load model's ends were solved on one of the run's meshes (analyse's
     # load_variants_at): its nominal reading is their baseline, its variants their ends.
     host = next((lv for lv in levels if lv.load_variants), levels[0] if levels else None)
@@ -361,8 +424,8 @@ def analyse_sensitivity(case: Case, comm: MPI.Comm = MPI.COMM_WORLD, progress: P
                     f"critical {pair[-1].critical_MPa:.2f} MPa")
         ends.append((pair[0], pair[1]))
         baselines.append(run)
-    how = (f"the run's error-bar mesh ×{factor:.3g}, refined at the run's places" if same is not None
-           else f"a mesh ×{factor * NOISE_RATIO:.3g}, refined at its own pilot's places")
+    how = (f"a mesh ×{factor:.3g} refined at the run's pilot places instead of the dimensions' places" if own
+           else f"a mesh ×{factor * NOISE_RATIO:.3g}, refined at the dimensions' places")
     return Sensitivity(ranges=ranges, ends=ends, baselines=baselines, baseline=readings[0], second=second,
                        mesh_factor=factor,
                        not_varied=skipped, time_s=time.perf_counter() - t0, second_mesh=how)

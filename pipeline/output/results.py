@@ -14,7 +14,7 @@ from pipeline.analysis.level import Level
 from pipeline.post.peaks import MIDPOINT, UNAVERAGED, NodalPeak
 from pipeline.analysis.pilot import PILOT_FRACTION, Pilot
 from pipeline.analysis.tolerance import Accuracy
-from pipeline.analysis.sensitivity import CHECKED, Sensitivity, journal_root
+from pipeline.analysis.sensitivity import CHECKED, CONTACT_STUDY, Sensitivity, journal_root
 from pipeline.output.report import range_text, value_text
 
 
@@ -264,7 +264,37 @@ def add_sensitivity(res: dict, sens: Sensitivity, case: Case) -> None:
     entries = sensitivity_entries(sens, vals, verdicts, case)
     res["sensitivity"] = entries
     res["sensitivity_summary"] = sensitivity_summary(sens, entries, vals, verdicts)
+    res["sensitivity_summary"]["contact_study"] = contact_study_effect(case, vals, verdicts)
     res["timings_s"]["sensitivity"] = sens.time_s
+
+
+def contact_study_effect(case: Case, run_values: dict[str, float | None], verdicts: dict) -> dict | None:
+    """The load model's measured effect on the peaks: the contact study's changes of the
+    fillet's peak and of the critical peak against the cos θ model (CONTACT_STUDY, %, measured
+    on one size) applied to this run's global and critical peak (MPa), with the verdict at
+    each end; None when the run's load model is not the one the study was measured against
+    (support "bearing", cos θ over the whole bearing surface)."""
+    if case.support != "bearing" or case.bearing_shape != "cosine" or not case.bearing_band().whole:
+        return None
+    cs = CONTACT_STUDY
+
+    def applied(key: str, pct: tuple[float, float]) -> dict:
+        v = run_values.get(key)
+        vals = [None if v is None else v * (1 + p / 100) for p in pct]
+        run = verdicts.get(key) or {}
+        band = run.get("band_MPa")
+        ends = [None if x is None or run.get("verdict") in (None, "none") else
+                verdict_against(x, None if band is None else band * x / run["value_MPa"], case.allowable_MPa)
+                for x in vals]
+        return {"pct": list(pct), "MPa": vals, "verdicts": ends}
+
+    return {"source": cs.source, "measured_on": cs.size,
+            "applied_as": "measured on this size" if str(case.size) == cs.size else
+            f"relative changes measured on No. {cs.size}, not on this size",
+            "global_peak": applied("global_peak", cs.fillet_range_pct),
+            "critical_peak": applied("critical_peak", cs.critical_peak_pct),
+            "fillet_peak_pct_by_fit": {k: list(v) for k, v in cs.fillet_peak_pct.items()},
+            "edge_of_contact_pct": list(cs.edge_of_contact_pct)}
 
 
 def scaled(run_value: float | None, variant: float | None, baseline: float | None) -> float | None:

@@ -78,7 +78,7 @@ def test_vary_option_bad_range_exits_2(tmp_path, capsys):
 
 # A stand-in for the FE: global peak 100·(1.5/rf)^0.5·(20/dj)^2 MPa, critical 60 MPa
 # whatever the input, section nominal 40 MPa; a dimension outside the rules is invalid.
-def _closed_form(case, factor) -> Reading:
+def _closed_form(case, factor, places=None) -> Reading:
     try:
         validate(case.dims)
     except InputError as exc:
@@ -273,27 +273,28 @@ def test_critical_section_nominal_at_each_end_is_statics(fe_sensitivity):
             assert rd.section_MPa == pytest.approx(6 * M / ((d.b1 - d.d2) * d.h3 ** 2), rel=2e-3), (r.input, value)
 
 
-def test_the_noise_is_never_measured_on_the_baselines_own_mesh():
-    """The run's error-bar mesh at the variants' factor serves as the second mesh only when
-    the run's pilot refined other places than the baseline's: at mesh factor 2 both pilots
-    run at factor 4 (docs/design.md §9), the meshes are one and the same, and the noise
-    must come from a mesh of its own (a noise of 5e-12 MPa was reported there)."""
-    from types import SimpleNamespace
+def test_the_noise_is_measured_on_other_places_never_on_the_baselines_own_mesh():
+    """The second nominal mesh is the variants' factor refined at the run's pilot places;
+    when the run has none, or they are the very places the dimensions name (the baseline's
+    mesh again: a noise of 5e-12 MPa was reported once), a mesh NOISE_RATIO coarser."""
+    from pipeline.analysis.pilot import Pilot, known_places
+    from pipeline.analysis.sensitivity import MESH_RATIO, NOISE_RATIO
     calls = []
 
-    def one(case, factor):
-        calls.append(round(factor, 9))
+    def one(case, factor, places=None):
+        calls.append((round(factor, 9), places))
         return _closed_form(case, factor)
 
-    for mf, own_mesh in ((1.0, False), (2.0, True)):
+    # nothing to vary: every dimension given, and no bearing pressure to vary
+    case = _seats_given(support="rigid", **{"dims.dj": 20.0, "dims.rf": 1.5})
+    f = MESH_RATIO * case.mesh_factor
+    pilot_places = ((0.0, 10.5, 0.0), (24.5, 0.0, 2.7))
+    for given, second in ((Pilot(2.2, pilot_places, 0.0), (round(f, 9), pilot_places)),
+                          (None, (round(f * NOISE_RATIO, 9), None)),
+                          (known_places(case), (round(f * NOISE_RATIO, 9), None))):
         calls.clear()
-        # nothing to vary: every dimension given, and no bearing pressure to vary
-        case = _seats_given(mesh_factor=mf, support="rigid", **{"dims.dj": 20.0, "dims.rf": 1.5})
-        coarsest = SimpleNamespace(factor=mf * 1.69, peak=SimpleNamespace(value_MPa=101.0),
-                                   critical=SimpleNamespace(value_MPa=60.0), sections=None, load_variants=[])
-        sens = analyse_sensitivity(case, comm=MPI.COMM_SELF, analyse_one=one, levels=[coarsest])
-        assert (round(mf * 1.69 * 1.1, 9) in calls) == own_mesh, mf
-        assert sens.second.peak_MPa == (sens.baseline.peak_MPa if own_mesh else 101.0)
+        analyse_sensitivity(case, comm=MPI.COMM_SELF, analyse_one=one, places=given)
+        assert calls == [(round(f, 9), None), second], given
 
 
 def test_a_load_model_variant_on_the_runs_operator_is_its_own_solve():
@@ -304,9 +305,10 @@ def test_a_load_model_variant_on_the_runs_operator_is_its_own_solve():
     from pipeline.analysis.sensitivity import load_variant_cases
     case = resolve("05", None, {"mesh_factor": 3.0})
     variants = load_variant_cases(case)
-    # No. 05's bearing surface runs from x = 24 to 35 mm: its quarter-point 26.75 mm, half its length 5.5 mm
+    # No. 05's bearing surface runs from x = 24 to 35 mm (Lj 11 mm): the contact study's nearest
+    # centre of pressure 27.05 mm, a band as concentrated as its largest line load 11 / 2.5 = 4.4 mm
     assert {(v.bearing_shape, v.bearing_centre_mm, v.bearing_length_mm) for v in variants} == {
-        ("uniform", None, None), ("cosine", 26.75, None), ("cosine", None, 5.5)}
+        ("uniform", None, None), ("cosine", 27.05, None), ("cosine", None, 4.4)}
     lv = solve_level(case, 3.0, with_sections=True, comm=MPI.COMM_SELF, load_variants=variants)
     for v, (pk, crit, sec) in zip(variants, lv.load_variants):
         own = solve_level(v, 3.0, with_sections=True, comm=MPI.COMM_SELF)
