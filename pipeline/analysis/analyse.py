@@ -38,9 +38,12 @@ def analyse(case: Case, levels: int = 3, ratio: float = 1.3, msh_path: Path | No
     pilot's places, before anything is handed on. ``load_variants``: cases that differ only
     in the journal load model, solved on the operator of the error-bar mesh at mesh factor
     ``load_variants_at`` if the run has one (on its own rank, beside the others), else of
-    the requested mesh (that level's ``load_variants``). ``formula_loads``: the requested
-    mesh also solves the journal load at each hand formula's position (sections'
-    ``formula_load``).
+    the requested mesh (that level's ``load_variants``). ``formula_loads``: the journal load
+    at each hand formula's position is solved too, on the first error-bar mesh's operator
+    (on its own rank, beside the others) or the requested mesh's when the run has only
+    that; its sections go into the requested level's (sections' ``formula_load``, with
+    that mesh's factor): section quantities, integrals over a section, which the meshes
+    agree on.
     """
     with given_or_new(mesher, case.dims, case.model) as m:
         pl = pl or refinement_places(case, comm=comm, progress=progress, mesher=m)
@@ -57,9 +60,10 @@ def analyse(case: Case, levels: int = 3, ratio: float = 1.3, msh_path: Path | No
             f"({time.perf_counter() - t0:.2f} s)")
     host = next((k for k in range(1, levels) if load_variants_at is not None
                  and math.isclose(factors[k], load_variants_at, rel_tol=1e-9)), 0)
+    formula_at = 1 if formula_loads and levels > 1 else 0
     fine = solve_level(case, factors[0], keep_fields=True, with_sections=True, comm=comm, progress=progress,
                        load_mesh=loaders[0], load_variants=load_variants if host == 0 else (),
-                       formula_loads=formula_loads)
+                       formula_loads=formula_loads and formula_at == 0)
     if pl.source == KNOWN and not inside_refinement(fine.critical.location_mm, pl,
                                                     case.mesh_spec(factors[0]).edge_hotspot_radius):
         say(f"the critical peak at ({', '.join(f'{c:.2f}' for c in fine.critical.location_mm)}) mm lies outside "
@@ -75,7 +79,7 @@ def analyse(case: Case, levels: int = 3, ratio: float = 1.3, msh_path: Path | No
         if on[k] == comm.rank and error is None:
             try:
                 mine.append((k, error_bar_level(case, specs[k], loaders[k], progress if comm.rank == 0 else None,
-                                                load_variants if k == host else ())))
+                                                load_variants if k == host else (), formula_loads=k == formula_at)))
             except Exception as exc:  # re-raised on every rank below
                 error = (k, exc)
     wait_for_ranks(comm)
@@ -84,6 +88,8 @@ def analyse(case: Case, levels: int = 3, ratio: float = 1.3, msh_path: Path | No
     if errors:
         raise min(errors, key=lambda e: e[0])[1]
     out = [fine] + [lv for _, lv in sorted((kl for m, _ in gathered for kl in m), key=lambda kl: kl[0])]
+    if formula_at and fine.sections is not None:
+        fine.sections["formula_load"] = (out[formula_at].sections or {}).get("formula_load")
     for k in range(1, levels):
         if on[k] != 0:  # rank 0 printed its own
             lv = out[k]
@@ -96,21 +102,23 @@ def analyse(case: Case, levels: int = 3, ratio: float = 1.3, msh_path: Path | No
 
 
 def error_bar_level(case: Case, spec, load_mesh: Callable[[], ImportedMesh], progress: Progress | None,
-                    load_variants: Sequence[Case] = ()) -> Level:
+                    load_variants: Sequence[Case] = (), formula_loads: bool = False) -> Level:
     """One error-bar mesh solved on this rank alone: the results of an earlier run of the
     same mesh and problem scaled to the case's load (pipeline/cache/levels.py), or else a
     new solve of the mesh ``load_mesh`` gives (``spec`` its MeshSpec), then kept. With
     ``load_variants`` (load-model cases solved on this mesh's operator, with the sections
-    of each and of the case) it is always solved: the cache keeps no variants."""
+    of each and of the case) or ``formula_loads`` (the journal load at each hand formula's
+    position, level.solve_level's) it is always solved: the cache keeps no variants."""
     name = levelcache.key(case, spec)
-    lv = None if load_variants else levelcache.earlier(name, case, spec.factor)
+    lv = None if load_variants or formula_loads else levelcache.earlier(name, case, spec.factor)
     if lv is not None:
         (progress or (lambda s: None))(
             f"mesh ×{spec.factor:.3g}: the results of an earlier run at Q = {lv.scaled_from['load_N']:g} N scaled "
             f"({lv.timings['post']:.2f} s); peak {lv.peak.value_MPa:.2f} MPa, critical {lv.critical.value_MPa:.2f} MPa")
         return lv
     lv = solve_level(case, spec.factor, comm=MPI.COMM_SELF, load_mesh=load_mesh, progress=progress,
-                     with_sections=bool(load_variants), load_variants=load_variants, formula_loads=False)
+                     with_sections=bool(load_variants) or formula_loads, load_variants=load_variants,
+                     formula_loads=formula_loads)
     levelcache.store(name, lv, case)
     return lv
 

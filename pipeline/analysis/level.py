@@ -233,6 +233,8 @@ def solve_level(case: Case, factor: float, msh_path: Path | None = None,
                                    sym_idx, pk.value_MPa, bearing_centre_mm=case.bearing_band().centre_mm)
         if variants:
             sections["formula_load"] = formula_load_table(case, variants, sol, mat, share, sym_idx)
+            for row in sections["formula_load"].values():
+                row["mesh_factor"] = factor  # the mesh it was solved on (analyse: not always the requested)
     load_readings = []
     for v, sol_k in zip(load_variants, mine_sols):
         _, v_pk, v_crit = peaks_of(v, sol_k.u, mat)

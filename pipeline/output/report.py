@@ -205,7 +205,8 @@ def formula_load_lines(rows: dict | None) -> list[str]:
     L = ["### Each formula against the FE under its own load position\n",
          f"The paper puts the journal load at a different place in each formula ({appendix.FORMULAS}). "
          "Here the FE part is solved again with the bearing load on a band at each formula's own "
-         "position (same mesh and stiffness matrix, only the load differs), so that formula and FE "
+         f"position (on the mesh ×{next(iter(rows.values())).get('mesh_factor', 1):.3g} with its stiffness "
+         "matrix, only the load differs; section quantities, on which the meshes agree), so that formula and FE "
          "differ in the theory only, not in where the load sits. A band cannot be centred on the "
          "journal's tip: there it ends at the tip, and the formula at the FE load's own position is "
          "given beside it.\n",
