@@ -65,3 +65,26 @@ def test_no_effect_is_claimed_for_another_load_model():
         assert contact_study_effect(case, {"global_peak": 100.0, "critical_peak": 60.0}, {}) is None, over
     other = contact_study_effect(resolve("2.5"), {"global_peak": 100.0, "critical_peak": 60.0}, {})
     assert "not on this size" in other["applied_as"]
+
+
+@pytest.mark.slow
+def test_the_formula_positions_are_solved_on_the_first_error_bar_mesh_and_are_statics():
+    """The like-with-like rows come from the first error-bar mesh (×1.3 the requested), not
+    the requested one, and their section moment is still the statics of each formula's
+    load position: M = −Q/2 · (position − seat centroid), the seat a uniform annulus 25 to
+    37 mm (docs/design.md §5), the approximate formula's load at (b1 + b2)/2 = 28.75 mm."""
+    import math
+
+    from mpi4py import MPI
+
+    from pipeline.analysis.analyse import analyse
+    from pipeline.analysis.pilot import known_places
+    case = resolve("05", None, {"mesh_factor": 3.0})
+    lv, _ = analyse(case, levels=2, comm=MPI.COMM_SELF, pl=known_places(case))
+    rows = lv[0].sections["formula_load"]
+    ri, ro = 12.5, 18.5
+    x_seat = 4 / (3 * math.pi) * (ro ** 3 - ri ** 3) / (ro ** 2 - ri ** 2)
+    r = rows["approximate"]
+    assert r["mesh_factor"] == pytest.approx(3.0 * 1.3)
+    assert r["critical_section"]["M_Nmm"] == pytest.approx(-case.load_N / 2 * (28.75 - x_seat), rel=1e-3)
+    assert lv[1].sections["formula_load"] is rows  # the requested level carries the error-bar mesh's rows
