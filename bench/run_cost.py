@@ -122,7 +122,8 @@ def main(argv: list[str] | None = None) -> int:
     trees = {"with": ROOT, "without": ROOT, "base": base_tree(args.out, args.base)}
     t_all = time.perf_counter()
     for c in CONFIGS:  # warm-up: file caches, compiled forms
-        print(f"[{time.perf_counter() - t_all:7.1f} s] warm-up {c}: {time_run(c, trees[c], work):.2f} s", flush=True)
+        wall = time_run(c, trees[c], work)
+        print(f"[{time.perf_counter() - t_all:7.1f} s] warm-up {c}: {wall:.2f} s", flush=True)
     walls: dict[str, list[float]] = {c: [] for c in CONFIGS}
     for k in range(args.repeats):
         for c in CONFIGS:

@@ -289,7 +289,7 @@ def contact_study_effect(case: Case, run_values: dict[str, float | None], verdic
         return {"pct": list(pct), "MPa": vals, "verdicts": ends}
 
     return {"source": cs.source, "measured_on": cs.size,
-            "applied_as": "measured on this size" if str(case.size) == cs.size else
+            "applied_as": f"measured on No. {cs.size}, this size" if str(case.size) == cs.size else
             f"relative changes measured on No. {cs.size}, not on this size",
             "global_peak": applied("global_peak", cs.fillet_range_pct),
             "critical_peak": applied("critical_peak", cs.critical_peak_pct),

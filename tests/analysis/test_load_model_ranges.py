@@ -53,7 +53,7 @@ def test_the_measured_effect_on_the_global_peak_is_the_studys_applied_to_the_run
     assert eff["global_peak"]["MPa"] == pytest.approx([113.77 * 0.893, 113.77 * 1.069])
     assert eff["critical_peak"]["MPa"] == pytest.approx([66.22 * 0.868, 66.22 * 0.957])
     assert eff["edge_of_contact_pct"] == [28.0, 49.0]
-    assert eff["applied_as"] == "measured on this size"
+    assert eff["applied_as"] == "measured on No. 05, this size"
     # No. 05's allowable is 80 MPa (paper): the global peak fails at both ends, the critical passes
     assert eff["global_peak"]["verdicts"] == ["fail", "fail"]
     assert eff["critical_peak"]["verdicts"] == ["pass", "pass"]
