@@ -18,6 +18,7 @@ import argparse
 import contextlib
 import json
 import os
+import resource
 import shutil
 import statistics
 import subprocess
@@ -59,33 +60,46 @@ def command(config: str, tree: Path, out: Path) -> list[str]:
     return head + (["--no-sensitivity"] if config == "without" else [])
 
 
-def time_run(config: str, tree: Path, work: Path) -> float:
-    """One whole run's wall time (s), into a fresh folder under ``work`` that is removed after."""
+def _children_cpu_s() -> float:
+    """User + system CPU time (s) of this process's finished children and theirs."""
+    r = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return r.ru_utime + r.ru_stime
+
+
+def time_run(config: str, tree: Path, work: Path) -> tuple[float, float]:
+    """One whole run's wall and CPU time (s; CPU of every process it started, the MPI ranks
+    included), into a fresh folder under ``work`` that is removed after."""
     scratch = Path(tempfile.mkdtemp(dir=work, prefix=f"{config}-"))
     env = dict(os.environ, CROSSHEAD_NO_CACHE="1")
     try:
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), _children_cpu_s()
         p = subprocess.run(command(config, tree, scratch / "run"), cwd=tree, env=env, capture_output=True, text=True)
-        wall = time.perf_counter() - t0
+        wall, cpu = time.perf_counter() - t0, _children_cpu_s() - c0
     finally:
         shutil.rmtree(scratch)  # made here, holds only this run's folder
     if p.returncode != 0:
         raise SystemExit(f"{config}: exit {p.returncode}: {(p.stderr.strip().splitlines() or ['?'])[-1]}")
-    return wall
+    return wall, cpu
 
 
-def summarise(walls: dict[str, list[float]]) -> dict:
+def summarise(walls: dict[str, list[float]], cpus: dict[str, list[float]] | None = None) -> dict:
     """Medians (s) per configuration and the medians of the pairwise ratios (repeat k of one
-    configuration against repeat k of another: they ran minutes apart)."""
-    def ratio(a: str, b: str) -> dict:
-        rs = [x / y for x, y in zip(walls[a], walls[b])]
+    configuration against repeat k of another: they ran minutes apart); the same of the CPU
+    times when given (on a machine shared with other work, the steadier figure)."""
+    def ratio(t: dict[str, list[float]], a: str, b: str) -> dict:
+        rs = [x / y for x, y in zip(t[a], t[b])]
         return {"median": statistics.median(rs), "min": min(rs), "max": max(rs), "pairs": len(rs)}
 
     out = {c: {"median_s": statistics.median(w), "min_s": min(w), "max_s": max(w), "runs": len(w)}
            for c, w in walls.items()}
-    out["with_over_base"] = ratio("with", "base")
-    out["without_over_base"] = ratio("without", "base")
-    out["with_over_without"] = ratio("with", "without")
+    out["with_over_base"] = ratio(walls, "with", "base")
+    out["without_over_base"] = ratio(walls, "without", "base")
+    out["with_over_without"] = ratio(walls, "with", "without")
+    if cpus:
+        for c, t in cpus.items():
+            out[c]["cpu_median_s"] = statistics.median(t)
+        out["cpu_with_over_base"] = ratio(cpus, "with", "base")
+        out["cpu_without_over_base"] = ratio(cpus, "without", "base")
     out["target"] = TARGET
     out["met"] = out["with_over_base"]["median"] <= TARGET
     return out
@@ -101,6 +115,9 @@ def table(s: dict, base: str) -> str:
     rows.append(f"with / {base}: {w['median']:.2f} ({w['min']:.2f}-{w['max']:.2f}, {w['pairs']} pairs); "
                 f"without / {base}: {s['without_over_base']['median']:.2f}; with / without: "
                 f"{s['with_over_without']['median']:.2f}; target <= {TARGET:g}: {'yes' if s['met'] else 'NO'}")
+    if "cpu_with_over_base" in s:
+        rows.append(f"CPU: with / {base} {s['cpu_with_over_base']['median']:.2f}, without / {base} "
+                    f"{s['cpu_without_over_base']['median']:.2f} (medians of the pairs)")
     return "\n".join(rows)
 
 
@@ -122,18 +139,22 @@ def main(argv: list[str] | None = None) -> int:
     trees = {"with": ROOT, "without": ROOT, "base": base_tree(args.out, args.base)}
     t_all = time.perf_counter()
     for c in CONFIGS:  # warm-up: file caches, compiled forms
-        wall = time_run(c, trees[c], work)
+        wall, _ = time_run(c, trees[c], work)
         print(f"[{time.perf_counter() - t_all:7.1f} s] warm-up {c}: {wall:.2f} s", flush=True)
     walls: dict[str, list[float]] = {c: [] for c in CONFIGS}
+    cpus: dict[str, list[float]] = {c: [] for c in CONFIGS}
     for k in range(args.repeats):
         for c in CONFIGS:
-            walls[c].append(time_run(c, trees[c], work))
-            print(f"[{time.perf_counter() - t_all:7.1f} s] repeat {k + 1}/{args.repeats} {c}: {walls[c][-1]:.2f} s",
-                  flush=True)
+            wall, cpu = time_run(c, trees[c], work)
+            walls[c].append(wall)
+            cpus[c].append(cpu)
+            print(f"[{time.perf_counter() - t_all:7.1f} s] repeat {k + 1}/{args.repeats} {c}: {wall:.2f} s, "
+                  f"CPU {cpu:.2f} s", flush=True)
     with contextlib.suppress(OSError):
         work.rmdir()  # empty now: each run removed its own folder
-    summary = summarise(walls)
-    (args.out / "run_cost.json").write_text(json.dumps({"base": args.base, "walls_s": walls, "summary": summary},
+    summary = summarise(walls, cpus)
+    (args.out / "run_cost.json").write_text(json.dumps({"base": args.base, "walls_s": walls, "cpu_s": cpus,
+                                                        "summary": summary},
                                                        indent=2) + "\n", encoding="utf-8")
     print(table(summary, args.base))
     return 0

@@ -25,3 +25,12 @@ def test_the_earlier_tree_gets_its_own_launcher(tmp_path: Path):
     cmd = command("without", tmp_path, tmp_path / "o")
     assert cmd[-1] == "--no-sensitivity" and cmd[cmd.index("--size") + 1] == "05"
     assert "--no-sensitivity" not in command("with", tmp_path, tmp_path / "o")
+
+
+def test_cpu_ratios_pair_by_pair_by_hand():
+    walls = {"with": [2.0, 2.0, 2.0], "without": [1.0, 1.0, 1.0], "base": [1.0, 1.0, 1.0]}
+    cpus = {"with": [30.0, 36.0, 40.0], "without": [15.0, 18.0, 20.0], "base": [10.0, 20.0, 16.0]}
+    s = summarise(walls, cpus)
+    # pairs 30/10 = 3.0, 36/20 = 1.8, 40/16 = 2.5: median 2.5
+    assert s["cpu_with_over_base"]["median"] == 2.5 and s["with"]["cpu_median_s"] == 36.0
+    assert s["cpu_without_over_base"]["median"] == 1.25  # 1.5, 0.9, 1.25
