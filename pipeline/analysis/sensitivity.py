@@ -242,7 +242,7 @@ class ContactStudy:
 
 # docs/load-reference.md, "Results" and "Ranges for the load model's inputs" (make load-reference).
 CONTACT_STUDY = ContactStudy(
-    source="CalculiX contact, the journal in a side-plate bore (docs/load-reference.md, make load-reference)",
+    source="CalculiX contact, the journal in a side-plate bore (the load reference study, make load-reference)",
     size="05",
     centre_hanging=(0.387, 0.408),  # x_c 28.25–28.49 mm, lever 5.75–5.99 mm, every fit and mesh
     centre_standing=(0.277, 0.347),  # x_c 27.05–27.82 mm, lever 4.55–5.32 mm
