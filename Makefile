@@ -60,7 +60,7 @@ bench-peer: $(SETUP)
 
 # Design-study throughput: every size on 2 ranks and on 1, and a 24-variant rf x dj grid of
 # No. 05 (targets 60 s, 90 s, 2 ranks >= 1.8x): about 10 minutes per repeat on 2 cores.
-SWEEP_BENCH_ARGS ?= --repeats 1
+SWEEP_BENCH_ARGS ?= --repeats 1 $(if $(SWEEP_BENCH_BASE),--base $(SWEEP_BENCH_BASE))
 bench-sweeps: $(SETUP)
 	$(PY) -m bench.sweeps --out results/bench-sweeps $(SWEEP_BENCH_ARGS)
 

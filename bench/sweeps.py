@@ -1,24 +1,35 @@
 """Design-study throughput: whole `pipeline sweep` processes timed on this machine (s).
 
-    python -m bench.sweeps --out results/bench-sweeps [--repeats 3]     (make bench-sweeps)
+    python -m bench.sweeps --out results/bench-sweeps [--repeats 3] [--base DIR]   (make bench-sweeps)
 
-Three studies, each a fresh process into a fresh folder with the run cache off, every
-variant with its error bar (three meshes):
+Each study is a fresh process into a fresh folder with the run cache off:
 
-- ``sizes-2``: every row of geometry/sizes.csv on 2 MPI ranks (what `make sizes` runs);
-- ``sizes-1``: the same on one rank, for the throughput ratio of 2 ranks to 1;
-- ``grid-2``: No. 05 at the default mesh, rf × dj = 6 × 4 = 24 variants, on 2 ranks.
+- ``sizes-2``: every row of geometry/sizes.csv on 2 MPI ranks, every variant with its
+  error bar (what `make sizes` runs); ``sizes-1`` the same on one rank, for the
+  throughput ratio of 2 ranks to 1;
+- ``grid-2``: No. 05 at the default mesh, rf × dj = 6 × 4 = 24 variants, on 2 ranks;
+- ``grid-full`` / ``grid-screen``: that grid against an allowable of 120 MPa (the global
+  peak crosses it along rf), every variant with its error bar, and screened (``--screen``:
+  one coarse mesh first, the full error bar only where the decision needs it;
+  docs/sweeps.md, *Screened studies*);
+- ``sizes-full`` / ``sizes-screen``: the 19 sizes the same way, at 80 MPa.
 
-The configurations take turns (sizes-2, sizes-1, grid-2, sizes-2, ...) so that a drift of
-the machine's speed touches all alike; the figures are medians over ``--repeats``. The
-targets (docs/performance.md, *Where things stand*): 19 sizes ≤ 60 s, 24 variants ≤ 90 s,
-2 ranks ≥ 1.8× the throughput of 1. Writes sweeps.json and prints a table.
+A ``*-full`` study runs today's code when ``--base`` names a checkout of it (the same
+.venv), else this code without ``--screen``. The configurations take turns (each repeat
+runs every one) so that a drift of the machine's speed touches all alike; the figures are
+medians over ``--repeats``. A screened study is compared with its full study of the same
+repeat: its decisions (each row's verdict per peak, the crossings of the allowable) must
+be identical, and each variant's cheap band must hold the full study's value with its
+band. The targets: 19 sizes <= 60 s, 24 variants <= 90 s, 2 ranks >= 1.8x the throughput
+of 1, a screened study >= 3x faster than its full one (medians). Writes sweeps.json and
+prints a table.
 """
 from __future__ import annotations
 
 import argparse
 import contextlib
 import json
+import math
 import os
 import shutil
 import statistics
@@ -31,18 +42,31 @@ from pipeline.runtime.folders import marked_kind, refusal
 
 ROOT = Path(__file__).resolve().parents[1]
 GRID = ["--size", "05", "--dim", "rf=0.5:2.5:6", "--dim", "dj=16,17,18,19"]
+GRID_ALLOWABLE = ["--allowable", "120"]  # MPa: the grid's global peak crosses it along rf
+SIZES_ALLOWABLE = ["--allowable", "80"]  # MPa: St 50's lower value (paper: 80-120 MPa)
+# name -> (MPI ranks, sweep arguments, run by today's code when --base is given)
 STUDIES = {
-    "sizes-2": (2, ["--sizes", "all"]),
-    "sizes-1": (1, ["--sizes", "all"]),
-    "grid-2": (2, GRID),
+    "sizes-2": (2, ["--sizes", "all"], False),
+    "sizes-1": (1, ["--sizes", "all"], False),
+    "grid-2": (2, GRID, False),
+    "grid-full": (2, GRID + GRID_ALLOWABLE, True),
+    "grid-screen": (2, GRID + GRID_ALLOWABLE + ["--screen"], False),
+    "sizes-full": (2, ["--sizes", "all"] + SIZES_ALLOWABLE, True),
+    "sizes-screen": (2, ["--sizes", "all"] + SIZES_ALLOWABLE + ["--screen"], False),
 }
+SCREENED = {"grid-screen": "grid-full", "sizes-screen": "sizes-full"}  # screened -> its full study
+DEFAULT_STUDIES = ("grid-full", "grid-screen", "sizes-full", "sizes-screen")
 TARGETS_S = {"sizes-2": 60.0, "grid-2": 90.0}
 TARGET_SPEEDUP = 1.8
+TARGET_SCREEN_SPEEDUP = 3.0
 OWN_FILES = frozenset({"sweeps.json", "work"})  # what it writes into --out
+VERDICTS = ("verdict", "critical_verdict")
+CROSSING_KEYS = ("peak", "axis", "fixed", "falls_below", "only_crossing", "last", "range_reaches")
 
 
-def command(ranks: int, args: list[str], out: Path) -> list[str]:
-    """The sweep's command line on ``ranks`` MPI ranks (pipeline.runtime.launch for more than one)."""
+def command(ranks: int, args: list[str], out: Path, base: bool = False) -> list[str]:
+    """The sweep's command line on ``ranks`` MPI ranks (pipeline.runtime.launch for more
+    than one); ``base`` (today's code) changes only the folder it runs in."""
     head = [sys.executable, "-m", "pipeline"] if ranks == 1 else [sys.executable, "-m", "pipeline.runtime.launch", str(ranks)]
     return head + ["sweep", *args, "--out", str(out), "--quiet"]
 
@@ -57,21 +81,93 @@ def remove_study(out: Path) -> None:
     shutil.rmtree(out)
 
 
-def time_study(name: str, work: Path) -> dict:
-    """Run one study into a fresh folder under ``work``; its wall time (s) and row counts."""
-    ranks, args = STUDIES[name]
-    out = work / name
+def time_study(name: str, work: Path, base: Path | None = None) -> dict:
+    """Run one study into a fresh folder under ``work`` (today's code from ``base`` for a
+    study that asks for it); its wall time (s), row counts, decisions and, per variant,
+    its peaks (MPa) and what decided it."""
+    ranks, args, old = STUDIES[name]
+    out = (work / name).resolve()
     remove_study(out)  # the previous repeat's
     env = dict(os.environ, CROSSHEAD_NO_CACHE="1")
     t0 = time.perf_counter()
-    p = subprocess.run(command(ranks, args, out), cwd=ROOT, env=env, capture_output=True, text=True)
+    p = subprocess.run(command(ranks, args, out), cwd=base if (old and base) else ROOT, env=env,
+                       capture_output=True, text=True)
     wall = time.perf_counter() - t0
     if p.returncode != 0:
         raise SystemExit(f"{name}: exit {p.returncode}: {(p.stderr.strip().splitlines() or ['?'])[-1]}")
-    rows = json.loads((out / "sweep.json").read_text(encoding="utf-8"))["rows"]
-    statuses = [r.get("status") for r in rows]
+    res = json.loads((out / "sweep.json").read_text(encoding="utf-8"))
+    statuses = [r.get("status") for r in res["rows"]]
+    found = {"wall_s": wall, "variants": len(res["rows"]), "ok": statuses.count("done"),
+             "code": str(base) if (old and base) else "this", **outcome(res, out)}
     remove_study(out)
-    return {"wall_s": wall, "variants": len(rows), "ok": statuses.count("done")}
+    return found
+
+
+def row_name(row: dict) -> str:
+    """A row's inputs as one text that is the same in every code's study (its key is not:
+    it hashes the code)."""
+    return json.dumps([json.loads(row["parameters"]), row.get("load_N")], sort_keys=True)
+
+
+def outcome(res: dict, out: Path) -> dict:
+    """What a study decided (sweep.json's content ``res``; its folder ``out``): per row its
+    status and verdicts, its peaks (value, band; MPa) and how it was decided, and the
+    crossings of the allowable."""
+    rows = {}
+    for r in res["rows"]:
+        screening = out / "variants" / r["variant"] / "screening.json"
+        s = json.loads(screening.read_text(encoding="utf-8")) if screening.is_file() else None
+        rows[row_name(r)] = {"status": r["status"], **{v: r.get(v) for v in VERDICTS},
+                             "peak": [r.get("peak_MPa"), r.get("peak_band_MPa")],
+                             "critical": [r.get("critical_peak_MPa"), r.get("critical_band_MPa")],
+                             "decided_by": r.get("decided_by") or "",
+                             "cheap": None if s is None or not s.get("peaks") else
+                             {b: [s["peaks"][b]["value_MPa"], s["peaks"][b]["band_MPa"]] for b in ("peak", "critical")}}
+    return {"rows": rows, "crossings": res["crossings"], "allowable_MPa": res["allowable_MPa"]}
+
+
+def differences(full: dict, screened: dict) -> list[str]:
+    """Where a screened study's decisions differ from its full study's: a row's status or
+    verdict per peak, or a crossing of the allowable (place and range equal to 1e-9)."""
+    diffs = []
+    for name in sorted(set(full["rows"]) | set(screened["rows"])):
+        a, b = full["rows"].get(name), screened["rows"].get(name)
+        if a is None or b is None:
+            diffs.append(f"{name}: in one study only")
+            continue
+        for k in ("status", *VERDICTS):
+            if a[k] != b[k]:
+                diffs.append(f"{name}: {k} {a[k]} (full) against {b[k]} (screened)")
+    if len(full["crossings"]) != len(screened["crossings"]):
+        diffs.append(f"{len(full['crossings'])} crossings (full) against {len(screened['crossings'])} (screened)")
+    for x, y in zip(full["crossings"], screened["crossings"]):
+        same = all(x[k] == y[k] for k in CROSSING_KEYS) and math.isclose(x["at"], y["at"], rel_tol=1e-9)
+        same = same and ((x["range"] is None) == (y["range"] is None)) and (
+            x["range"] is None or all(math.isclose(u, v, rel_tol=1e-9, abs_tol=1e-12)
+                                      for u, v in zip(x["range"], y["range"])))
+        if not same:
+            diffs.append(f"crossing of the {x['peak']} along {x['axis']} at {x['fixed']}: {x['at']:.6g} "
+                         f"{x['range']} (full) against {y['at']:.6g} {y['range']} (screened)")
+    return diffs
+
+
+def coverage(full: dict, screened: dict) -> list[dict]:
+    """Per variant of a screened study, per peak: the cheap level's value and band (MPa),
+    the full study's value and band, and whether the cheap band holds the full value and
+    the full value with its band."""
+    out = []
+    for name, b in screened["rows"].items():
+        a = full["rows"].get(name)
+        if a is None or b["cheap"] is None or a["status"] != "done":
+            continue
+        for peak in ("peak", "critical"):
+            (c, cb), (v, vb) = b["cheap"][peak], a[peak]
+            if c is None or v is None:
+                continue
+            out.append({"row": name, "peak": peak, "cheap_MPa": c, "cheap_band_MPa": cb, "full_MPa": v,
+                        "full_band_MPa": vb, "covers_value": abs(v - c) <= cb,
+                        "covers_band": abs(v - c) + (vb or 0.0) <= cb, "decided_by": b["decided_by"]})
+    return out
 
 
 def summarise(runs: dict[str, list[dict]]) -> dict:
@@ -90,6 +186,19 @@ def summarise(runs: dict[str, list[dict]]) -> dict:
         out["speedup_2_over_1"] = {"median": statistics.median(ratios), "pairs": len(ratios),
                                    "target": TARGET_SPEEDUP,
                                    "met": statistics.median(ratios) >= TARGET_SPEEDUP}
+    for screen, full in SCREENED.items():
+        if screen in runs and full in runs:
+            ratio = out[full]["median_s"] / out[screen]["median_s"]
+            diffs = [d for a, b in zip(runs[full], runs[screen]) for d in differences(a, b)]
+            cover = [c for a, b in zip(runs[full], runs[screen]) for c in coverage(a, b)]
+            cheap = [r for r in runs[screen][0]["rows"].values() if r["decided_by"].startswith("screened")]
+            out[f"{screen}_against_full"] = {
+                "median_ratio": ratio, "target": TARGET_SCREEN_SPEEDUP, "met": ratio >= TARGET_SCREEN_SPEEDUP,
+                "paired_ratios": [a["wall_s"] / b["wall_s"] for a, b in zip(runs[full], runs[screen])],
+                "decided_cheaply": len(cheap), "rows": len(runs[screen][0]["rows"]),
+                "identical_decisions": not diffs, "differences": diffs,
+                "cheap_bands": len(cover), "cover_values": sum(c["covers_value"] for c in cover),
+                "cover_bands": sum(c["covers_band"] for c in cover), "coverage": cover}
     return out
 
 
@@ -102,8 +211,17 @@ def table(summary: dict) -> str:
             continue
         target = f"<= {s['target_s']:.0f} s" if s["target_s"] else "-"
         met = ("yes" if s["met"] else "NO") if "met" in s else "-"
-        lines.append(f"{name:10s} {s['variants']:4d} ({s['ok']:2d})      {s['median_s']:7.1f} "
+        lines.append(f"{name:12s} {s['variants']:4d} ({s['ok']:2d})    {s['median_s']:7.1f} "
                      f"({s['min_s']:.1f}-{s['max_s']:.1f})        {target:9s} {met}")
+    for screen, full in SCREENED.items():
+        c = summary.get(f"{screen}_against_full")
+        if c:
+            lines.append(f"{screen} against {full}: {c['median_ratio']:.2f}x faster (medians; target >= "
+                         f"{c['target']:g}x: {'yes' if c['met'] else 'NO'}); {c['decided_cheaply']} of {c['rows']} "
+                         f"rows decided cheaply; decisions identical: {'yes' if c['identical_decisions'] else 'NO'}; "
+                         f"cheap bands holding the full value {c['cover_values']}/{c['cheap_bands']}, "
+                         f"with its band {c['cover_bands']}/{c['cheap_bands']}")
+            lines += [f"  differs: {d}" for d in c["differences"][:10]]
     sp = summary.get("speedup_2_over_1")
     if sp:
         lines.append(f"2 ranks / 1 rank throughput: {sp['median']:.2f}x (median of {sp['pairs']} pairs; "
@@ -115,12 +233,19 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="python -m bench.sweeps", description=__doc__.split("\n\n")[0])
     ap.add_argument("--out", type=Path, default=ROOT / "results" / "bench-sweeps")
     ap.add_argument("--repeats", type=int, default=1, help="runs of each study (default 1)")
-    ap.add_argument("--studies", default=",".join(STUDIES), help=f"comma list of {', '.join(STUDIES)}")
+    ap.add_argument("--studies", default=",".join(DEFAULT_STUDIES), help=f"comma list of {', '.join(STUDIES)} "
+                    f"(default {','.join(DEFAULT_STUDIES)})")
+    ap.add_argument("--base", type=Path, help="a checkout of today's code (same .venv) for the *-full studies, "
+                    "e.g. a git worktree of main; default: this code without --screen")
     args = ap.parse_args(argv)
     names = [n for n in args.studies.split(",") if n]
     unknown = [n for n in names if n not in STUDIES]
     if unknown or args.repeats < 1:
         print(f"bench.sweeps: unknown study {unknown}" if unknown else "bench.sweeps: --repeats must be >= 1",
+              file=sys.stderr)
+        return 2
+    if args.base is not None and not (args.base / "pipeline" / "__main__.py").is_file():
+        print(f"bench.sweeps: --base {args.base} is not a checkout of crosshead (no pipeline/__main__.py)",
               file=sys.stderr)
         return 2
     why = refusal(args.out, OWN_FILES)
@@ -133,10 +258,10 @@ def main(argv: list[str] | None = None) -> int:
     t_all = time.perf_counter()
     for k in range(args.repeats):
         for name in names:
-            r = time_study(name, work)
+            r = time_study(name, work, args.base and args.base.resolve())
             runs[name].append(r)
             print(f"[{time.perf_counter() - t_all:7.1f} s] repeat {k + 1}/{args.repeats} {name}: "
-                  f"{r['wall_s']:.1f} s, {r['ok']}/{r['variants']} variants ok", flush=True)
+                  f"{r['wall_s']:.1f} s, {r['ok']}/{r['variants']} variants ok", file=sys.stderr, flush=True)
     with contextlib.suppress(OSError):
         work.rmdir()  # empty now: each study removed its own folder
     summary = summarise(runs)

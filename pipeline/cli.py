@@ -235,6 +235,10 @@ def make_parser() -> argparse.ArgumentParser:
     sweep.add_argument("--study", type=Path, help="a study file (TOML with a [sweep] table), e.g. cases/sweep-rf.toml")
     sweep.add_argument("--levels", type=int, help="meshes per variant for its error bar (default 3; 1 = none; 2 is refused)")
     sweep.add_argument("--ratio", type=_number, help="mesh-size ratio between them (default 1.3)")
+    sweep.add_argument("--screen", action="store_true",
+                       help="decide each variant with the least work: one coarse mesh first, the full error bar only "
+                            "where its band holds the allowable or the variant borders a crossing; needs an allowable "
+                            "(--allowable or the case file's)")
     sweep.add_argument("--sensitivity", action="store_true",
                        help="each variant also varies its assumed inputs (dj, rf, seat, bearing load model) over "
                             "their ranges, and the table says which verdicts depend on one (about doubles a variant's "
@@ -477,6 +481,7 @@ def _sweep(args, rank0: bool) -> int:
     from pipeline.study.plan import read_study
     from pipeline.inputs.valuelist import MOST_DIM_VALUES, parse_loads, parse_values
     from pipeline.study.sweep import execute_sweep
+    from pipeline.inputs.case import read_case_file
     if args.bearing_at is not None:
         raise InputError("bearing_at: a sweep takes --bearing-centre (and --bearing-length), not --bearing-at")
     study = read_study(args.study) if args.study else {}
@@ -522,9 +527,14 @@ def _sweep(args, rank0: bool) -> int:
     if not axes and len(loads) < 2 and not sizes:
         raise InputError("dim: a sweep needs at least one --dim NAME=VALUES, several loads or --sizes")
     out = args.out or (Path(study["out"]) if "out" in study else default_out(f"sweep-{size or Path(case_file).stem}"))
+    screen = args.screen or bool(study.get("screen", False))
+    if screen and "allowable_MPa" not in base and not (
+            case_file is not None and "allowable_MPa" in read_case_file(case_file)):
+        raise InputError("screen: a screened study decides against an allowable; give --allowable MPa "
+                         "(or allowable_MPa in the case file), or leave screening off for the full analysis")
     say = (lambda s: None) if args.quiet else _progress
     res = execute_sweep(size, case_file, base, axes, loads, out, levels, ratio, say, sizes=sizes,
-                        memory_limit_gb=args.memory_limit, sensitivity=args.sensitivity)
+                        memory_limit_gb=args.memory_limit, sensitivity=args.sensitivity, screen=screen)
     if rank0 and res is not None and not args.quiet:
         from pipeline.study.table import passing_count
         c = res["counts"]

@@ -19,9 +19,10 @@ from pipeline.cache.codekey import code_key
 from pipeline.errors import InputError
 
 # A study file's [sweep] keys and their TOML types.
-TOML_NAMES = {str: "a string", int: "an integer", float: "a number", dict: "a table", list: "an array of numbers"}
+TOML_NAMES = {str: "a string", int: "an integer", float: "a number", dict: "a table", list: "an array of numbers",
+              bool: "true or false"}
 STUDY_KEYS = {"size": (str,), "case": (str,), "dims": (dict,), "load": (str, int, float, list), "levels": (int,),
-              "ratio": (int, float), "mesh_factor": (int, float), "out": (str,)}
+              "ratio": (int, float), "mesh_factor": (int, float), "out": (str,), "screen": (bool,)}
 
 
 @dataclass(frozen=True)
@@ -72,7 +73,7 @@ def plan(size: str | None, case_file: Path | None, base: dict, axes: dict[str, l
 def read_study(path: Path) -> dict:
     """A study file (TOML, e.g. cases/sweep-rf.toml): its [sweep] table with ``size`` or
     ``case``, ``dims`` (NAME = "START:STOP:COUNT" or "a,b,c"), ``load``, ``levels``,
-    ``ratio``, ``mesh_factor``, ``out``. Read by the guarded reader case files share
+    ``ratio``, ``mesh_factor``, ``out``, ``screen`` (true: a screened study). Read by the guarded reader case files share
     (pipeline.inputs.tomlfile). A relative ``case`` or ``out`` is taken from the study
     file's folder, as a Path: the file means the same wherever the command starts."""
     from geometry.table import Dimensions
@@ -87,7 +88,7 @@ def read_study(path: Path) -> dict:
         types = STUDY_KEYS.get(key)
         if types is None:
             raise InputError(f"sweep.{key}: unknown key in {path}; known: {', '.join(STUDY_KEYS)}")
-        if isinstance(value, bool) or not isinstance(value, types):
+        if (isinstance(value, bool) and bool not in types) or not isinstance(value, types):
             raise InputError(f"sweep.{key}: expected {' or '.join(TOML_NAMES[t] for t in types)} in {path}, "
                              f"got {value!r}")
     names = list(Dimensions.__dataclass_fields__)

@@ -56,7 +56,8 @@ def hook_value(size: str) -> float:
 def row_of(folder: Path, res: dict) -> dict:
     """One summary row (CSV_COLUMNS and the folder) from one results.json: the run's row
     at the case's own load (pipeline.output.flat), with where its dimensions come from."""
-    rows = flat.rows(res)
+    from pipeline.study.table import decided_rows
+    rows = decided_rows(res, folder)  # a screened study's variant as the study decided it
     row = next((r for r in rows if r["load_N"] == res["case"]["load_N"]), rows[0])
     src = row["source"]
     m = _S_RE.search(src)
@@ -197,6 +198,7 @@ def markdown(rows: list[dict], skipped: list[str], png_name: str | None) -> str:
     if places:
         notes.append(" ".join(places))
     notes += _status_notes(rows)
+    notes += _screening_notes(rows)
     notes += _run_notes(rows, skipped)
     lines += [f"- {n}" for n in notes]
     if png_name:
@@ -330,6 +332,16 @@ def _status_notes(rows: list[dict]) -> list[str]:
         notes.append("*unsettled*: the peak still falls between the meshes without a steady rate "
                      "(not in the asymptotic range); the bar is the largest change, no extrapolation.")
     return notes
+
+
+def _screening_notes(rows: list[dict]) -> list[str]:
+    """Which rows of a screened study were decided on its cheap level and which got the
+    full error bar, with the evidence (pipeline.analysis.screening); nothing otherwise."""
+    by: dict[str, list[str]] = {}
+    for r in rows:
+        if r.get("decided_by"):
+            by.setdefault(r["decided_by"], []).append(r["size"])
+    return [f"Decided by {how}: No. {', '.join(sizes)}." for how, sizes in by.items()]
 
 
 def _run_notes(rows: list[dict], skipped: list[str]) -> list[str]:

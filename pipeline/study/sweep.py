@@ -34,6 +34,7 @@ from pipeline.runtime.interrupts import on_stop, stop_outcome
 # importing it here, on every rank as the command starts, keeps rank 0's later memory probe
 # from being the only rank to do so (it met the others' broadcast and aborted them).
 from pipeline.fe.meshing import heartbeat
+from pipeline.runtime.atomicfile import write_text
 from pipeline.study.manifest import MANIFEST, failure_fault, folder_fault, write_failure, write_manifest
 from pipeline.study.plan import Task, earlier_variants, failure_file, plan, variant_folder
 from pipeline.study.table import inputs_text, write_outputs
@@ -55,11 +56,27 @@ def _claim(out: Path, key: str) -> bool:
         return False
 
 
-def _done(out: Path, key: str) -> bool:
+def _done(out: Path, key: str, full: bool = True) -> bool:
     """Has task ``key`` ended, with results or with its failure written, each matching
-    its checksums? (Results without them are a run that stopped, or files changed since.)"""
+    its checksums? (Results without them are a run that stopped, or files changed since.)
+    With ``full``, results of the cheap level of a screened study
+    (pipeline.analysis.screening) do not count: the task wants its full error bar."""
     failed = failure_file(out, key)
-    return folder_fault(variant_folder(out, key)) is None or (failed.is_file() and failure_fault(failed) is None)
+    if failed.is_file() and failure_fault(failed) is None:
+        return True
+    folder = variant_folder(out, key)
+    if folder_fault(folder) is not None:
+        return False
+    return not full or screening(folder) is None or screening(folder)["full_error_bar"]
+
+
+def screening(folder: Path) -> dict | None:
+    """The cheap level's reading kept in a variant's folder (screening.json), or None: a
+    variant of a study that was not screened. Read only from a folder whose files match
+    their checksums."""
+    from pipeline.analysis.screening import FILE
+    f = folder / FILE
+    return json.loads(f.read_text(encoding="utf-8")) if f.is_file() else None
 
 
 def _ended(out: Path, key: str) -> bool:
@@ -91,7 +108,8 @@ def discard_damaged(out: Path, tasks: list[Task], say: Progress) -> list[str]:
         why = None if t.case is None else fault_of(out, t.key)
         if why is None:
             continue
-        for p in (variant_folder(out, t.key), failure_file(out, t.key), out / ".claims" / t.key):
+        for p in (variant_folder(out, t.key), failure_file(out, t.key), out / ".claims" / t.key,
+                  out / ".claims" / f"{t.key}.full"):
             _remove(p)
         say(f"sweep: variant {t.key} ({inputs_text(t.params)}): {why}; analysed again")
         keys.append(t.key)
@@ -118,44 +136,97 @@ def _remove(path: Path) -> None:
         path.unlink(missing_ok=True)
 
 
-def run_task(task: Task, out: Path, levels: int, ratio: float, sensitivity: bool = False) -> None:
+def run_task(task: Task, out: Path, levels: int, ratio: float, sensitivity: bool = False,
+             screen: bool = False, why_full: str | None = None) -> None:
     """Analyse one task on this rank alone, then write the checksums of its files; a
     failure is written beside (with its own checksum), never raised. What the task left
     before (files that failed their checksums) is removed first, so that only this run's
-    files are found."""
+    files are found. ``screen``: the cheap level only (one coarse mesh,
+    pipeline.analysis.screening), whose reading goes into screening.json; when it fails,
+    the full analysis runs at once. ``why_full``: the full analysis of a screened study's
+    variant, which keeps the cheap level's reading with why it was not enough."""
     from geometry.part import GeometryError
 
+    from pipeline.analysis.screening import FILE, screen_case, screening_of
     from pipeline.commands import execute_run
     case = replace(task.case, load_N=task.loads[0])
     folder, failed = variant_folder(out, task.key), failure_file(out, task.key)
+    cheap = screening(folder) if why_full is not None and folder_fault(folder) is None else None
     _remove(folder)
     _remove(failed)
+    loads = list(task.loads) if len(task.loads) > 1 else None
+    if screen:
+        try:
+            execute_run(screen_case(case), folder, levels=1, ratio=ratio, write_fields=False, write_mesh=False,
+                        loads=loads, comm=MPI.COMM_SELF)
+            write_text(folder / FILE, json.dumps(screening_of(read_results_file(folder)), indent=1) + "\n")
+            write_manifest(folder)
+            return
+        except (NumericalError, GeometryError, InputError) as exc:
+            _remove(folder)
+            why_full = f"the cheap level failed: {' '.join(str(exc).split())}"
     try:
         execute_run(case, folder, levels=levels, ratio=ratio, write_fields=False,
-                    write_mesh=False, loads=list(task.loads) if len(task.loads) > 1 else None, comm=MPI.COMM_SELF,
+                    write_mesh=False, loads=loads, comm=MPI.COMM_SELF,
                     sensitivity=sensitivity)
     except (NumericalError, GeometryError, InputError) as exc:
         write_failure(failed, {"error": " ".join(str(exc).split()), "size": case.size, "parameters": task.params})
         return
+    if why_full is not None:
+        kept = dict(cheap or {"peaks": None}, full_error_bar=True, why_full=why_full)
+        write_text(folder / FILE, json.dumps(kept, indent=1) + "\n")
     write_manifest(folder)
 
 
+def read_results_file(folder: Path) -> dict:
+    """The results.json a run just wrote into ``folder``."""
+    return json.loads((folder / "results.json").read_text(encoding="utf-8"))
+
+
 def work(tasks: list[Task], out: Path, levels: int, ratio: float, say: Progress, before: int,
-         sensitivity: bool = False) -> None:
+         sensitivity: bool = False, screen: bool = False, full: dict[str, str] | None = None) -> None:
     """Every rank takes the next unclaimed, unfinished task until none is left; ``before``
-    tasks had finished when the study started (the pace counts only this run's)."""
-    todo = [t for t in tasks if t.case is not None]
+    tasks had finished when the study started (the pace counts only this run's).
+    ``screen``: each task on the cheap level only. ``full``: the full analysis of these
+    tasks of a screened study (key -> why the cheap level was not enough)."""
+    todo = [t for t in tasks if t.case is not None and (full is None or t.key in full)]
     t0 = time.perf_counter()
+    what = "screened" if screen else "done" if full is None else "given the full error bar"
     for task in todo:
-        if _done(out, task.key) or not _claim(out, task.key):
+        if _done(out, task.key, full=not screen) or not _claim(out, task.key + ("" if full is None else ".full")):
             continue
         # A variant says nothing until it ends: a large one (a fine mesh, a small fillet)
         # is heard from every HEARTBEAT_S while it runs.
         with heartbeat(say, f"sweep: variant {inputs_text(task.params)}"):
-            run_task(task, out, levels, ratio, sensitivity)
-        finished = sum(_ended(out, t.key) for t in todo)
-        say(f"sweep: {finished}/{len(todo)} variants done; "
+            run_task(task, out, levels, ratio, sensitivity, screen=screen,
+                     why_full=None if full is None else full[task.key])
+        finished = sum(_done(out, t.key, full=not screen) if full is not None else _ended(out, t.key) for t in todo)
+        say(f"sweep: {finished}/{len(todo)} variants {what}; "
             f"about {time_left_s(time.perf_counter() - t0, finished - before, len(todo) - finished):.0f} s left")
+
+
+def escalate(tasks: list[Task], out: Path, axes: dict[str, list[float]], allowable: float, levels: int,
+             ratio: float, say: Progress, comm: MPI.Comm, sensitivity: bool = False) -> None:
+    """The second step of a screened study: the variants whose cheap band holds the
+    allowable (MPa), or that border a crossing of it, get the full error bar; repeated,
+    since a variant analysed in full can move a crossing next to one decided cheaply,
+    until no variant needs it (pipeline.study.table.escalations)."""
+    from pipeline.study.table import escalations, rows_of, swept_axes, with_verdicts
+    while True:
+        request = comm.Ibarrier()
+        while not request.Test():
+            time.sleep(0.05)
+        todo = None
+        if comm.rank == 0:
+            rows = with_verdicts(rows_of(tasks, out), allowable)
+            todo = {k: w for k, w in escalations(rows, swept_axes(axes), allowable).items()
+                    if not _done(out, k, full=True)}
+            if todo:
+                say(f"sweep: {_count(len(todo), 'variant')} {'needs' if len(todo) == 1 else 'need'} the full error bar")
+        todo = comm.bcast(todo, root=0)
+        if not todo:
+            return
+        work(tasks, out, levels, ratio, say, 0, sensitivity, full=todo)
 
 
 def _count(n: int, noun: str) -> str:
@@ -204,10 +275,13 @@ def remove_earlier_variants(out: Path, tasks: list[Task], say: Progress) -> None
 def execute_sweep(size: str | None, case_file: Path | None, base: dict, axes: dict[str, list[float]],
                   loads: list[float], out: Path, levels: int, ratio: float, say: Progress,
                   comm: MPI.Comm = MPI.COMM_WORLD, sizes: list[str] | None = None,
-                  memory_limit_gb: float | None = None, sensitivity: bool = False) -> dict | None:
+                  memory_limit_gb: float | None = None, sensitivity: bool = False,
+                  screen: bool = False) -> dict | None:
     """Plan, check memory and the output folder, work on every rank, summarise on rank 0.
     Only rank 0 calls ``say``. ``sensitivity``: each variant varies its assumed inputs too
-    (pipeline/analysis/sensitivity.py), and the table says whether its verdict holds."""
+    (pipeline/analysis/sensitivity.py), and the table says whether its verdict holds.
+    ``screen``: every variant is first analysed on the cheap level, and only those it
+    does not decide get the full error bar (:func:`escalate`)."""
     from pipeline.runtime.outdir import MARKER, acquire_lock, check_out
     if comm.rank != 0:
         say = lambda s: None  # noqa: E731
@@ -247,8 +321,12 @@ def execute_sweep(size: str | None, case_file: Path | None, base: dict, axes: di
         if lock is not None:  # a stop ends the process with os._exit: the finally below never runs
             stack.enter_context(on_stop(lock.release))
         try:
+            allowable = next((t.case.allowable_MPa for t in tasks if t.case is not None), 80.0)
+            axes_out = dict(axes, **({"load_N": loads} if len(loads) > 1 else {}))
             for round_ in range(REPAIR_ROUNDS + 1):
-                work(tasks, out, levels, ratio, say, before, sensitivity)
+                work(tasks, out, levels, ratio, say, before, sensitivity, screen=screen)
+                if screen:
+                    escalate(tasks, out, axes_out, allowable, levels, ratio, say, comm, sensitivity)
                 request = comm.Ibarrier()
                 while not request.Test():
                     time.sleep(0.05)
@@ -259,8 +337,6 @@ def execute_sweep(size: str | None, case_file: Path | None, base: dict, axes: di
                     break
             if comm.rank == 0:
                 remove_earlier_variants(out, tasks, say)
-                allowable = next((t.case.allowable_MPa for t in tasks if t.case is not None), 80.0)
-                axes_out = dict(axes, **({"load_N": loads} if len(loads) > 1 else {}))
                 return write_outputs(tasks, out, axes_out, allowable)
             return None
         finally:

@@ -25,8 +25,10 @@ OWN_COLUMNS = {
                "none at a singular feature; empty when not asked for",
     "critical_verdict": "the same for the critical peak",
     "note": "why a variant is invalid, failed or not read, or why a peak has no value",
+    "decided_by": "a screened study's evidence for the row: the cheap level (one coarse mesh, its bands) or "
+                  "the full error bar and why the cheap level was not enough; empty when not screened",
 }
-COLUMNS = ("variant", "status", "parameters", *flat.COLUMNS, "verdict", "critical_verdict", "note")
+COLUMNS = ("variant", "status", "parameters", *flat.COLUMNS, "verdict", "critical_verdict", "note", "decided_by")
 # Each peak's verdict column (pass, fail or undecided against the allowable).
 VERDICT_OF = {"peak": "verdict", "critical": "critical_verdict"}
 # Per peak: (value, band, name) and (value, band, verdict) columns of a row.
@@ -54,8 +56,24 @@ def rows_of(tasks: list[Task], out: Path) -> list[dict]:
             note = {} if why is None else {"note": f"{why}: not read (the same command analyses it again)"}
             rows += [dict(base, status="not run", load_N=q, **note) for q in t.loads]
             continue
-        rows += [_done_row(base, r) for r in flat.rows(res)]
+        rows += [_done_row(base, r) for r in decided_rows(res, variant_folder(out, t.key))]
     return rows
+
+
+def decided_rows(res: dict, folder: Path) -> list[dict]:
+    """The rows (pipeline.output.flat) of the run in ``folder`` (its results.json content
+    ``res``), as its study decided it: a variant of a screened study decided on the cheap
+    level carries that level's bands and the status "screened"; each row's ``decided_by``
+    says on what evidence (empty for a study that was not screened)."""
+    from pipeline.analysis.screening import FILE, evidence, screened_rows
+    rows = flat.rows(res)
+    f = folder / FILE
+    if not f.is_file():
+        return rows
+    s = json.loads(f.read_text(encoding="utf-8"))
+    if not s["full_error_bar"]:
+        rows = screened_rows(rows, s)
+    return [dict(r, decided_by=evidence(s)) for r in rows]
 
 
 def _done_row(base: dict, r: dict) -> dict:
@@ -116,26 +134,57 @@ def crossings(rows: list[dict], axis: str, allowable: float) -> list[dict]:
     every variant of the line before it lies on one side and every one after it on the
     other, so the peak stays on its new side up to ``last``, the line's last value."""
     found = []
+    for fixed, (key, band_key, label), group, i in crossing_pairs(rows, axis, allowable):
+        a, b = group[i], group[i + 1]
+        ya, yb = a[key] - allowable, b[key] - allowable
+        x = a[axis] + ya / (ya - yb) * (b[axis] - a[axis])
+        lo_hi, reaches = None, []
+        if a.get(band_key) is not None and b.get(band_key) is not None:
+            t0, t1 = band_reach(ya, yb, a[band_key], b[band_key])
+            lo_hi = [a[axis] + t * (b[axis] - a[axis]) for t in (t0, t1)]
+            reaches = [r[axis] for r, t in ((a, t0), (b, t1)) if t in (0.0, 1.0)]
+        falls = yb < ya
+        before, after = group[:i + 1], group[i + 1:]
+        only = (all((r[key] >= allowable) == falls for r in before)
+                and all((r[key] < allowable) == falls for r in after))
+        found.append({"peak": label, "axis": axis, "at": x, "range": lo_hi, "range_reaches": reaches,
+                      "falls_below": falls, "fixed": dict(fixed),
+                      "only_crossing": only, "last": group[-1][axis]})
+    return found
+
+
+def crossing_pairs(rows: list[dict], axis: str, allowable: float):
+    """The neighbouring variants between which a peak crosses the allowable (MPa) along
+    ``axis``: per line of :func:`series` and peak, (the line's fixed (name, value) pairs,
+    the peak's (value, band, name) columns, the line's rows that have the peak, the index
+    of the first of the two). A row on the allowable counts as a crossing to its next."""
     for fixed, line in series(rows, axis).items():
-        for key, band_key, label in PEAKS:
+        for cols in PEAKS:
+            key = cols[0]
             group = [r for r in line if r.get(key) is not None]  # a peak not asked for has none
             for i, (a, b) in enumerate(zip(group, group[1:])):
                 ya, yb = a[key] - allowable, b[key] - allowable
                 if ya == 0 or ya * yb < 0:
-                    x = a[axis] + ya / (ya - yb) * (b[axis] - a[axis])
-                    lo_hi, reaches = None, []
-                    if a.get(band_key) is not None and b.get(band_key) is not None:
-                        t0, t1 = band_reach(ya, yb, a[band_key], b[band_key])
-                        lo_hi = [a[axis] + t * (b[axis] - a[axis]) for t in (t0, t1)]
-                        reaches = [r[axis] for r, t in ((a, t0), (b, t1)) if t in (0.0, 1.0)]
-                    falls = yb < ya
-                    before, after = group[:i + 1], group[i + 1:]
-                    only = (all((r[key] >= allowable) == falls for r in before)
-                            and all((r[key] < allowable) == falls for r in after))
-                    found.append({"peak": label, "axis": axis, "at": x, "range": lo_hi, "range_reaches": reaches,
-                                  "falls_below": falls, "fixed": dict(fixed),
-                                  "only_crossing": only, "last": group[-1][axis]})
-    return found
+                    yield fixed, cols, group, i
+
+
+def escalations(rows: list[dict], axes: list[str], allowable: float) -> dict[str, str]:
+    """The variants of a screened study that need the full error bar, each with why: a row
+    of theirs whose band holds the allowable (MPa) or that has a singular peak
+    (pipeline.analysis.screening.undecided), or a neighbour of a crossing of the
+    allowable along one of ``axes`` (its value and band set the crossing's place and
+    range). Rows already analysed in full count as they are."""
+    from pipeline.analysis.screening import undecided
+    why: dict[str, str] = {}
+    for r in rows:
+        if r["status"] == "done" and undecided(r, allowable):
+            why.setdefault(r["variant"], f"its band holds the allowable {allowable:g} MPa")
+    for axis in axes:
+        for _, (_, _, label), group, i in crossing_pairs(rows, axis, allowable):
+            for r in group[i:i + 2]:
+                why.setdefault(r["variant"], f"it borders a crossing of the {label} along "
+                                             f"{axis.replace('dims.', '')}")
+    return why
 
 
 def band_reach(ya: float, yb: float, wa: float, wb: float) -> tuple[float, float]:
@@ -169,6 +218,12 @@ def with_verdicts(rows: list[dict], allowable: float) -> list[dict]:
     return rows
 
 
+def swept_axes(axes: dict[str, list[float]]) -> list[str]:
+    """The axes a study's lines run along: those with several values, numeric only (not
+    the hook number)."""
+    return [n for n in axes if len(axes[n]) > 1 and n != "size"]
+
+
 def write_outputs(tasks: list[Task], out: Path, axes: dict[str, list[float]], allowable: float) -> dict:
     """sweep.csv, sweep.json, plots and report.md from the variants' results (rank 0)."""
     rows = with_verdicts(rows_of(tasks, out), allowable)
@@ -178,7 +233,7 @@ def write_outputs(tasks: list[Task], out: Path, axes: dict[str, list[float]], al
         w = csv.DictWriter(f, fieldnames=cols, extrasaction="ignore")
         w.writeheader()
         w.writerows(rows)
-    swept = [n for n in names if len(axes[n]) > 1 and n != "size"]  # numeric axes only
+    swept = swept_axes(axes)
     cross = [c for n in swept for c in crossings(rows, n, allowable)]
     first = next((t.case for t in tasks if t.case is not None), None)
     summary = {"units": {"length": "mm", "force": "N", "stress": "MPa"}, "allowable_MPa": allowable,
@@ -381,6 +436,27 @@ def crossing_text(x: dict, allowable: float, varying: set[str] | None = None) ->
             + (f", for {fixed}" if fixed else "") + ".")
 
 
+def screening_lines(rows: list[dict]) -> list[str]:
+    """A screened study's evidence: how many variants its cheap level decided, on what
+    (mesh, bands), and which got the full error bar and why; nothing for a study that was
+    not screened."""
+    by: dict[str, list[dict]] = {}
+    for r in rows:
+        if r["status"] == "done" and r.get("decided_by"):
+            by.setdefault(r["decided_by"], []).append(r)
+    if not by:
+        return []
+    n = sum(len(v) for v in by.values())
+    cheap = sum(len(v) for k, v in by.items() if k.startswith("screened"))
+    lines = [f"- Screened study: {cheap} of {n} analysed cases decided on the cheap level, "
+             f"{n - cheap} with the full error bar (docs/sweeps.md, *Screened studies*)."]
+    for how, rs in by.items():
+        more = len(rs) - MOST_NAMED
+        names = "; ".join(parameters_text(r, False) for r in rs[:MOST_NAMED]) + (f"; and {more} more" if more > 0 else "")
+        lines.append(f"  - {how}: {names}.")
+    return lines
+
+
 def _report(summary: dict, swept: list[str], plots: list[str]) -> str:
     c = summary["counts"]
     L = ["# Design study\n", "Units: mm, N, MPa.\n",
@@ -396,6 +472,7 @@ def _report(summary: dict, swept: list[str], plots: list[str]) -> str:
     L.append(f"## Against the allowable ({summary['allowable_MPa']:g} MPa)\n")
     L += _side_lines(summary)
     L += _passing_lines(summary)
+    L += screening_lines(summary["rows"])
     L.append("")
     # A study over sizes alone has no numeric axis to cross the allowable along: no line.
     if swept and not summary["crossings"]:
