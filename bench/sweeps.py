@@ -229,6 +229,14 @@ def table(summary: dict) -> str:
     return "\n".join(lines)
 
 
+def write_json(out: Path, runs: dict[str, list[dict]]) -> dict:
+    """sweeps.json in ``out``: the runs and their summary (:func:`summarise`), which it returns."""
+    summary = summarise(runs)
+    (out / "sweeps.json").write_text(json.dumps({"runs": runs, "summary": summary}, indent=2) + "\n",
+                                     encoding="utf-8")
+    return summary
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="python -m bench.sweeps", description=__doc__.split("\n\n")[0])
     ap.add_argument("--out", type=Path, default=ROOT / "results" / "bench-sweeps")
@@ -262,12 +270,10 @@ def main(argv: list[str] | None = None) -> int:
             runs[name].append(r)
             print(f"[{time.perf_counter() - t_all:7.1f} s] repeat {k + 1}/{args.repeats} {name}: "
                   f"{r['wall_s']:.1f} s, {r['ok']}/{r['variants']} variants ok", file=sys.stderr, flush=True)
+            write_json(args.out, {n: rs for n, rs in runs.items() if rs})  # what is measured so far
     with contextlib.suppress(OSError):
         work.rmdir()  # empty now: each study removed its own folder
-    summary = summarise(runs)
-    (args.out / "sweeps.json").write_text(json.dumps({"runs": runs, "summary": summary}, indent=2) + "\n",
-                                          encoding="utf-8")
-    print(table(summary))
+    print(table(write_json(args.out, runs)))
     return 0
 
 
