@@ -4,7 +4,7 @@ import json
 
 import pytest
 
-from bench.sweeps import STUDIES, command, remove_study, summarise
+from bench.sweeps import STUDIES, command, coverage, differences, remove_study, summarise
 from pipeline.runtime.outdir import MARKER
 
 
@@ -23,8 +23,8 @@ def test_medians_ratio_and_verdicts():
 
 
 def test_commands_use_the_launcher_for_two_ranks(tmp_path):
-    one = command(*STUDIES["sizes-1"], tmp_path)
-    two = command(*STUDIES["sizes-2"], tmp_path)
+    one = command(*STUDIES["sizes-1"][:2], tmp_path)
+    two = command(*STUDIES["sizes-2"][:2], tmp_path)
     assert one[1:3] == ["-m", "pipeline"] and "sweep" in one
     assert two[1:4] == ["-m", "pipeline.runtime.launch", "2"] and two[-3:] == ["--out", str(tmp_path), "--quiet"]
 
@@ -60,3 +60,35 @@ def test_a_bench_tool_refuses_a_folder_it_did_not_write(tmp_path, module, capsys
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "refusing" in err and "thesis.tex" in err, err
     assert [p.name for p in user.iterdir()] == ["thesis.tex"]
+
+
+def _outcome(rows: dict, crossings: list) -> dict:
+    return {"rows": rows, "crossings": crossings, "allowable_MPa": 120.0}
+
+
+def _r(verdict, peak, cheap=None, decided_by=""):
+    return {"status": "done", "verdict": verdict, "critical_verdict": "pass", "peak": peak, "critical": [66.0, 0.1],
+            "decided_by": decided_by, "cheap": cheap}
+
+
+def test_a_screened_study_is_compared_with_its_full_one_decision_by_decision():
+    x = {"peak": "global peak", "axis": "dims.rf", "fixed": {"size": "05"}, "falls_below": True,
+         "only_crossing": True, "last": 2.5, "range_reaches": [], "at": 2.2, "range": [2.1, 2.3]}
+    full = _outcome({"a": _r("fail", [130.0, 1.0]), "b": _r("pass", [110.0, 1.0])}, [x])
+    same = _outcome({"a": _r("fail", [130.0, 1.0]), "b": _r("pass", [110.0, 1.0])}, [dict(x)])
+    assert differences(full, same) == []
+    moved = _outcome({"a": _r("fail", [130.0, 1.0]), "b": _r("undecided", [110.0, 1.0])},
+                     [dict(x, range=[2.1, 2.4])])
+    d = differences(full, moved)
+    assert len(d) == 2 and "verdict pass (full) against undecided (screened)" in d[0] and "crossing" in d[1]
+    # Cheap 125 ± 12.5 holds 130 but not 130 ± 1 (|130 - 125| + 1 = 6 <= 12.5: it does);
+    # cheap 100 ± 10 holds 110 only at the edge (10 <= 10) and not 110 ± 1.
+    cheap = _outcome({"a": _r("fail", None, {"peak": [125.0, 12.5], "critical": [66.0, 2.0]}),
+                      "b": _r("pass", None, {"peak": [100.0, 10.0], "critical": [66.0, 2.0]})}, [x])
+    c = {(r["row"], r["peak"]): (r["covers_value"], r["covers_band"]) for r in coverage(full, cheap)}
+    assert c == {("a", "peak"): (True, True), ("a", "critical"): (True, True),
+                 ("b", "peak"): (True, False), ("b", "critical"): (True, True)}
+    s = summarise({"grid-full": [dict(full, wall_s=120.0, variants=2, ok=2)],
+                   "grid-screen": [dict(cheap, wall_s=30.0, variants=2, ok=2)]})["grid-screen_against_full"]
+    assert s["median_ratio"] == 4.0 and s["met"] is True and s["identical_decisions"] is True
+    assert (s["cover_values"], s["cover_bands"], s["cheap_bands"]) == (4, 3, 4)

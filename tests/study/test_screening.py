@@ -1,0 +1,129 @@
+"""Screened design studies (pipeline/analysis/screening.py, pipeline/study/table.escalations):
+the cheap level's bands, which variants get the full error bar, and that the decisions
+then equal the full study's. Made-up peaks (MPa) whose answers are worked out here."""
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from pipeline.analysis.screening import MARGIN, SCREENED, screening_of, screened_rows, undecided
+from pipeline.output import flat
+from pipeline.study.plan import read_study
+from pipeline.study.table import crossings, escalations, with_verdicts
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def _res(peak, critical, mesh_factor=2.2):
+    """A results.json's content as screening_of reads it: (midpoint, unaveraged, averaged) per peak."""
+    fe = {"peak_MPa": peak[0], "critical_peak_MPa": critical[0]}
+    for block, (_, un, av) in (("peak", peak), ("critical", critical)):
+        fe[block] = {"unaveraged_MPa": un, "averaged_MPa": av}
+    return {"fe": fe, "case": {"mesh_factor": mesh_factor}}
+
+
+def test_the_band_is_the_margin_or_the_bracket_whichever_is_wider():
+    s = screening_of(_res((100.0, 104.0, 96.0), (60.0, 60.0, 59.0)))
+    # Global: half the gap 4 < 10 % of 100 = 10; critical: half the gap 0.5 < 3 % of 60 = 1.8.
+    assert MARGIN == {"peak": 0.10, "critical": 0.03}
+    assert s["peaks"]["peak"]["band_MPa"] == pytest.approx(10.0)
+    assert s["peaks"]["critical"]["band_MPa"] == pytest.approx(1.8)
+    wide = screening_of(_res((110.0, 130.0, 90.0), (60.0, 60.0, 59.0)))
+    assert wide["peaks"]["peak"]["band_MPa"] == pytest.approx(20.0)  # the bracket, 20 > 11
+    assert wide["peaks"]["peak"]["fraction"] == pytest.approx(20.0 / 110.0)
+    assert s["full_error_bar"] is False
+
+
+def _row(variant, rf, peak, band, critical=60.0, critical_band=0.6, status="converged", load=10000.0):
+    r = {c: None for c in flat.COLUMNS}
+    r.update({"variant": variant, "status": "done", "parameters": json.dumps({"dims.rf": rf}), "dims.rf": rf,
+              "size": "05", "load_N": load, "peak_MPa": peak, "peak_band_MPa": band, "peak_status": status,
+              "critical_peak_MPa": critical, "critical_band_MPa": critical_band, "critical_status": status})
+    return r
+
+
+def test_a_screened_row_carries_the_same_fraction_at_every_load():
+    s = screening_of(_res((100.0, 104.0, 96.0), (60.0, 60.0, 59.0)))
+    rows = screened_rows([_row("a", 1.0, 100.0, None), _row("a", 1.0, 50.0, None, 30.0, None, load=5000.0)], s)
+    assert [r["peak_band_MPa"] for r in rows] == pytest.approx([10.0, 5.0])
+    assert [r["critical_band_MPa"] for r in rows] == pytest.approx([1.8, 0.9])
+    assert {r["peak_status"] for r in rows} == {SCREENED}
+
+
+def test_straddling_bands_and_the_neighbours_of_a_crossing_get_the_full_error_bar():
+    # rf 1..4 at 150, 130, 110, 90 MPa, each ±10 %; allowable 120: 130 ± 13 and 110 ± 11
+    # hold it, and they are also the crossing's neighbours; 150 ± 15 fails, 90 ± 9 passes.
+    rows = [_row(k, rf, v, 0.1 * v) for k, rf, v in (("a", 1.0, 150.0), ("b", 2.0, 130.0), ("c", 3.0, 110.0),
+                                                      ("d", 4.0, 90.0))]
+    why = escalations(rows, ["dims.rf"], 120.0)
+    assert set(why) == {"b", "c"} and why["b"].startswith("its band holds")
+    # At 100 MPa: 110 ± 11 holds it; 90 ± 9 (81..99) passes but borders the crossing.
+    why = escalations(rows, ["dims.rf"], 100.0)
+    assert set(why) == {"c", "d"}
+    assert why["d"] == "it borders a crossing of the global peak along rf"
+    assert not undecided(rows[0], 100.0)
+
+
+def test_a_singular_peak_is_left_to_the_full_analysis():
+    r = _row("a", 1.0, None, None, status=flat.SINGULAR)
+    assert undecided(r, 120.0)
+
+
+def _screened_study(full: list[dict], cheap: dict[str, tuple[float, float]], allowable: float) -> list[dict]:
+    """What a screened study ends with: every row at its cheap value and band, then rows
+    escalated to their full values until escalations() asks for none (as sweep.escalate)."""
+    by = {r["variant"]: r for r in full}
+    rows = {k: dict(by[k], peak_MPa=v, peak_band_MPa=b, peak_status=SCREENED) for k, (v, b) in cheap.items()}
+    while True:
+        why = {k for k in escalations(list(rows.values()), ["dims.rf"], allowable)
+               if rows[k]["peak_status"] == SCREENED}
+        if not why:
+            return with_verdicts(list(rows.values()), allowable)
+        rows.update({k: dict(by[k]) for k in why})
+
+
+def test_the_decisions_equal_the_full_study_when_the_cheap_bands_hold_the_full_ones():
+    """A line along rf whose peak crosses the allowable twice; the cheap values off by
+    +6 %, -4 %, ... with ±10 % bands, each holding the full value ± its 1 % band. The
+    screened study must give the full study's verdicts and crossings, place and range."""
+    full_values = [170.0, 140.0, 118.0, 96.0, 84.0, 100.0, 130.0]
+    offsets = [0.06, -0.04, 0.05, -0.06, 0.03, 0.07, -0.05]
+    full = [_row(f"v{i}", float(i), v, 0.01 * v) for i, v in enumerate(full_values)]
+    cheap = {f"v{i}": (v * (1 + d), 0.1 * v * (1 + d)) for i, (v, d) in enumerate(zip(full_values, offsets))}
+    for k, (c, b) in cheap.items():  # the premise: each cheap band holds the full value ± band
+        f = next(r for r in full if r["variant"] == k)
+        assert abs(c - f["peak_MPa"]) + f["peak_band_MPa"] <= b
+    for allowable in (80.0, 105.0, 120.0, 150.0):
+        want = with_verdicts([dict(r) for r in full], allowable)
+        got = _screened_study(full, cheap, allowable)
+        assert [r["verdict"] for r in got] == [r["verdict"] for r in want], allowable
+        assert crossings(got, "dims.rf", allowable) == crossings(want, "dims.rf", allowable), allowable
+    # At 150 MPa the cheap values 180.2 ± 18.0 (fails) and 134.4 ± 13.4 (passes) border the
+    # one crossing and get the full error bar; the other five pass on their cheap bands.
+    got = _screened_study(full, cheap, 150.0)
+    assert sum(r["peak_status"] == SCREENED for r in got) == 5  # only 170 and 140 border the crossing
+
+
+def test_a_study_file_asks_for_screening_with_true_only(tmp_path):
+    good = tmp_path / "a.toml"
+    good.write_text('[sweep]\nsize = "05"\ndims = { rf = "1,2" }\nscreen = true\n')
+    assert read_study(good)["screen"] is True
+    bad = tmp_path / "b.toml"
+    bad.write_text('[sweep]\nsize = "05"\ndims = { rf = "1,2" }\nscreen = "yes"\n')
+    from pipeline.errors import InputError
+    with pytest.raises(InputError, match="sweep.screen: expected true or false"):
+        read_study(bad)
+
+
+def test_screening_without_an_allowable_is_refused_before_any_work(tmp_path):
+    out = tmp_path / "study"
+    p = subprocess.run([sys.executable, "-m", "pipeline", "sweep", "--size", "05", "--dim", "rf=1,2", "--screen",
+                        "--out", str(out)], cwd=ROOT, capture_output=True, text=True, timeout=300,
+                       env=dict(os.environ))
+    assert p.returncode == 2 and p.stderr.count("\n") == 1 and "screen:" in p.stderr and "--allowable" in p.stderr
+    assert not out.exists()
