@@ -41,7 +41,8 @@ def screening_of(res: dict) -> dict:
     for block in flat.PEAKS:
         b = fe[block]
         value = fe["peak_MPa" if block == "peak" else "critical_peak_MPa"]
-        gap = 0.5 * abs(b["unaveraged_MPa"] - b["averaged_MPa"])
+        un, av = b.get("unaveraged_MPa"), b.get("averaged_MPa")
+        gap = 0.0 if un is None or av is None else 0.5 * abs(un - av)
         band = max(MARGIN[block] * abs(value), gap)
         peaks[block] = {"value_MPa": value, "band_MPa": band, "fraction": band / abs(value) if value else 0.0,
                         "bracket_MPa": gap}
