@@ -56,6 +56,9 @@ STUDIES = {
 }
 SCREENED = {"grid-screen": "grid-full", "sizes-screen": "sizes-full"}  # screened -> its full study
 DEFAULT_STUDIES = ("grid-full", "grid-screen", "sizes-full", "sizes-screen")
+# --quick: the grid's line at dj = 17 mm (6 variants) and 6 sizes spread over the table,
+# for a machine too busy for the whole studies in one sitting.
+QUICK = {"dj=16,17,18,19": "dj=17", "all": "025,05,1.6,5,16,50"}
 TARGETS_S = {"sizes-2": 60.0, "grid-2": 90.0}
 TARGET_SPEEDUP = 1.8
 TARGET_SCREEN_SPEEDUP = 3.0
@@ -81,11 +84,13 @@ def remove_study(out: Path) -> None:
     shutil.rmtree(out)
 
 
-def time_study(name: str, work: Path, base: Path | None = None) -> dict:
+def time_study(name: str, work: Path, base: Path | None = None, quick: bool = False) -> dict:
     """Run one study into a fresh folder under ``work`` (today's code from ``base`` for a
-    study that asks for it); its wall time (s), row counts, decisions and, per variant,
-    its peaks (MPa) and what decided it."""
+    study that asks for it; with ``quick`` its smaller form, QUICK); its wall time (s), row
+    counts, decisions and, per variant, its peaks (MPa) and what decided it."""
     ranks, args, old = STUDIES[name]
+    if quick:
+        args = [QUICK.get(a, a) for a in args]
     out = (work / name).resolve()
     remove_study(out)  # the previous repeat's
     env = dict(os.environ, CROSSHEAD_NO_CACHE="1")
@@ -243,6 +248,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--repeats", type=int, default=1, help="runs of each study (default 1)")
     ap.add_argument("--studies", default=",".join(DEFAULT_STUDIES), help=f"comma list of {', '.join(STUDIES)} "
                     f"(default {','.join(DEFAULT_STUDIES)})")
+    ap.add_argument("--quick", action="store_true", help="smaller studies: the grid's line at dj = 17 mm and "
+                    f"the sizes {QUICK['all']} (for a busy machine)")
     ap.add_argument("--base", type=Path, help="a checkout of today's code (same .venv) for the *-full studies, "
                     "e.g. a git worktree of main; default: this code without --screen")
     args = ap.parse_args(argv)
@@ -266,7 +273,7 @@ def main(argv: list[str] | None = None) -> int:
     t_all = time.perf_counter()
     for k in range(args.repeats):
         for name in names:
-            r = time_study(name, work, args.base and args.base.resolve())
+            r = time_study(name, work, args.base and args.base.resolve(), args.quick)
             runs[name].append(r)
             print(f"[{time.perf_counter() - t_all:7.1f} s] repeat {k + 1}/{args.repeats} {name}: "
                   f"{r['wall_s']:.1f} s, {r['ok']}/{r['variants']} variants ok", file=sys.stderr, flush=True)
