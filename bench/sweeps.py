@@ -125,7 +125,7 @@ def outcome(res: dict, out: Path) -> dict:
         rows[row_name(r)] = {"status": r["status"], **{v: r.get(v) for v in VERDICTS},
                              "peak": [r.get("peak_MPa"), r.get("peak_band_MPa")],
                              "critical": [r.get("critical_peak_MPa"), r.get("critical_band_MPa")],
-                             "decided_by": r.get("decided_by") or "",
+                             "decided_by": r.get("decided_by") or "", "time_s": r.get("time_s"),
                              "cheap": None if s is None or not s.get("peaks") else
                              {b: [s["peaks"][b]["value_MPa"], s["peaks"][b]["band_MPa"]] for b in ("peak", "critical")}}
     return {"rows": rows, "crossings": res["crossings"], "allowable_MPa": res["allowable_MPa"]}
