@@ -25,6 +25,7 @@ import pytest
 from hypothesis import HealthCheck, event, given, settings
 from hypothesis import strategies as st
 
+import pipeline.analysis.tolerance
 import pipeline.analysis.level
 import pipeline.fe.solve
 import pipeline.commands
@@ -81,6 +82,7 @@ def tripwire(monkeypatch):
     def boom(*a, **k):
         raise AssertionError("bad input reached the mesher/solver")
     monkeypatch.setattr(pipeline.commands, "analyse", boom)
+    monkeypatch.setattr(pipeline.analysis.tolerance, "analyse", boom)  # run's path to a tolerance
     monkeypatch.setattr(pipeline.commands, "refinement_places", boom)
 
 

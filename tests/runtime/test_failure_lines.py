@@ -117,6 +117,7 @@ def test_stdout_full_after_publication_says_the_results_were_written(tmp_path, e
 def test_a_cache_failure_names_the_cache(tmp_path, earlier, monkeypatch, capsys):
     """A read-only form cache (any OSError on a path under the cache folder): the line names
     the cache and its path, not --out ("out: cannot write <the cache's file>" is untrue)."""
+    import pipeline.analysis.tolerance
     import pipeline.commands
     from pipeline import cli
     from pipeline.runtime.environment import CACHE_HOME
@@ -125,6 +126,7 @@ def test_a_cache_failure_names_the_cache(tmp_path, earlier, monkeypatch, capsys)
     def read_only(*a, **k):
         raise OSError(errno.EROFS, os.strerror(errno.EROFS), str(place))
     monkeypatch.setattr(pipeline.commands, "analyse", read_only)
+    monkeypatch.setattr(pipeline.analysis.tolerance, "analyse", read_only)  # run's path to a tolerance
     out = tmp_path / "res"
     shutil.copytree(earlier, out)
     before = {p.name: p.read_bytes() for p in out.iterdir()}
