@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from pipeline.output.picture import (COLOURS, _scale_column, _surface_actor, _text, _turbo, _write_png,
+from pipeline.output.picture import (COLOURS, _ball, _scale_column, _surface_actor, _text, _turbo, _write_png,
                                      boundary_surface, element_nodes)
 
 FILE = "mesh_closeup.png"
@@ -70,25 +70,14 @@ def _edged_surface(points: np.ndarray, tri: np.ndarray, values: np.ndarray, lut)
 def _panel(window, col: int, surface, view: View, title: str, colour: tuple[float, float, float]):
     """Panel ``col``: ``surface`` seen along ``-view.normal`` with a parallel projection of
     half-height ``view.half_height_mm``, a ball at the peak's node and the panel's title."""
-    from vtkmodules.vtkFiltersSources import vtkSphereSource
-    from vtkmodules.vtkRenderingCore import vtkActor, vtkLightKit, vtkPolyDataMapper, vtkRenderer
+    from vtkmodules.vtkRenderingCore import vtkLightKit, vtkRenderer
     ren = vtkRenderer()
     ren.SetViewport(PANELS[col][0], 0.0, PANELS[col][1], 1.0)
     ren.SetBackground(1.0, 1.0, 1.0)
     vtkLightKit().AddLightsToRenderer(ren)
     window.AddRenderer(ren)
     ren.AddActor(surface)
-    ball = vtkSphereSource()
-    ball.SetCenter(*view.node)
-    ball.SetRadius(0.25 * view.edge_mm)
-    ball.SetThetaResolution(24)
-    ball.SetPhiResolution(24)
-    mapper = vtkPolyDataMapper()
-    mapper.SetInputConnection(ball.GetOutputPort())
-    marker = vtkActor()
-    marker.SetMapper(mapper)
-    marker.GetProperty().SetColor(*colour)
-    ren.AddActor(marker)
+    ren.AddActor(_ball(view.node, 0.25 * view.edge_mm, colour))
     cam = ren.GetActiveCamera()
     cam.ParallelProjectionOn()
     cam.SetFocalPoint(*view.node)

@@ -381,10 +381,8 @@ def _panel(window: vtkRenderWindow, scene: _Scene, col: int) -> vtkRenderer:
     return ren
 
 
-def _peak_mark(ren: vtkRenderer, label: str, value: float, colour: tuple[float, float, float],
-               place: np.ndarray, radius_mm: float) -> None:
-    """A ball of ``radius_mm`` at ``place`` (mm) and a label "label: value MPa" drawn on
-    top of everything at the same place, so it stays readable where the ball is small."""
+def _ball(place: np.ndarray, radius_mm: float, colour: tuple[float, float, float]):
+    """A ball of ``radius_mm`` at ``place`` (mm): how a peak's place is marked."""
     from vtkmodules.vtkFiltersSources import vtkSphereSource
     from vtkmodules.vtkRenderingCore import vtkActor, vtkPolyDataMapper
     sphere = vtkSphereSource()
@@ -397,7 +395,14 @@ def _peak_mark(ren: vtkRenderer, label: str, value: float, colour: tuple[float, 
     ball = vtkActor()
     ball.SetMapper(mapper)
     ball.GetProperty().SetColor(*colour)
-    ren.AddActor(ball)
+    return ball
+
+
+def _peak_mark(ren: vtkRenderer, label: str, value: float, colour: tuple[float, float, float],
+               place: np.ndarray, radius_mm: float) -> None:
+    """A ball of ``radius_mm`` at ``place`` (mm) and a label "label: value MPa" drawn on
+    top of everything at the same place, so it stays readable where the ball is small."""
+    ren.AddActor(_ball(place, radius_mm, colour))
     tag = _text(f"{label}: {value:.1f} MPa", 26, colour, box=True)
     tag.GetPositionCoordinate().SetCoordinateSystemToWorld()  # drawn on top, at the peak
     tag.GetPositionCoordinate().SetValue(*place)
