@@ -79,23 +79,8 @@ def test_balls_left_out_do_not_change_the_mesh(monkeypatch):
     image kept (a distance of 0 to the part keeps them all), node for node."""
     spec = replace(MeshSpec.default_for(D05, 3.0), hotspots=PLACES, size_hotspot=0.5, hotspot_radius=0.6,
                    size_edge_hotspot=0.5, edge_hotspot_radius=0.6)
-    counts, got = [], []
-    for keep_all in (False, True):
-        gmsh.initialize(readConfigFiles=False)
-        gmsh.option.setNumber("General.Terminal", 0)
-        try:
-            build(D05, "quarter")
-            made = []
-            balls = sizing._balls
-            with monkeypatch.context() as m:
-                if keep_all:
-                    m.setattr(sizing, "_box_distance", lambda p, box: 0.0)
-                m.setattr(sizing, "_balls", lambda *a: _counted(balls, made, *a))
-                sizing.mesh(D05, spec)
-            got.append(_digest())
-            counts.append(len(made))
-        finally:
-            gmsh.finalize()
+    counts, got = zip(*(_mesh_counting_balls(monkeypatch, "quarter", spec, keep_all) for keep_all in (False, True)))
+    counts = list(counts)
     # (0, 10.5, 0) has 2 images, both within reach; (23.25, 8, 6.25) has 4, and those at
     # x = -23.25 lie 23.25 and 24.6 mm from the part, beyond radius + thickness =
     # 0.6 + (12 - 1.5) / 0.5 = 21.6 mm (sizes x 3: hmax 0.16 h3 x 3 = 12 mm, h_s 1.5 mm).
@@ -103,11 +88,29 @@ def test_balls_left_out_do_not_change_the_mesh(monkeypatch):
     assert got[0] == got[1]
 
 
-def _counted(balls, made: list, *args) -> list[int]:
-    """sizing._balls, its fields' tags also appended to ``made``."""
-    tags = balls(*args)
-    made.extend(tags)
-    return tags
+def _mesh_counting_balls(monkeypatch, model: str, spec: MeshSpec, keep_all: bool = False) -> tuple[int, tuple[int, str]]:
+    """No. 05's ``model`` meshed to ``spec`` in a gmsh session of its own: the number of
+    Ball fields made and the mesh's digest. ``keep_all``: every mirror image is taken to
+    reach the part (a distance of 0), so none is left out."""
+    gmsh.initialize(readConfigFiles=False)
+    gmsh.option.setNumber("General.Terminal", 0)
+    try:
+        build(D05, model)
+        made: list[int] = []
+        balls = sizing._balls
+
+        def counted(*args) -> list[int]:
+            tags = balls(*args)
+            made.extend(tags)
+            return tags
+        with monkeypatch.context() as m:
+            if keep_all:
+                m.setattr(sizing, "_box_distance", lambda p, box: 0.0)
+            m.setattr(sizing, "_balls", counted)
+            sizing.mesh(D05, spec)
+        return len(made), _digest()
+    finally:
+        gmsh.finalize()
 
 
 @pytest.mark.slow
@@ -116,22 +119,9 @@ def test_a_place_and_its_mirror_image_make_one_set_of_balls(monkeypatch):
     and the mesh is the one of the place alone (the Balls mirror every place anyway)."""
     p = PLACES[1]
     mirrored = (p, (-p[0], p[1], p[2]), (p[0], -p[1], p[2]))
-    calls, got = [], []
-    for places in ((p,), mirrored):
-        gmsh.initialize(readConfigFiles=False)
-        gmsh.option.setNumber("General.Terminal", 0)
-        try:
-            build(D05, "full")
-            spec = replace(MeshSpec.default_for(D05, 4.0), hotspots=places, size_hotspot=0.5, hotspot_radius=0.6,
-                           size_edge_hotspot=0.5, edge_hotspot_radius=0.6)
-            made = []
-            balls = sizing._balls
-            with monkeypatch.context() as m:
-                m.setattr(sizing, "_balls", lambda *a: _counted(balls, made, *a))
-                sizing.mesh(D05, spec)
-            got.append(_digest())
-            calls.append(len(made))
-        finally:
-            gmsh.finalize()
+    specs = [replace(MeshSpec.default_for(D05, 4.0), hotspots=places, size_hotspot=0.5, hotspot_radius=0.6,
+                     size_edge_hotspot=0.5, edge_hotspot_radius=0.6) for places in ((p,), mirrored)]
+    calls, got = zip(*(_mesh_counting_balls(monkeypatch, "full", spec) for spec in specs))
+    calls = list(calls)
     assert calls == [4, 4]        # the four images of one place, in the full part all within reach
     assert got[0] == got[1]
