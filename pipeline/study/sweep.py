@@ -35,6 +35,7 @@ from pipeline.runtime.interrupts import on_stop, stop_outcome
 # from being the only rank to do so (it met the others' broadcast and aborted them).
 from pipeline.fe.meshing import heartbeat
 from pipeline.runtime.atomicfile import write_text
+from pipeline.runtime.idle import wait_for_ranks
 from pipeline.study.manifest import MANIFEST, failure_fault, folder_fault, write_failure, write_manifest
 from pipeline.study.plan import Task, earlier_variants, failure_file, plan, variant_folder
 from pipeline.study.table import inputs_text, write_outputs
@@ -67,7 +68,10 @@ def _done(out: Path, key: str, full: bool = True) -> bool:
     folder = variant_folder(out, key)
     if folder_fault(folder) is not None:
         return False
-    return not full or screening(folder) is None or screening(folder)["full_error_bar"]
+    if not full:
+        return True
+    cheap = screening(folder)
+    return cheap is None or cheap["full_error_bar"]
 
 
 def screening(folder: Path) -> dict | None:
@@ -157,9 +161,9 @@ def run_task(task: Task, out: Path, levels: int, ratio: float, sensitivity: bool
     loads = list(task.loads) if len(task.loads) > 1 else None
     if screen:
         try:
-            execute_run(screen_case(case), folder, levels=1, ratio=ratio, write_fields=False, write_mesh=False,
-                        loads=loads, comm=MPI.COMM_SELF)
-            write_text(folder / FILE, json.dumps(screening_of(read_results_file(folder)), indent=1) + "\n")
+            res = execute_run(screen_case(case), folder, levels=1, ratio=ratio, write_fields=False, write_mesh=False,
+                              loads=loads, comm=MPI.COMM_SELF)
+            write_text(folder / FILE, json.dumps(screening_of(res), indent=1) + "\n")
             write_manifest(folder)
             return
         except (NumericalError, GeometryError, InputError) as exc:
@@ -176,11 +180,6 @@ def run_task(task: Task, out: Path, levels: int, ratio: float, sensitivity: bool
         kept = dict(cheap or {"peaks": None}, full_error_bar=True, why_full=why_full)
         write_text(folder / FILE, json.dumps(kept, indent=1) + "\n")
     write_manifest(folder)
-
-
-def read_results_file(folder: Path) -> dict:
-    """The results.json a run just wrote into ``folder``."""
-    return json.loads((folder / "results.json").read_text(encoding="utf-8"))
 
 
 def work(tasks: list[Task], out: Path, levels: int, ratio: float, say: Progress, before: int,
@@ -213,9 +212,7 @@ def escalate(tasks: list[Task], out: Path, axes: dict[str, list[float]], allowab
     until no variant needs it (pipeline.study.table.escalations)."""
     from pipeline.study.table import escalations, rows_of, swept_axes, with_verdicts
     while True:
-        request = comm.Ibarrier()
-        while not request.Test():
-            time.sleep(0.05)
+        wait_for_ranks(comm)  # every rank's variants of the last pass have ended
         todo = None
         if comm.rank == 0:
             rows = with_verdicts(rows_of(tasks, out), allowable)
@@ -327,9 +324,7 @@ def execute_sweep(size: str | None, case_file: Path | None, base: dict, axes: di
                 work(tasks, out, levels, ratio, say, before, sensitivity, screen=screen)
                 if screen:
                     escalate(tasks, out, axes_out, allowable, levels, ratio, say, comm, sensitivity)
-                request = comm.Ibarrier()
-                while not request.Test():
-                    time.sleep(0.05)
+                wait_for_ranks(comm)
                 # Before the study is summarised: every variant's files as its run wrote them.
                 again = comm.bcast(bool(discard_damaged(out, tasks, say)) if comm.rank == 0
                                    and round_ < REPAIR_ROUNDS else False, root=0)
