@@ -34,7 +34,8 @@ from pipeline.analysis.pilot import Pilot, refinement_places
 def execute_run(case: Case, out_dir: Path, levels: int = 3, ratio: float = 1.3,
                 progress: Progress | None = None, write_fields: bool = True,
                 loads: list[float] | None = None, comm: MPI.Comm = MPI.COMM_WORLD, quarter_fields: bool = False,
-                write_mesh: bool = True, sensitivity: bool = False, to_tolerance: bool = False) -> dict:
+                write_mesh: bool = True, sensitivity: bool = False, to_tolerance: bool = False,
+                formula_loads: bool = True) -> dict:
     """Analyse ``case`` and write results.json, report.md, mesh.msh, VTK fields and a PNG
     (without ``write_fields`` only results.json and mesh.msh; without ``write_mesh`` no
     mesh.msh: a design study's variant, whose question is its peaks).
@@ -48,7 +49,10 @@ def execute_run(case: Case, out_dir: Path, levels: int = 3, ratio: float = 1.3,
     ``to_tolerance``: add meshes until each wanted peak's band is at most
     case.tolerance_pct (pipeline/analysis/tolerance.py); the results then carry what was
     asked and reached, and describe the finest mesh solved. Without it the run solves the
-    ``levels`` meshes it is given (a design study's variant).
+    ``levels`` meshes it is given (a design study's variant). ``formula_loads``: solve the
+    journal load at each hand formula's position too (the report's like-with-like sections;
+    two more right-hand sides); a design study's variant, whose table does not read them,
+    goes without.
     """
     say = progress or (lambda s: None)
     t_all = time.perf_counter()
@@ -66,7 +70,7 @@ def execute_run(case: Case, out_dir: Path, levels: int = 3, ratio: float = 1.3,
             how = dict(levels=levels, ratio=ratio, msh_path=stage / files["mesh"] if write_mesh else None,
                        progress=say, comm=comm, pl=pl, on_requested=requested.write,
                        mesher=mesher, load_variants=load_variant_cases(case) if vary else (),
-                       load_variants_at=case.mesh_factor * LOAD_MESH_RATIO)
+                       load_variants_at=case.mesh_factor * LOAD_MESH_RATIO, formula_loads=formula_loads)
             accuracy: Accuracy | None = None
             if to_tolerance:
                 lv, pl, case, accuracy, every = analyse_to_tolerance(case, **how)

@@ -148,7 +148,9 @@ def run_task(task: Task, out: Path, levels: int, ratio: float, sensitivity: bool
     files are found. ``screen``: the cheap level only (one coarse mesh,
     pipeline.analysis.screening), whose reading goes into screening.json; when it fails,
     the full analysis runs at once. ``why_full``: the full analysis of a screened study's
-    variant, which keeps the cheap level's reading with why it was not enough."""
+    variant, which keeps the cheap level's reading with why it was not enough. No variant
+    solves the journal load at the hand formulas' positions: the study's table does not
+    read those sections (results.json's ``fe.sections.formula_load`` is null)."""
     from geometry.part import GeometryError
 
     from pipeline.analysis.screening import FILE, screen_case, screening_of
@@ -162,7 +164,7 @@ def run_task(task: Task, out: Path, levels: int, ratio: float, sensitivity: bool
     if screen:
         try:
             res = execute_run(screen_case(case), folder, levels=1, ratio=ratio, write_fields=False, write_mesh=False,
-                              loads=loads, comm=MPI.COMM_SELF)
+                              loads=loads, comm=MPI.COMM_SELF, formula_loads=False)
             write_text(folder / FILE, json.dumps(screening_of(res), indent=1) + "\n")
             write_manifest(folder)
             return
@@ -172,7 +174,7 @@ def run_task(task: Task, out: Path, levels: int, ratio: float, sensitivity: bool
     try:
         execute_run(case, folder, levels=levels, ratio=ratio, write_fields=False,
                     write_mesh=False, loads=loads, comm=MPI.COMM_SELF,
-                    sensitivity=sensitivity)
+                    sensitivity=sensitivity, formula_loads=False)
     except (NumericalError, GeometryError, InputError) as exc:
         write_failure(failed, {"error": " ".join(str(exc).split()), "size": case.size, "parameters": task.params})
         return

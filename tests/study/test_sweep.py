@@ -325,7 +325,11 @@ def test_small_sweep_contract_invalid_variant_and_resume(tmp_path):
     # A variant keeps its results, not its 7 MB mesh (at the default mesh): the study asks for peaks.
     for folder in (out / "variants").iterdir():  # and the checksums of the two (pipeline.study.manifest)
         assert sorted(p.name for p in folder.iterdir()) == [".crosshead-results", "manifest.json", "results.json"]
-        assert "mesh" not in json.loads((folder / "results.json").read_text())["files"]
+        variant = json.loads((folder / "results.json").read_text())
+        assert "mesh" not in variant["files"]
+        # ... nor the solves at the hand formulas' load positions, which its table does not read
+        assert variant["fe"]["sections"]["formula_load"] is None
+        assert variant["comparison_pct"]["section_vs_exact_same_load"] is None
     report = (out / "report.md").read_text(encoding="utf-8")
     assert "## Against the allowable (80 MPa)" in report and report.count("analysed case") == 3
     assert "No analysed case passes 80 MPa with every peak" in report  # the global peaks are > 100 MPa
