@@ -64,7 +64,7 @@ def read_peaks(case: Case, vm: fem.Function, averaged: tuple[np.ndarray, np.ndar
     fillet by the midpoint of its unaveraged and averaged readings, everything else by the
     unaveraged one. Measured against independent references (docs/accuracy.md): at the
     fillet the unaveraged value lies above the reference and the averaged one below; at the
-    bore edge both lie within 0.1 % and the averaged one's slower convergence would put a
+    bore edge both lie within 0.2 % and the averaged one's slower convergence would put a
     false trend into the error bar. The global peak is the largest over the features."""
     fillet = fillet_region(case)
     if fillet is None:

@@ -328,8 +328,8 @@ def _finite_positive(name: str, v: Any, allow_zero: bool = False) -> None:
         raise InputError(f"{name}: must be > 0, got {v:g}")
 
 
-# A band below 0.1 % is below a nodal peak's mesh-to-mesh noise (errorbar.SETTLED): no mesh
-# reaches it; above 50 % the band says nothing.
+# A band below 0.1 % is below a nodal peak's mesh-to-mesh noise (errorbar.SETTLED, a settled
+# peak's band errorbar.SETTLED_BAND): no mesh reaches it; above 50 % the band says nothing.
 TOLERANCE_RANGE_PCT = (0.1, 50.0)
 
 # Ranges (N, MPa) outside which the numbers lose meaning in double precision: a load of

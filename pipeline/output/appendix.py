@@ -62,7 +62,7 @@ def _error_bar() -> list[str]:
             "steep surface maximum resolved by a few elements, the unaveraged value lies above an "
             "independent reference and the averaged one below it (measured on 30 of 33 meshes), so the "
             "reported value there is their midpoint; everywhere else it is the unaveraged value (at the "
-            "bore edge both lie within 0.1 % of the reference). Each peak's definition and error-bar rule "
+            "bore edge both lie within 0.2 % of the reference). Each peak's definition and error-bar rule "
             "for this run are under *How the peaks are read*.\n",
             TREND_TEXT + "\n",
             f"Statuses: {STATUS_TEXT}\n"]

@@ -85,7 +85,7 @@ def _trend_text(est: dict) -> str:
         return "unchanged across meshes"
     if st == "settled":
         return (f"± {_f(est['band'])} MPa ({100 * est['gci_fine']:.2f} %), the same on every mesh to within "
-                "0.1 % (the mesh-to-mesh noise of nodal peaks); band = 0.1 %, not their smaller spread")
+                "0.1 %; band = 0.15 %, what such nodal readings are still off by, not their smaller spread")
     if st == "scattered":
         return (f"± {_f(est['band'])} MPa ({100 * est['gci_fine']:.1f} %), values scatter between meshes "
                 f"(unstructured meshes move nodal peaks by ~1 %); least-squares limit {_f(est['extrapolated'])} MPa, "

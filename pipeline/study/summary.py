@@ -323,8 +323,8 @@ def _status_notes(rows: list[dict]) -> list[str]:
                      "re-entrant corner, a rigid support's edge), has no finite value and is not a number "
                      "to design with.")
     if "settled" in statuses:
-        notes.append("*settled*: the peak is the same on every mesh to within 0.1 %, the noise of a "
-                     "nodal peak; the bar is that 0.1 %, no order is fitted.")
+        notes.append("*settled*: the peak is the same on every mesh to within 0.1 %; the bar is 0.15 %, "
+                     "what such nodal readings are still off by; no order is fitted.")
     if NOT_ASKED in statuses:
         notes.append(f"*{NOT_ASKED}*: the run was asked for the other peak only (--want) and did not refine "
                      "for this one; it has no value here.")

@@ -177,8 +177,13 @@ def test_changes_below_noise_are_settled_not_singular():
     last) fitted an order of -17 and was called singular; 0.06 % is below the noise of a nodal peak."""
     est = estimate([66.26, 66.23, 66.22], H, p_formal=2.0)
     assert est.status == "settled" and est.trustworthy
-    # The band is the 0.1 % noise level, not the smaller spread of 0.04 MPa.
-    assert est.band == pytest.approx(1e-3 * 66.26) and est.extrapolated == 66.26
+    # The band is not the smaller spread of 0.04 MPa, and it holds P3's 66.27 MPa.
+    assert est.band > 0.04 and abs(66.27 - est.extrapolated) <= est.band
+    # The bore edge read on --mesh-factor 1.3's error-bar meshes (x1.3, x1.48, x1.69; 66.195,
+    # 66.212, 66.245 MPa) sits 0.11 % below P3's 66.27 MPa (docs/accuracy.md): the band
+    # of a settled peak holds it.
+    low = estimate([66.195, 66.212, 66.245], H, p_formal=2.0)
+    assert low.status == "settled" and abs(66.27 - low.values[0]) <= low.band
     # A real singularity grows by percents: still singular.
     assert estimate([130.0, 120.0, 111.0], H, p_formal=2.0).status == "singular"
 
