@@ -16,6 +16,8 @@ ASSUMED_WHY = {
     "seat_inner": "seat annulus inner diameter (not in the paper's table)",
     "seat_outer": "seat annulus outer diameter (not in the paper's table)",
 }
+# The journals' bearing pressure in words, by the case's bearing_shape (results.json "case").
+BEARING_SHAPE_WORDS = {"cosine": "cos θ bearing pressure", "uniform": "uniform bearing pressure"}
 DIM_NAMES = {"b1": "body width and length", "b2": "journal length", "b6": "tip-to-tip length",
              "d14": "bearing track mean diameter Dm", "d2": "bore diameter di",
              "h3": "body height h", "dj": "journal diameter", "rf": "shoulder fillet radius",
@@ -351,8 +353,8 @@ def sensitivity_section(res: dict) -> str:
             return f"{mpa} MPa" + (f" ({' / '.join(ends)})" if ends else "")
 
         by_fit = ", ".join(f"{k} {span(v)}" for k, v in cs["fillet_peak_pct_by_fit"].items())
-        L.append(f"**The load model's measured effect** ({cs['source']}; {cs['applied_as']}): against this cos θ "
-                 f"model the contact moves the fillet's peak by {span(cs['global_peak']['pct'])} over the fits "
+        L.append(f"**The load model's measured effect** ({cs['source']}; {cs['applied_as']}): against the cos θ "
+                 f"model (the study's own) the contact moves the fillet's peak by {span(cs['global_peak']['pct'])} over the fits "
                  f"({by_fit}), here a global peak of {applied(cs['global_peak'])}; the critical peak by "
                  f"{span(cs['critical_peak']['pct'])}, here {applied(cs['critical_peak'])}. With a loose fit "
                  f"(H9/d9) the sharp edge of a plate bore flush with the fillet's run-out becomes the most stressed "
@@ -470,8 +472,8 @@ def _inputs_lines(res: dict) -> list[str]:
     add("")
     add(f"Load Q = {_f(c['load_N'], 1)} N, downward, uniform pressure on the seat annulus. "
         f"Support: `{c['support']}`"
-        + (" (cos θ bearing pressure on the lower half of each journal, resultant Q/2 each, "
-           "scaled to balance the seat load on the actual mesh)" if c["support"] == "bearing" else
+        + (f" ({BEARING_SHAPE_WORDS[c.get('bearing_shape', 'cosine')]} on the lower half of each journal, "
+           "resultant Q/2 each, scaled to balance the seat load on the actual mesh)" if c["support"] == "bearing" else
            " (u_z = 0 on the lower half of each journal)") + f"; {appendix.LOADS}.\n")
     add(f"Material: E = {_f(c['E_MPa'], 0)} MPa, ν = {c['nu']}. Model: `{c['model']}`"
         + (" (x ≥ 0, y ≥ 0 with symmetry planes; carries Q/4)" if c["model"] == "quarter" else "")

@@ -188,6 +188,18 @@ def test_report_flags_scaled_rows_and_singular_peaks(run_folder):
     assert "none: the peak is singular" in md
 
 
+def test_the_inputs_name_the_bearing_pressure_the_run_used(run_folder):
+    """The Inputs section names the journals' pressure shape of results.json's case: a run with
+    `bearing_shape = uniform` was described as cos θ."""
+    from pipeline.output.report import render_markdown
+    res = json.loads((run_folder / "results.json").read_text())
+    inputs = render_markdown(res).split("## Inputs")[1]
+    assert "(cos θ bearing pressure on the lower half" in inputs and "uniform bearing pressure" not in inputs
+    res["case"]["bearing_shape"] = "uniform"
+    inputs = render_markdown(res).split("## Inputs")[1]
+    assert "(uniform bearing pressure on the lower half" in inputs and "cos θ bearing pressure" not in inputs
+
+
 def _study(status: str, values: list[float], extrapolated: float | None, band: float) -> dict:
     """A convergence block as execute_converge writes it: three meshes, finest first."""
     h = [0.01, 0.013, 0.017]
