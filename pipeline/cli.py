@@ -36,6 +36,7 @@ from pipeline.inputs.choices import BEARING_AT, BEARING_SHAPES, MODELS, SOLVERS,
 from pipeline.errors import OneLineParser, given_twice  # noqa: E402
 from pipeline.runtime.interrupts import (  # noqa: E402
     declared_outcome, first_rank_by_environment, install as install_interrupts, new_command, stop_line, yield_to_stop)
+from pipeline.runtime.streams import silence_stdout  # noqa: E402
 
 DESCRIPTION = """\
 Finite-element stress analysis of a DIN 15412 crane hook-block crosshead.
@@ -279,7 +280,7 @@ def main(argv: list[str] | None = None, handle_signals: bool = False) -> int:
     try:
         args = make_parser().parse_args(argv)
     except OSError as exc:  # --help on a full stdout: argparse lets the write's error through
-        _silence_stdout()
+        silence_stdout()
         sys.stderr.write(f"error: stdout: cannot write the help ({exc.strerror or exc})\n")
         return 2
     if args.command is None:
@@ -582,20 +583,13 @@ def _print(line: str) -> None:
     try:
         print(line, flush=True)
     except (BrokenPipeError, ValueError):  # ValueError: a stream closed in this process
-        _silence_stdout()
+        silence_stdout()
     except OSError as exc:
         if threading.current_thread() is not threading.main_thread():
             return  # the meshing heartbeat's: the main thread's next line meets the failure and reports it
-        _silence_stdout()
+        silence_stdout()
         raise StdoutError(f"stdout: cannot write ({exc.strerror or exc})") from None
 
-
-def _silence_stdout() -> None:
-    """Send the rest of stdout to /dev/null (what is still buffered too)."""
-    with contextlib.suppress(OSError, ValueError, AttributeError):
-        devnull = os.open(os.devnull, os.O_WRONLY)
-        os.dup2(devnull, sys.stdout.fileno())
-        os.close(devnull)
 
 
 def _summary(out: Path) -> None:

@@ -99,3 +99,12 @@ def _fileno(stream: io.TextIOWrapper) -> int | None:
         return stream.fileno()
     except (OSError, ValueError):
         return None
+
+
+def silence_stdout() -> None:
+    """Send the rest of stdout to /dev/null (what is still buffered too): after a closed pipe
+    or a full disk, so that neither the next line nor the exit's flush tries again."""
+    with contextlib.suppress(OSError, ValueError, AttributeError):
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        os.close(devnull)

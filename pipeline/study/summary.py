@@ -26,6 +26,7 @@ from pipeline.errors import OneLineParser
 from pipeline.output import flat
 from pipeline.output.flat import NOT_ASKED, PEAKS, SINGULAR
 from pipeline.runtime.interrupts import EXIT_FOR, NOTHING_WRITTEN, STOPPED
+from pipeline.runtime.streams import silence_stdout
 
 _S_RE = re.compile(r"s = sqrt\(Q/1000 kg\) = ([0-9.]+)")
 
@@ -67,7 +68,7 @@ def row_of(folder: Path, res: dict) -> dict:
             "scale_s": float(m.group(1)) if (scaled and m) else (1.0 if row["size"] == "05" else None)}
 
 
-TEXT_COLUMNS = flat.TEXT_COLUMNS | {"folder", "dimensions"}
+TEXT_COLUMNS = flat.TEXT_COLUMNS | {"folder", "dimensions", "decided_by"}
 NEEDED_COLUMNS = frozenset({"load_N", "approximate_MPa", "exact_MPa",
                             *(c for p in PEAKS.values() for c in (p.value, p.reading))})
 
@@ -340,8 +341,10 @@ def _screening_notes(rows: list[dict]) -> list[str]:
     by: dict[str, list[str]] = {}
     for r in rows:
         if r.get("decided_by"):
-            by.setdefault(r["decided_by"], []).append(r["size"])
-    return [f"Decided by {how}: No. {', '.join(sizes)}." for how, sizes in by.items()]
+            # A grid's variants share a size: each is named by its changed dimensions too.
+            label = f"{r['size']} ({r['changed_dims']})" if r.get("changed_dims") else r["size"]
+            by.setdefault(r["decided_by"], []).append(label)
+    return [f"Decided by {how}: No. {'; No. '.join(names)}." for how, names in by.items()]
 
 
 def _run_notes(rows: list[dict], skipped: list[str]) -> list[str]:
@@ -556,9 +559,24 @@ def _summarise(args: argparse.Namespace, received: list[int]) -> int:
         signum = signal.Signals(came.si_signo)
         sys.stderr.write(f"{STOPPED[signum]}: the summary was already written to {out}\n")
         return EXIT_FOR[signum]
-    print(files["summary.md"].decode("utf-8"), end="")
-    print(f"written to {out}/ ({', '.join(files)})")
+    return _show(files["summary.md"].decode("utf-8") + f"written to {out}/ ({', '.join(files)})\n", out)
+
+
+def _show(text: str, out: Path) -> int:
+    """Print the summary written to ``out``: 0, also when the reader closed the pipe (``|
+    head`` wanted no more); 2 with one line on stderr when stdout cannot take it (a full
+    disk), which says the files are written."""
+    try:
+        sys.stdout.write(text)
+        sys.stdout.flush()
+    except (BrokenPipeError, ValueError):  # ValueError: a stream closed in this process
+        silence_stdout()
+    except OSError as exc:
+        silence_stdout()
+        sys.stderr.write(f"error: stdout: cannot write ({exc.strerror or exc}); the summary was written to {out}\n")
+        return 2
     return 0
+
 
 
 if __name__ == "__main__":

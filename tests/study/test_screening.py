@@ -127,3 +127,32 @@ def test_screening_without_an_allowable_is_refused_before_any_work(tmp_path):
                        env=dict(os.environ))
     assert p.returncode == 2 and p.stderr.count("\n") == 1 and "screen:" in p.stderr and "--allowable" in p.stderr
     assert not out.exists()
+
+
+def _sweep(out: Path, *extra: str) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "pipeline", "sweep", "--size", "05", "--dim", "rf=1,2",
+                           "--mesh-factor", "2", "--out", str(out), "--quiet", *extra], cwd=ROOT,
+                          capture_output=True, text=True, timeout=900,
+                          env=dict(os.environ, CROSSHEAD_NO_CACHE="1"))
+
+
+@pytest.mark.slow
+def test_a_real_screened_study_decides_as_the_full_one_and_its_summary_names_the_evidence(tmp_path):
+    """rf = 1 and 2 mm of No. 05 at 125 MPa: the global peak falls below it between them, so
+    both border the crossing and get the full error bar; their verdicts and the crossing
+    are the full study's (the same variants without --screen). The size summary of the
+    screened study's variants reads them and says how each was decided."""
+    screened, full = tmp_path / "screened", tmp_path / "full"
+    for out, extra in ((screened, ("--allowable", "125", "--screen")), (full, ("--allowable", "125"))):
+        p = _sweep(out, *extra)
+        assert p.returncode == 0, p.stderr
+    a, b = (json.loads((out / "sweep.json").read_text()) for out in (screened, full))
+    verdicts = [[(r["verdict"], r["critical_verdict"]) for r in d["rows"]] for d in (a, b)]
+    assert verdicts[0] == verdicts[1] and {v[0] for v in verdicts[0]} == {"pass", "fail"}
+    assert [r["decided_by"] for r in a["rows"]] == ["full error bar (it borders a crossing of the global peak "
+                                                    "along rf)"] * 2
+    assert a["crossings"] == b["crossings"] and a["crossings"]
+    from pipeline.study import summary
+    assert summary.main([str(screened / "variants"), "--all", "--out", str(tmp_path / "sum")]) == 0
+    md = (tmp_path / "sum" / "summary.md").read_text(encoding="utf-8")
+    assert "Decided by full error bar (it borders a crossing of the global peak along rf): No. 05 (rf = 1 mm" in md

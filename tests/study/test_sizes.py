@@ -198,6 +198,25 @@ def test_summary_tables_and_plot(tmp_path):
     assert (tmp_path / "sum" / "summary.png").stat().st_size > 10_000
 
 
+def test_summary_on_a_full_or_closed_stdout_still_writes_its_files(tmp_path):
+    """The summary prints its table after writing the files: a full stdout (/dev/full) is
+    one line on stderr and exit 2 with the files named; a reader that stops early (``|
+    head -1``) is exit 0 with nothing on stderr."""
+    _fake_results(tmp_path / "res" / "1.6", "1.6", 66.0, "converged")
+    cmd = [sys.executable, "-m", "pipeline.study.summary", str(tmp_path / "res"), "--out", str(tmp_path / "sum")]
+    with open("/dev/full", "w") as full:
+        p = subprocess.run(cmd, cwd=ROOT, stdout=full, stderr=subprocess.PIPE, text=True, timeout=300)
+    assert p.returncode == 2 and p.stderr.count("\n") == 1 and "stdout" in p.stderr and "written to" in p.stderr
+    assert (tmp_path / "sum" / "summary.csv").is_file()
+    read, write = os.pipe()
+    os.close(read)  # the reader has gone before the first line: every write meets a closed pipe
+    try:
+        p = subprocess.run(cmd, cwd=ROOT, stdout=write, stderr=subprocess.PIPE, text=True, timeout=300)
+    finally:
+        os.close(write)
+    assert p.returncode == 0 and p.stderr == "", p.stderr
+
+
 def test_summary_leaves_out_a_peak_the_runs_were_not_asked_for(tmp_path):
     """Runs made with --want critical say their global peak is not resolved: the summary
     shows no value, band or warning for it (a 99.61 ± 49.40 MPa fillet peak of a coarse
