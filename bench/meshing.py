@@ -3,6 +3,7 @@ and the full part (cases/05-full.toml at its own factor) on the pilot's refined 
 
     CROSSHEAD_NO_CACHE=1 .venv/bin/python -m bench.meshing --repeats 5 --out /tmp/meshing.json
     CROSSHEAD_NO_CACHE=1 .venv/bin/python -m bench.meshing --peaks --variants default,3d-hxt --factors 0.85,1
+    CROSSHEAD_NO_CACHE=1 .venv/bin/python -m bench.meshing --volumes --repeats 3
 
 Timing (the default): every mesh in a gmsh session of its own, the part built first and
 not timed; the option sets interleaved (each repeat runs every set once, in an order
@@ -13,6 +14,12 @@ Prints per set and mesh the median CPU time (s) of each of gmsh's stages
 for node. ``--peaks``: each set's No. 05 run
 (pilot, the ×1 mesh and its error bar, one rank) with the set's options on every mesh:
 global and critical peaks and bands (MPa) against the references 113.82 / 66.27 MPa.
+``--volumes``: what meshing the part's 3-D volumes on several ranks could save, a bound:
+every mesh meshed whole (geometry.sizing.mesh) and, in a session of its own, with its
+volumes' 3-D meshes made one at a time after the whole surface mesh (the others hidden,
+Mesh.MeshOnlyVisible), the rest of geometry.sizing.mesh unchanged; per volume its tets and
+3-D CPU time, and the CPU time on 2 ranks if only the 3-D stage were split (the volumes
+over the ranks longest first) as a ratio to the one-rank total.
 Lengths in mm, times in s, stresses in MPa. Results go to stdout, progress to stderr.
 """
 from __future__ import annotations
@@ -133,6 +140,173 @@ def timing(names: list[str], factors: list[float], full: bool, repeats: int) -> 
     return rows
 
 
+def _sorted_digest() -> str:
+    """A digest of the current mesh's node coordinates (mm, to 1e-9) in sorted order: the
+    same mesh, node for node, whatever order its nodes were made in."""
+    _, xyz, _ = gmsh.model.mesh.getNodes()
+    xyz = np.round(np.asarray(xyz).reshape(-1, 3), 9)
+    return hashlib.sha1(xyz[np.lexsort(xyz.T[::-1])].tobytes()).hexdigest()[:12]
+
+
+def _tet_keys() -> set[bytes]:
+    """The current mesh's tets as the digests of their corner coordinates (mm, to 1e-9,
+    sorted): the same set for the same tets, whatever their nodes' and elements' tags."""
+    tags, xyz, _ = gmsh.model.mesh.getNodes()
+    xyz = np.round(np.asarray(xyz).reshape(-1, 3), 9)
+    index = np.zeros(int(tags.max()) + 1, dtype=int)
+    index[tags] = np.arange(len(tags))
+    keys = set()
+    for nodes in gmsh.model.mesh.getElements(3)[2]:
+        corners = xyz[index[np.asarray(nodes).reshape(-1, 4)]]                # tets × 4 × 3
+        corners = np.take_along_axis(corners, np.lexsort(corners.transpose(2, 0, 1)[::-1])[..., None], axis=1)
+        keys.update(hashlib.sha1(c.tobytes()).digest() for c in corners)
+    return keys
+
+
+def _recording(per_volume: list[dict], linear: dict, split: bool):
+    """A stand-in for gmsh.model.mesh.generate that records, after generate(3), each
+    volume's tag and tets in ``per_volume`` and the linear mesh's tets, sorted digest and
+    tet keys (:func:`_tet_keys`) in ``linear``. ``split``: generate(3) becomes the surface mesh once (generate(2)), then each
+    volume's 3-D mesh alone, the others hidden (Mesh.MeshOnlyVisible), its CPU time (s)
+    recorded too."""
+    generate = gmsh.model.mesh.generate
+
+    def tets(tag: int) -> int:
+        return sum(len(t) for t in gmsh.model.mesh.getElements(3, tag)[1])
+
+    def recorded(dim: int = 3) -> None:
+        if dim < 3 or not split:
+            generate(dim)
+            if dim == 3:
+                per_volume.extend({"volume": tag, "tets": tets(tag)} for _, tag in gmsh.model.getEntities(3))
+        else:
+            generate(2)
+            volumes = gmsh.model.getEntities(3)
+            gmsh.option.setNumber("Mesh.MeshOnlyVisible", 1)
+            try:
+                for _, tag in volumes:
+                    gmsh.model.setVisibility(volumes, 0)
+                    gmsh.model.setVisibility([(3, tag)], 1)
+                    c0 = time.process_time()
+                    generate(3)
+                    per_volume.append({"volume": tag, "tets": tets(tag), "cpu_s": time.process_time() - c0})
+            finally:
+                gmsh.option.setNumber("Mesh.MeshOnlyVisible", 0)
+                gmsh.model.setVisibility(volumes, 1)
+        if dim == 3:
+            linear.update(tets=tets(-1), digest=_sorted_digest(), keys=_tet_keys())
+    return recorded
+
+
+def volumes_one(case, spec, split: bool) -> dict:
+    """Build the part in a new gmsh session and mesh it (geometry.sizing.mesh), whole or
+    with its volumes' 3-D meshes made one at a time (``split``): stage CPU times (s), per
+    volume its tets (and, split, its 3-D CPU time, s), the sorted node digest."""
+    from geometry.part import build
+    from geometry.sizing import mesh
+    from pipeline.fe.meshing import _normalised, meshing_scale
+
+    dn, spec_n = _normalised(case.dims, spec, meshing_scale(case.dims))
+    per_volume: list[dict] = []
+    linear: dict = {}
+    generate = gmsh.model.mesh.generate
+    gmsh.initialize(readConfigFiles=False)
+    try:
+        gmsh.option.setNumber("General.Terminal", 0)
+        gmsh.model.add("bench")
+        build(dn, case.model)
+        gmsh.model.mesh.generate = _recording(per_volume, linear, split)
+        try:
+            done = mesh(dn, spec_n)
+        finally:
+            gmsh.model.mesh.generate = generate
+        stage_cpu_s = dict(done.stage_cpu_s)
+        if split:  # gmsh's log holds one 3-D time per volume: the stage is their sum
+            stage_cpu_s["3d"] = sum(v["cpu_s"] for v in per_volume)
+        digest = _sorted_digest()
+    finally:
+        gmsh.finalize()
+    return {"stage_cpu_s": stage_cpu_s, "total_cpu_s": sum(stage_cpu_s.values()), "per_volume": per_volume,
+            "linear": linear, "digest": digest}
+
+
+def lpt(costs: dict[int, float], ranks: int) -> list[list[int]]:
+    """The keys of ``costs`` over ``ranks`` ranks, longest first, each to the least loaded."""
+    loads: list[tuple[float, int, list[int]]] = [(0.0, r, []) for r in range(ranks)]
+    for key in sorted(costs, key=lambda k: -costs[k]):
+        load, r, keys = min(loads)
+        loads[r] = (load + costs[key], r, keys + [key])
+    return [keys for _, _, keys in loads]
+
+
+def volumes(factors: list[float], full: bool, repeats: int, ranks: int = 2) -> list[dict]:
+    """Every mesh whole and volume by volume, ``repeats`` rounds of the pair; per mesh the
+    medians and the bound on ``ranks`` ranks: the stages but the 3-D one (made once on
+    every rank) plus the largest rank's share of the volumes' 3-D CPU time, over the
+    one-rank total of the same split session; and the same with optimise, order and repair
+    split too, in proportion to the rank's tets (their ideal, not gmsh's: they are whole-
+    mesh calls)."""
+    rows = []
+    for label, case, f in meshes(factors, full):
+        spec = replace(case.mesh_spec(f), hotspots=places(case))
+        runs: dict[bool, list[dict]] = {False: [], True: []}
+        for r in range(repeats):
+            for split in ((False, True) if r % 2 == 0 else (True, False)):
+                runs[split].append(volumes_one(case, spec, split))
+                last = runs[split][-1]
+                print(f"round {r + 1} {label} {'by volume' if split else 'whole'}: {last['total_cpu_s']:.2f} s CPU, "
+                      f"3-D {last['stage_cpu_s']['3d']:.2f} s", file=sys.stderr)
+        whole, split = runs[False], runs[True]
+        differ = len(whole[0]["linear"]["keys"] - split[0]["linear"]["keys"])
+        for g in whole + split:
+            del g["linear"]["keys"]
+        med = statistics.median
+        stage_whole = {k: med(g["stage_cpu_s"][k] for g in whole) for k in whole[0]["stage_cpu_s"]}
+        stage_split = {k: med(g["stage_cpu_s"][k] for g in split) for k in split[0]["stage_cpu_s"]}
+        vols = [{"volume": v["volume"], "tets": v["tets"],
+                 "whole_tets": next(w["tets"] for w in whole[0]["per_volume"] if w["volume"] == v["volume"]),
+                 "cpu_s": med(g["per_volume"][i]["cpu_s"] for g in split)}
+                for i, v in enumerate(split[0]["per_volume"])]
+        cost = {v["volume"]: v["cpu_s"] for v in vols}
+        share = lpt(cost, ranks)
+        total = sum(stage_split.values())
+        sum_3d = sum(cost.values())
+        largest = max(sum(cost[k] for k in keys) for keys in share)
+        tets = {v["volume"]: v["tets"] for v in vols}
+        most_tets = max(sum(tets[k] for k in keys) for keys in share) / sum(tets.values())
+        rest = sum(stage_split[k] for k in ("optimise", "order", "repair"))
+        bound = total - sum_3d + largest
+        rows.append({"mesh": label, "volumes": vols, "ranks": share, "runs": repeats,
+                     "stage_cpu_s_whole": stage_whole, "total_cpu_s_whole": med(g["total_cpu_s"] for g in whole),
+                     "stage_cpu_s_split": stage_split, "total_cpu_s_split": total,
+                     "bound_cpu_s": bound, "ratio": bound / total,
+                     "ratio_rest_split": (bound - rest + most_tets * rest) / total,
+                     "tets_whole": whole[0]["linear"]["tets"], "linear_tets_differing": differ,
+                     "same_linear_mesh": {g["linear"]["digest"] for g in split} == {g["linear"]["digest"] for g in whole},
+                     "same_mesh": {g["digest"] for g in split} == {g["digest"] for g in whole},
+                     "digests": {"whole": sorted({g["digest"] for g in whole}),
+                                 "split": sorted({g["digest"] for g in split}),
+                                 "whole_linear": sorted({g["linear"]["digest"] for g in whole}),
+                                 "split_linear": sorted({g["linear"]["digest"] for g in split})}})
+    return rows
+
+
+def volumes_table(rows: list[dict]) -> str:
+    """The --volumes rows as a Markdown table (counts; CPU s, medians)."""
+    out = ["| mesh | volumes | tets per volume | 3-D CPU per volume (s) | 3-D CPU whole (s) | meshing CPU whole (s)"
+           " | on 2 ranks (s) | ratio | ratio, the rest split too | linear mesh against whole | final nodes |", "|---" * 11 + "|"]
+    for r in rows:
+        vols = r["volumes"]
+        tets = " + ".join(str(v["tets"]) for v in vols)
+        cpu = " + ".join(f"{v['cpu_s']:.2f}" for v in vols)
+        out.append(f"| {r['mesh']} | {len(vols)} | {tets} | {cpu} | {r['stage_cpu_s_whole']['3d']:.2f} | "
+                   f"{r['total_cpu_s_whole']:.2f} | {r['bound_cpu_s']:.2f} of {r['total_cpu_s_split']:.2f} | "
+                   f"{r['ratio']:.2f} | {r['ratio_rest_split']:.2f} | "
+                   f"{'same' if r['same_linear_mesh'] else 'other'} nodes, {r['linear_tets_differing']} tets differ | "
+                   f"{'same' if r['same_mesh'] else 'other'} |")
+    return "\n".join(out)
+
+
 def peaks(names: list[str], factors: list[float]) -> list[dict]:
     """Each set's No. 05 run at each mesh factor (pilot, the factor's mesh and its error
     bar, this process alone, the run cache off): peaks and bands (MPa), finest DOFs, wall
@@ -192,6 +366,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--no-full", action="store_true", help="leave out the full part")
     ap.add_argument("--repeats", type=int, default=3, help="rounds of every set on every mesh (default 3)")
     ap.add_argument("--peaks", action="store_true", help="each set's No. 05 peaks and bands instead of timing")
+    ap.add_argument("--volumes", action="store_true",
+                    help="each mesh whole and volume by volume: the bound of meshing the volumes on 2 ranks")
     ap.add_argument("--out", type=Path, help="write the rows as JSON here")
     args = ap.parse_args(argv)
     names = [n.strip() for n in args.variants.split(",") if n.strip()]
@@ -204,7 +380,10 @@ def main(argv: list[str] | None = None) -> int:
     except ValueError:
         print(f"--factors: not numbers: {args.factors}", file=sys.stderr)
         return 2
-    if args.peaks:
+    if args.volumes:
+        rows = volumes(factors, not args.no_full, args.repeats)
+        print(volumes_table(rows))
+    elif args.peaks:
         rows = peaks(names, factors)
         for r in rows:
             print(f"×{r['factor']:g} {r['variant']}: " + ", ".join(
