@@ -108,7 +108,9 @@ def error_bar_level(case: Case, spec, load_mesh: Callable[[], ImportedMesh], pro
     new solve of the mesh ``load_mesh`` gives (``spec`` its MeshSpec), then kept. With
     ``load_variants`` (load-model cases solved on this mesh's operator, with the sections
     of each and of the case) or ``formula_loads`` (the journal load at each hand formula's
-    position, level.solve_level's) it is always solved: the cache keeps no variants."""
+    position, level.solve_level's) it goes through level.solve_level, since the level cache
+    keeps no variants' readings; their solutions, like the case's, come scaled from an
+    earlier run's when the solution cache has them (level.solve_or_scale)."""
     name = levelcache.key(case, spec)
     lv = None if load_variants or formula_loads else levelcache.earlier(name, case, spec.factor)
     if lv is not None:

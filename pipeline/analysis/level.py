@@ -11,7 +11,7 @@ from dolfinx import fem
 from mpi4py import MPI
 
 from pipeline.inputs.case import BearingBand, Case, formula_bands, small_features
-from pipeline.fe.elasticity import Material, Traction
+from pipeline.fe.elasticity import Material
 from pipeline.errors import NumericalError
 from pipeline.post.features import critical_region, fillet_region
 from pipeline.fe.loads import LoadCase, crosshead_loads, equilibrium
@@ -122,43 +122,67 @@ def formula_load_cases(case: Case, prob: Problem) -> dict[str, tuple[BearingBand
     return out
 
 
-def solve_or_scale(case: Case, prob: Problem, reuse: bool = True,
-                   more: Sequence[Sequence[Traction]] = ()) -> Solution:
+# A further right-hand side on a problem's operator: its journal load model (shape and band,
+# mm: the cache key's) and its load case on the problem's mesh.
+MoreLoad = tuple[dict, LoadCase]
+
+
+def journal_load(shape: str, band: BearingBand) -> dict:
+    """A journal load model as a cache key holds it (solutions.key's ``load_model``)."""
+    return {"bearing_shape": shape, "band_mm": [band.start_mm, band.end_mm]}
+
+
+def solve_or_scale(case: Case, prob: Problem, reuse: bool = True, more: Sequence[MoreLoad] = ()) -> Solution:
     """The displacement of the problem: with ``reuse`` and the run cache on, an earlier
     solve of the same mesh and problem at another load or E, scaled
     (pipeline/cache/solutions.py: exact in linear elasticity), or else a new solve, which is
-    then kept for the next run; without them, a new solve. ``more``: further sets of
-    tractions under the same constraints, solved on the same operator (the result's
-    ``more``; solved afresh, never kept)."""
+    then kept for the next run; without them, a new solve. ``more``: further load cases
+    under the same constraints (a load model's variants), the result's ``more`` in order:
+    each scaled from an earlier solve of its own load model on this mesh or, with the ones
+    not found, solved on the same operator, and kept alike."""
     m, lc = prob.mesh, prob.loads
     V = fem.VectorFunctionSpace(m.mesh, ("Lagrange", case.order)) if reuse and runcache.enabled() else None
     ids = None if V is None else solvecache.node_ids(V, m)
     keep = m.mesh.comm.allreduce(ids is not None, op=MPI.LAND)
     t0 = time.perf_counter()
-    if keep:
-        name = solvecache.key(case, m, V)
+    if not keep:
+        return _solve(case, prob, V, lc, [lc_k for _, lc_k in more])
+
+    def earlier(name: str, lc_k: LoadCase) -> Solution | None:
         entry = solvecache.earlier(name, m.mesh.comm)
-        sol = None if entry is None else solvecache.scaled(entry, m, V, ids, lc, case, prob.material, name)
-        if sol is not None:
-            sol.timings = {"assemble": 0.0, "solve": time.perf_counter() - t0}
-            if more:
-                extra = solve(m.mesh, m.facet_tags, case.order, prob.material, more[0], lc.constraints,
-                              solver=case.solver, rtol=case.rtol, V=V, more=more[1:])
-                sol.more = [extra, *extra.more]
-                for k in ("assemble", "solve"):
-                    sol.timings[k] += extra.timings[k]
-            return sol
+        return None if entry is None else solvecache.scaled(entry, m, V, ids, lc_k, case, prob.material, name)
+
+    names = [solvecache.key(case, m, V)] + [solvecache.key(case, m, V, model) for model, _ in more]
+    loads = [lc] + [lc_k for _, lc_k in more]
+    found = [earlier(n, lc_k) for n, lc_k in zip(names, loads)]
     t_key = time.perf_counter() - t0
+    missing = [k for k, s in enumerate(found) if s is None]
+    timings = {"assemble": 0.0, "solve": 0.0}
+    if missing:
+        new = _solve(case, prob, V, loads[missing[0]], [loads[k] for k in missing[1:]])
+        timings = dict(new.timings)
+        t0 = time.perf_counter()
+        for k, s in zip(missing, [new, *new.more]):
+            s.more = []
+            solvecache.store(names[k], s, ids, case)
+            found[k] = s
+        timings["solve"] += time.perf_counter() - t0
+    sol = found[0]
+    sol.more = found[1:]
+    timings["solve"] += t_key
+    sol.timings = timings
+    return sol
+
+
+def _solve(case: Case, prob: Problem, V, first: LoadCase, more: Sequence[LoadCase]) -> Solution:
+    """A new solve of the load case ``first`` on the problem's operator, and of ``more``
+    (the result's ``more``)."""
+    m = prob.mesh
     try:
-        sol = solve(m.mesh, m.facet_tags, case.order, prob.material, lc.tractions, lc.constraints,
-                    solver=case.solver, rtol=case.rtol, V=V, more=more)
+        return solve(m.mesh, m.facet_tags, case.order, prob.material, first.tractions, first.constraints,
+                     solver=case.solver, rtol=case.rtol, V=V, more=[lc_k.tractions for lc_k in more])
     except NumericalError as exc:  # the one line says what to try, from what this case makes hard
         raise NumericalError(f"{exc}; {failure_advice(case.solver, case.nu, small_features(case.dims))}") from None
-    if keep:
-        t0 = time.perf_counter()
-        solvecache.store(name, sol, ids, case)
-        sol.timings["solve"] += t_key + time.perf_counter() - t0
-    return sol
 
 
 def formula_load_table(case: Case, variants: dict, sol: Solution, mat: Material, share: float,
@@ -207,15 +231,16 @@ def solve_level(case: Case, factor: float, msh_path: Path | None = None,
         f"geometry {m.timings['geometry']:.2f} s, mesh {m.timings['mesh']:.2f} s, "
         f"import {m.timings['import']:.2f} s")
     variants = formula_load_cases(case, prob) if with_sections and formula_loads else {}
-    extra = [v[2] for v in variants.values() if v[2] is not None]
-    mine = [crosshead_loads(m, v.dims, v.load_N, v.support, shape=v.bearing_shape, band=v.bearing_band(),
-                            order=v.order) for v in load_variants]
-    sol = solve_or_scale(case, prob, reuse, more=[v.tractions for v in extra + mine])
+    extra = [(journal_load(case.bearing_shape, band), lc_k) for band, _, lc_k in variants.values() if lc_k is not None]
+    mine = [(journal_load(v.bearing_shape, v.bearing_band()),
+             crosshead_loads(m, v.dims, v.load_N, v.support, shape=v.bearing_shape, band=v.bearing_band(),
+                             order=v.order)) for v in load_variants]
+    sol = solve_or_scale(case, prob, reuse, more=extra + mine)
     # The formula bands' solutions first (formula_load_table takes them in order), then these.
     mine_sols = sol.more[len(extra):]
     sol.more = sol.more[:len(extra)]
     limit = 1e-6 * case.load_N
-    for lc_k, sol_k in zip([lc, *extra, *mine], [sol, *sol.more, *mine_sols]):
+    for lc_k, sol_k in zip([lc, *(x for _, x in extra), *(x for _, x in mine)], [sol, *sol.more, *mine_sols]):
         support_k, eq_err, point_r = equilibrium(lc_k, sol_k.reactions)
         if not (eq_err <= limit and point_r <= limit):
             raise NumericalError(f"loads out of balance: equilibrium error {eq_err:.3g} N, "

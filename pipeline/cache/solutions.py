@@ -89,11 +89,13 @@ def _gather(comm: MPI.Comm, a: np.ndarray) -> np.ndarray | None:
     return np.concatenate(parts) if comm.rank == 0 else None
 
 
-def key(case: Case, m: ImportedMesh, V) -> str:
+def key(case: Case, m: ImportedMesh, V, load_model: dict | None = None) -> str:
     """The run-cache key of the case's solution on mesh m with space V: the same on every
     rank and every partition. The mesh enters by its numbers of DOF nodes, cells and tagged
     facets per tag (not by positions, whose last bits depend on the partition); a
-    different mesh that matches them all is caught when its positions are compared."""
+    different mesh that matches them all is caught when its positions are compared.
+    ``load_model``: the journal load of a further right-hand side solved on the case's
+    operator (its shape and band, mm), instead of the case's own (Case.load_model)."""
     comm = m.mesh.comm
     nodes = comm.allreduce(V.dofmap.index_map.size_local, op=MPI.SUM)
     cells = comm.allreduce(m.mesh.topology.index_map(3).size_local, op=MPI.SUM)
@@ -103,8 +105,9 @@ def key(case: Case, m: ImportedMesh, V) -> str:
     for d in comm.allgather(dict(zip(tags.tolist(), counts.tolist()))):
         for t, n in d.items():
             facets[t] = facets.get(t, 0) + n
+    bearing = case.load_model() if load_model is None else load_model
     return runcache.key("solution", nodes=nodes, cells=cells, facets=sorted(facets.items()), dims=case.dims,
-                        model=case.model, support=case.support, bearing=case.load_model(), nu=case.nu, order=case.order,
+                        model=case.model, support=case.support, bearing=bearing, nu=case.nu, order=case.order,
                         solver=case.solver, rtol=case.rtol)
 
 

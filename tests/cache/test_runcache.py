@@ -26,8 +26,9 @@ def test_a_load_change_reuses_mesh_pilot_and_solution(cache, tmp_path, monkeypat
     first = execute_run(case, tmp_path / "a", levels=3, write_fields=False)
     n_entries = len(list(cache.glob("*.entry")))
     # The pilot's mesh, its places; the requested mesh and its solution; each of the two
-    # error-bar meshes, its solution and its results (pipeline/cache/levels.py).
-    assert n_entries == 10
+    # error-bar meshes, its solution and its results (pipeline/cache/levels.py); the
+    # solutions of the journal load at the two formulas' positions on the first of them.
+    assert n_entries == 12
     changed = replace(case, load_N=2.5 * case.load_N, E_MPa=70_000.0)
     second = execute_run(changed, tmp_path / "b", levels=3, write_fields=False)
     assert len(list(cache.glob("*.entry"))) == n_entries  # nothing new: all reused
@@ -114,3 +115,39 @@ def test_a_stored_solution_is_found_node_by_node_or_not_at_all():
     assert stored_rows(entry, np.array([10]), nodes[[3]], 1e-6) is None
     moved = nodes[[3, 0, 2]] + [0.0, 0.0, 1e-5]
     assert stored_rows(entry, mine, moved, 1e-6) is None
+
+
+@pytest.mark.slow
+def test_a_load_change_scales_the_load_models_variants_too(cache, monkeypatch):
+    """The load model's variants and the formulas' load positions, solved on one mesh's
+    operator beside the case, are kept like its solution: a run at another load takes all
+    of them scaled (no entry added), equal to the same mesh solved anew with the cache off
+    (an independent check of the scaling) and to the first run's values times the load."""
+    from mpi4py import MPI
+
+    from pipeline.analysis.level import solve_level
+    from pipeline.analysis.sensitivity import load_variant_cases
+
+    def level(case):
+        return solve_level(case, case.mesh_factor, comm=MPI.COMM_SELF, with_sections=True,
+                           load_variants=load_variant_cases(case))
+
+    case = resolve("05", None, {"mesh_factor": 3.0})
+    first = level(case)
+    n_entries = len(list(cache.glob("*.entry")))
+    assert len(first.load_variants) == 3 and n_entries == 7  # mesh, the case's and 5 more solutions
+    changed = replace(case, load_N=2.5 * case.load_N)
+    second = level(changed)
+    assert len(list(cache.glob("*.entry"))) == n_entries and second.scaled_from is not None
+    monkeypatch.setenv("CROSSHEAD_NO_CACHE", "1")
+    fresh = level(changed)
+    assert fresh.scaled_from is None
+    for a, b, f in zip(second.load_variants, fresh.load_variants, first.load_variants, strict=True):
+        for k in (0, 1):  # the global and the critical peak
+            assert a[k].value_MPa == pytest.approx(b[k].value_MPa, rel=1e-7)
+            assert a[k].value_MPa == pytest.approx(2.5 * f[k].value_MPa, rel=1e-12)
+        assert a[2]["critical_section"]["nominal_MPa"] == pytest.approx(b[2]["critical_section"]["nominal_MPa"],
+                                                                       rel=1e-7)
+    for which in ("approximate", "exact"):
+        a, b = (lv.sections["formula_load"][which]["fe_MPa"] for lv in (second, fresh))
+        assert a == pytest.approx(b, rel=1e-7)
