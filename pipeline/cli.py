@@ -118,6 +118,17 @@ def _vary(text: str) -> tuple[str, list[float]]:
         raise argparse.ArgumentTypeError(f"vary {k}: {exc}") from None
 
 
+def _document(text: str) -> tuple[str, str]:
+    """--document FIELD=TEXT: a field of the report's title block (the case file's [document])."""
+    from pipeline.inputs.case import DOCUMENT_KEYS
+    k, sep, v = text.partition("=")
+    if not sep or k not in DOCUMENT_KEYS:
+        raise argparse.ArgumentTypeError(f"{text!r}: expected FIELD=TEXT with FIELD one of {', '.join(DOCUMENT_KEYS)}")
+    if not v.isprintable():
+        raise argparse.ArgumentTypeError(f"document {k}: a control character in {v!r}")
+    return k, v
+
+
 def _dim_spec(text: str) -> tuple[str, str]:
     """--dim NAME=VALUES for a sweep: VALUES is START:STOP:COUNT or v1,v2,..."""
     from geometry.table import Dimensions
@@ -218,6 +229,9 @@ def make_parser() -> argparse.ArgumentParser:
                      help="the range (mm) over which the sensitivity section varies NAME (dj rf seat_inner "
                           "seat_outer bearing_centre_mm bearing_length_mm), instead of its default; varies it "
                           "even when --dim or a --bearing option sets it; repeatable")
+    run.add_argument("--document", type=_document, action="append", default=[], metavar="FIELD=TEXT",
+                     help="a field of the report's title block (part, number, revision, author, checker), as a "
+                          "case file's [document] gives it; it overrides the case file's; repeatable")
     run.add_argument("--quarter-fields", action="store_true",
                      help="picture and both .vtu files of the quarter model only (default: mirrored to the whole part)")
     conv = sub.add_parser("converge", help="mesh convergence study: >= 4 meshes, extrapolation, GCI, plot",
@@ -374,6 +388,10 @@ def _case_of(args: argparse.Namespace) -> tuple[Case, list[float]]:
     overrides = {k: getattr(args, k) for k in CASE_KEYS}
     overrides.update({f"dims.{k}": v for k, v in args.dim})
     overrides.update({f"sensitivity.{k}": v for k, v in getattr(args, "vary", [])})
+    fields = [k for k, _ in getattr(args, "document", [])]
+    if given_twice(fields):
+        raise InputError(f"document: {', '.join(given_twice(fields))} given twice")
+    overrides.update({f"document.{k}": v for k, v in getattr(args, "document", [])})
     overrides["tolerance_pct"] = getattr(args, "tolerance_pct", None)
     loads = args.loads or []
     if loads:

@@ -83,6 +83,9 @@ def test_progress_lines(coarse_run):
     (["run", "--size", "05", "--dim", "d2=50"], "d2"),
     (["run", "--size", "05", "--load", "-5"], "load_N"),
     (["run", "--size", "05", "--support", "glued"], "support"),
+    (["run", "--size", "05", "--document", "writer=A. Smith"], "FIELD"),
+    (["run", "--size", "05", "--document", "author=a", "--document", "author=b"], "author given twice"),
+    (["run", "--size", "05", "--document", "author=a\tb"], "control character"),
 ])
 def test_bad_input_exit_2_one_line(tmp_path, args, field):
     out = tmp_path / "never"
@@ -235,3 +238,19 @@ def test_a_long_load_sweep_keeps_the_terminal_line_readable(tmp_path):
     assert "20 loads" in line and "… 14 more in results.json …" in line and line.count(" N ") == 6, line
     assert "MPa): 1000 N " in line and line.split("; ")[-1].startswith("20000 N ")  # the ends
     assert len(json.loads((tmp_path / "many" / "results.json").read_text())["load_sweep"]) == 20
+
+
+@pytest.mark.slow
+def test_the_title_block_can_be_given_on_the_command_line(tmp_path):
+    """--document FIELD=TEXT fills the report's title block like the case file's [document],
+    and overrides the case file's field; the fields neither gives stay blank."""
+    case = tmp_path / "c.toml"
+    case.write_text('size = "05"\n[document]\nauthor = "From the file"\nchecker = "B. Checker"\n')
+    out = tmp_path / "r"
+    p = cli("run", "--case", str(case), "--levels", "1", "--mesh-factor", "3", "--no-sensitivity", "--quiet",
+            "--document", "author=A. Smith", "--document", "number=CH-05-001", "--out", str(out))
+    assert p.returncode == 0, p.stderr
+    doc = json.loads((out / "results.json").read_text())["about"]["document"]
+    assert doc == {"part": None, "number": "CH-05-001", "revision": None, "author": "A. Smith",
+                   "checker": "B. Checker"}
+    assert "CH-05-001" in (out / "report.html").read_text(encoding="utf-8")
