@@ -231,12 +231,12 @@ def volumes_one(case, spec, split: bool) -> dict:
 
 
 def lpt(costs: dict[int, float], ranks: int) -> list[list[int]]:
-    """The keys of ``costs`` over ``ranks`` ranks, longest first, each to the least loaded."""
-    loads: list[tuple[float, int, list[int]]] = [(0.0, r, []) for r in range(ranks)]
-    for key in sorted(costs, key=lambda k: -costs[k]):
-        load, r, keys = min(loads)
-        loads[r] = (load + costs[key], r, keys + [key])
-    return [keys for _, _, keys in loads]
+    """The keys of ``costs`` over ``ranks`` ranks, longest first, each to the least loaded
+    (pipeline.fe.meshing.owners, how a run hands out its meshes); each rank's in that order."""
+    from pipeline.fe.meshing import owners
+    order = sorted(costs, key=lambda k: -costs[k])
+    who = owners([costs[k] for k in order], ranks)
+    return [[k for k, r in zip(order, who) if r == rank] for rank in range(ranks)]
 
 
 def volumes(factors: list[float], full: bool, repeats: int, ranks: int = 2) -> list[dict]:

@@ -388,9 +388,9 @@ def _case_of(args: argparse.Namespace) -> tuple[Case, list[float]]:
     overrides = {k: getattr(args, k) for k in CASE_KEYS}
     overrides.update({f"dims.{k}": v for k, v in args.dim})
     overrides.update({f"sensitivity.{k}": v for k, v in getattr(args, "vary", [])})
-    fields = [k for k, _ in getattr(args, "document", [])]
-    if given_twice(fields):
-        raise InputError(f"document: {', '.join(given_twice(fields))} given twice")
+    twice = given_twice(k for k, _ in getattr(args, "document", []))
+    if twice:
+        raise InputError(f"document: {', '.join(twice)} given twice")
     overrides.update({f"document.{k}": v for k, v in getattr(args, "document", [])})
     overrides["tolerance_pct"] = getattr(args, "tolerance_pct", None)
     loads = args.loads or []

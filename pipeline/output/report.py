@@ -8,6 +8,7 @@ from pathlib import Path
 
 from geometry.table import is_scaled_row
 from pipeline.output import appendix
+from pipeline.post.errorbar import SETTLED, SETTLED_BAND
 
 # Why a dimension was assumed: the paper's table does not give it; its default rule.
 ASSUMED_WHY = {
@@ -87,7 +88,8 @@ def _trend_text(est: dict) -> str:
         return "unchanged across meshes"
     if st == "settled":
         return (f"± {_f(est['band'])} MPa ({100 * est['gci_fine']:.2f} %), the same on every mesh to within "
-                "0.1 %; band = 0.15 %, what such nodal readings are still off by, not their smaller spread")
+                f"{100 * SETTLED:g} %; band = {100 * SETTLED_BAND:g} %, what such nodal readings are still off by, "
+                "not their smaller spread")
     if st == "scattered":
         return (f"± {_f(est['band'])} MPa ({100 * est['gci_fine']:.1f} %), values scatter between meshes "
                 f"(unstructured meshes move nodal peaks by ~1 %); least-squares limit {_f(est['extrapolated'])} MPa, "

@@ -22,10 +22,8 @@ P_SINGULAR = 0.5   # observed order below this: the peak is not converging
 TWO_READINGS = "two readings, one limit"   # Estimate.method of two_reading_estimate
 SETTLED = 1e-3     # all meshes within this relative spread: "settled", no order fitted
 # A settled peak's band (relative): what a nodal reading can still be off by when its
-# meshes agree to within SETTLED. No. 05's bore-edge reading on the 33 error-bar meshes of
-# factors 0.8 ... 1.3 lies 0.015-0.113 % below P3's 66.27 MPa while each factor's three
-# meshes agree within 0.1 % (docs/accuracy.md, *The tolerance at neighbouring meshes*);
-# 0.15 % covers the largest with a third to spare.
+# meshes agree to within SETTLED, measured against an independent reference
+# (docs/decisions/0033-settled-band.md).
 SETTLED_BAND = 1.5e-3
 # Growth per refinement step (relative) below which growing values are mesh noise, not a
 # singularity: a stress singularity of this part grows by percents at every step of 1.3
@@ -97,7 +95,8 @@ TREND_TEXT = ("The trend over the meshes (the same case on coarser meshes, every
               "2014) whose band adds the data's scatter about the fit and uses Fs = 3 when they scatter; "
               "for a midpoint the fit takes both readings with one common limit f0.")
 STATUS_TEXT = ("*converged* (monotone, observed order ≥ 0.5: GCI band), "
-               "*settled* (every mesh within 0.1 %: band 0.15 %, what such readings are still off by), "
+               f"*settled* (every mesh within {100 * SETTLED:g} %: band {100 * SETTLED_BAND:g} %, what such "
+               "readings are still off by), "
                "*oscillatory* (the changes alternate in sign: band = "
                "largest change), *unsettled* (not yet in the asymptotic range: band = largest change, no "
                "extrapolation), *scattered* (four or more meshes about a fit: band with Fs = 3), *singular* "

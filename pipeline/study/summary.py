@@ -25,6 +25,7 @@ from geometry.table import is_scaled_row
 from pipeline.errors import OneLineParser
 from pipeline.output import flat
 from pipeline.output.flat import NOT_ASKED, PEAKS, SINGULAR
+from pipeline.post.errorbar import SETTLED, SETTLED_BAND
 from pipeline.runtime.interrupts import EXIT_FOR, NOTHING_WRITTEN, STOPPED
 from pipeline.runtime.streams import silence_stdout
 
@@ -324,8 +325,8 @@ def _status_notes(rows: list[dict]) -> list[str]:
                      "re-entrant corner, a rigid support's edge), has no finite value and is not a number "
                      "to design with.")
     if "settled" in statuses:
-        notes.append("*settled*: the peak is the same on every mesh to within 0.1 %; the bar is 0.15 %, "
-                     "what such nodal readings are still off by; no order is fitted.")
+        notes.append(f"*settled*: the peak is the same on every mesh to within {100 * SETTLED:g} %; the bar is "
+                     f"{100 * SETTLED_BAND:g} %, what such nodal readings are still off by; no order is fitted.")
     if NOT_ASKED in statuses:
         notes.append(f"*{NOT_ASKED}*: the run was asked for the other peak only (--want) and did not refine "
                      "for this one; it has no value here.")
