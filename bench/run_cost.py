@@ -9,7 +9,7 @@ of the machine's speed touches all alike); the figures are medians over ``--repe
 the medians of the pairwise ratios. The earlier commit is exported with `git archive`
 into ``--out``/base-<commit> (kept for the next bench) and run from there with the same
 interpreter, its own launcher (pipeline.launch before the runtime package existed).
-Target (issue 40, docs/performance.md): with the section ≤ 2× the earlier `make run`.
+Target (docs/performance.md): with the section ≤ 2× the earlier `make run`.
 Writes run_cost.json and prints a table.
 """
 from __future__ import annotations
