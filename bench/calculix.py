@@ -38,10 +38,8 @@ from dolfinx.fem.petsc import assemble_vector
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from pipeline.fe.loads import LoadCase
-from pipeline.errors import NumericalError
-from pipeline.fe.elasticity import Material
-from pipeline.fe.assembly import dirichlet_bc
+from pipeline.api import (LevelTask, LoadCase, Material, NumericalError, RunContext, dirichlet_bc, peaks_of,
+                          resolve_case, set_up, solve_level)
 
 # Local node i of a C3D10 element is DOLFINx tetra10 node DOLFINX_TO_C3D10[i].
 # DOLFINx: vertices 0-3, then edges (2,3) (1,3) (1,2) (0,3) (0,2) (0,1).
@@ -334,6 +332,31 @@ def solve_ccx(mesh, facet_tags, lc: LoadCase, mat: Material, threads: int = 1,
                      inp_path=None if (own_tmp and not keep) else inp, log=log, nodal_stress=S)
 
 
+# Voigt order of ccx's .frd stresses: xx, yy, zz, xy, yz, zx.
+VOIGT = ((0, 0), (1, 1), (2, 2), (0, 1), (1, 2), (2, 0))
+
+
+def nodal_von_mises(S: np.ndarray) -> np.ndarray:
+    """Von Mises stress (MPa) of nodal stresses S (n × 6, MPa, ccx's Voigt order)."""
+    from pipeline.api import von_mises_of
+    T = np.empty((S.shape[0], 3, 3))
+    for k, (a, b) in enumerate(VOIGT):
+        T[:, a, b] = T[:, b, a] = S[:, k]
+    return von_mises_of(T)
+
+
+def frd_peaks(case, nodes: np.ndarray, S: np.ndarray) -> dict:
+    """The peaks a CalculiX user reads from the .frd: the largest nodal von Mises (MPa) over
+    all nodes (global) and over the ligaments beside the bore (critical), with their nodes
+    (mm). ``nodes`` (n × 3, mm) and ``S`` (n × 6, MPa) in ccx's node order."""
+    from pipeline.api import critical_region
+    vm = nodal_von_mises(S)
+    crit = np.flatnonzero(critical_region(case)(nodes))
+    g, c = int(np.argmax(vm)), int(crit[np.argmax(vm[crit])])
+    return {"peak_MPa": float(vm[g]), "peak_location_mm": nodes[g].tolist(),
+            "critical_MPa": float(vm[c]), "critical_location_mm": nodes[c].tolist()}
+
+
 def compare(case, factor: float, threads: int = 1, solver: str = "mumps",
             ccx_solver: str = "spooles", workdir: Path | None = None) -> dict:
     """Solve ``case`` on one mesh with DOLFINx (P2) and CalculiX (C3D10); compare (MPa, mm).
@@ -343,13 +366,12 @@ def compare(case, factor: float, threads: int = 1, solver: str = "mumps",
     """
     from dataclasses import replace
 
-    from pipeline.analysis.level import peaks_of, set_up, solve_level
-
     if case.order != 2:
         raise ValueError("the CalculiX comparison needs the P2 (C3D10) case")
     case = replace(case, solver=solver, rtol=1e-12)
-    prob = set_up(case, factor, comm=MPI.COMM_SELF)
-    lv = solve_level(case, factor, keep_fields=True, comm=MPI.COMM_SELF, problem=prob)
+    alone = RunContext(comm=MPI.COMM_SELF)
+    prob = set_up(case, LevelTask(factor), alone)
+    lv = solve_level(case, LevelTask(factor, keep_fields=True), alone, problem=prob)
     cx = solve_ccx(prob.mesh.mesh, prob.mesh.facet_tags, prob.loads, prob.material, threads=threads,
                    solver=ccx_solver, workdir=workdir)
     _, pk, cr = peaks_of(case, cx.u, prob.material)
@@ -375,7 +397,6 @@ def main(argv: list[str] | None = None) -> int:
     import argparse
     import json
 
-    from pipeline.inputs.case import resolve
     p = argparse.ArgumentParser(prog="python -m bench.calculix",
                                 description="Solve one mesh with DOLFINx P2 and CalculiX C3D10; compare peaks.")
     p.add_argument("--size", default="05")
@@ -384,7 +405,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--ccx-solver", choices=("spooles", "iterative"), default="spooles")
     p.add_argument("--keep", type=Path, help="keep the ccx work folder here")
     a = p.parse_args(argv)
-    case = resolve(a.size, overrides={"mesh_factor": a.factor, "order": 2})
+    case = resolve_case(a.size, overrides={"mesh_factor": a.factor, "order": 2})
     res = compare(case, a.factor, threads=a.threads, ccx_solver=a.ccx_solver, workdir=a.keep)
     print(json.dumps(res, indent=1))
     return 0

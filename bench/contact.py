@@ -43,7 +43,7 @@ import numpy as np
 
 from bench.calculix import C3D10_FLIP, CcxModel, build_model, fmt, inp_text, read_dat_displacements, run_job
 from geometry.table import Dimensions
-from pipeline.errors import NumericalError
+from pipeline.api import NumericalError
 
 # The four faces of a C3D10 element (CalculiX/Abaqus numbering S1..S4): corner nodes, then
 # the mid-side nodes of edges (c0,c1), (c1,c2), (c2,c0); 0-based local node numbers.
@@ -449,7 +449,7 @@ def stress_samples(cm: ContactModel, u, mat, d: Dimensions) -> PressureSamples:
     read by the pipeline's stress definition rather than CalculiX's contact output."""
     from dolfinx import fem
 
-    from pipeline.fe.elasticity import stress
+    from pipeline.api import stress
 
     mesh = u.function_space.mesh
     W = fem.TensorFunctionSpace(mesh, ("DG", 1))
@@ -476,7 +476,7 @@ def nodal_contact_forces(cm: ContactModel, u, lc, mat) -> tuple[np.ndarray, np.n
     from dolfinx.fem.petsc import assemble_vector
     from petsc4py import PETSc
 
-    from pipeline.fe.elasticity import strain, stress
+    from pipeline.api import strain, stress
 
     V = u.function_space
     mesh = V.mesh

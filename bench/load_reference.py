@@ -28,11 +28,11 @@ import time
 from dataclasses import replace
 from pathlib import Path
 
-from pipeline.runtime.environment import configure  # noqa: E402
+from pipeline.api import configure  # noqa: E402
 
 configure()  # before numpy, PETSc or DOLFINx load (pipeline/runtime/environment.py)
 
-from pipeline.runtime.folders import refusal  # noqa: E402
+from pipeline.api import refusal  # noqa: E402
 
 OWN_FILES = frozenset({"points.jsonl", "table.md"})
 # Diametral clearances (mm) on the No. 05 journal, dj = 20 mm (ISO 286, 18-30 mm range):
@@ -67,7 +67,7 @@ def fillet_core_peak(case, u, mat):
     import numpy as np
 
     from geometry.places import at_journal_root
-    from pipeline.post.peaks import MIDPOINT, averaged_von_mises, nodal_peak, von_mises
+    from pipeline.api import MIDPOINT, averaged_von_mises, nodal_peak, von_mises
 
     d = case.dims
     return nodal_peak(von_mises(u, mat), averaged_von_mises(u, mat), MIDPOINT,
@@ -86,14 +86,14 @@ def solve_point(size: str, factor: float, fit: str, clearance_mm: float, frictio
 
     from bench.contact import (PlateSpec, contact_model, force_summary, nodal_contact_forces, penalty,
                                pressure_summary, solve_contact, stress_samples)
-    from pipeline.analysis.level import peaks_of, set_up, solve_level
-    from pipeline.inputs.case import resolve
+    from pipeline.api import LevelTask, RunContext, peaks_of, resolve_case, set_up, solve_level
 
-    case = resolve(size, overrides={"mesh_factor": factor, "solver": "mumps", "size_body_mm": size_body_mm})
+    case = resolve_case(size, overrides={"mesh_factor": factor, "solver": "mumps", "size_body_mm": size_body_mm})
     case = replace(case, rtol=1e-10)
     t0 = time.perf_counter()
-    prob = set_up(case, factor, comm=MPI.COMM_SELF)
-    lv = solve_level(case, factor, comm=MPI.COMM_SELF, problem=prob, reuse=False, keep_fields=True)
+    alone = RunContext(comm=MPI.COMM_SELF)
+    prob = set_up(case, LevelTask(factor), alone)
+    lv = solve_level(case, LevelTask(factor, keep_fields=True), alone, problem=prob)
     core_cos = fillet_core_peak(case, lv.fields[0], prob.material)
     t_cos = time.perf_counter() - t0
     plate_size = PLATE_SIZE_PER_FACTOR * factor
@@ -233,7 +233,7 @@ def main(argv: list[str] | None = None) -> int:
             print(f"  fillet peak {row['peak_contact_MPa']:.2f} MPa (cos θ {row['peak_cos_MPa']:.2f}, "
                   f"{row['peak_diff_pct']:+.2f} %), lever {row['forces']['lever_mm']:.2f} mm, "
                   f"ccx {row['ccx_s']:.0f} s", flush=True)
-    from pipeline.runtime.atomicfile import write_text
+    from pipeline.api import write_text
     write_text(a.out / "table.md", table(rows))
     print(table(rows))
     return 0

@@ -25,7 +25,6 @@ Lengths in mm, times in s, stresses in MPa. Results go to stdout, progress to st
 from __future__ import annotations
 
 import argparse
-import functools
 import hashlib
 import json
 import statistics
@@ -59,7 +58,7 @@ REFERENCES_MPA = {"peak": 113.82, "critical": 66.27}  # No. 05 at 10 kN (docs/ac
 def meshes(factors: list[float], full: bool) -> list[tuple[str, object, float]]:
     """(label, case, factor) of each mesh to time: No. 05 at ``factors``, and the full part
     at its case file's factor."""
-    from pipeline.inputs.case import resolve
+    from pipeline.api import resolve_case as resolve
     out = [(f"05 ×{f:g}", resolve("05"), f) for f in factors]
     if full:
         case = resolve(case_file=Path(__file__).resolve().parent.parent / "cases" / "05-full.toml")
@@ -69,8 +68,8 @@ def meshes(factors: list[float], full: bool) -> list[tuple[str, object, float]]:
 
 def places(case) -> tuple[tuple[float, float, float], ...]:
     """The pilot's refined places of ``case`` (mm), as a run finds them (one rank)."""
-    from pipeline.analysis.pilot import pilot
-    return pilot(case, comm=MPI.COMM_SELF).hotspots
+    from pipeline.api import RunContext, pilot
+    return pilot(case, RunContext(comm=MPI.COMM_SELF)).hotspots
 
 
 def time_one(case, spec, options: dict[str, float]) -> dict:
@@ -78,9 +77,9 @@ def time_one(case, spec, options: dict[str, float]) -> dict:
     P2 DOFs, a digest of the node coordinates and the worst det J ratio."""
     from geometry.part import build
     from geometry.sizing import mesh
-    from pipeline.fe.meshing import _normalised, meshing_scale
+    from pipeline.api import normalised, meshing_scale
 
-    dn, spec_n = _normalised(case.dims, spec, meshing_scale(case.dims))
+    dn, spec_n = normalised(case.dims, spec, meshing_scale(case.dims))
     gmsh.initialize(readConfigFiles=False)
     try:
         gmsh.option.setNumber("General.Terminal", 0)
@@ -204,9 +203,9 @@ def volumes_one(case, spec, split: bool) -> dict:
     volume its tets (and, split, its 3-D CPU time, s), the sorted node digest."""
     from geometry.part import build
     from geometry.sizing import mesh
-    from pipeline.fe.meshing import _normalised, meshing_scale
+    from pipeline.api import normalised, meshing_scale
 
-    dn, spec_n = _normalised(case.dims, spec, meshing_scale(case.dims))
+    dn, spec_n = normalised(case.dims, spec, meshing_scale(case.dims))
     per_volume: list[dict] = []
     linear: dict = {}
     generate = gmsh.model.mesh.generate
@@ -233,7 +232,7 @@ def volumes_one(case, spec, split: bool) -> dict:
 def lpt(costs: dict[int, float], ranks: int) -> list[list[int]]:
     """The keys of ``costs`` over ``ranks`` ranks, longest first, each to the least loaded
     (pipeline.fe.meshing.owners, how a run hands out its meshes); each rank's in that order."""
-    from pipeline.fe.meshing import owners
+    from pipeline.api import owners
     order = sorted(costs, key=lambda k: -costs[k])
     who = owners([costs[k] for k in order], ranks)
     return [[k for k, r in zip(order, who) if r == rank] for rank in range(ranks)]
@@ -311,30 +310,25 @@ def peaks(names: list[str], factors: list[float]) -> list[dict]:
     """Each set's No. 05 run at each mesh factor (pilot, the factor's mesh and its error
     bar, this process alone, the run cache off): peaks and bands (MPa), finest DOFs, wall
     time (s)."""
-    import pipeline.fe.meshing as meshing
-    from geometry.sizing import mesh
-    from pipeline.analysis.analyse import analyse
-    from pipeline.inputs.case import resolve
-    from pipeline.post.errorbar import estimate_levels
+    from pipeline.api import Mesher, RunContext, RunOptions, estimate_levels, resolve_case, run
 
     rows = []
+    three = RunOptions(levels=3, to_tolerance=False, sensitivity=False)
     for factor, name in [(f, n) for f in factors for n in names]:
+        case = resolve_case("05", overrides={"mesh_factor": factor})
+        t0 = time.perf_counter()
         # Every mesh of the run (the pilot's included) made under the set's options.
-        meshing.mesh = functools.partial(mesh, options=VARIANTS[name])
-        try:
-            case = resolve("05", overrides={"mesh_factor": factor})
-            t0 = time.perf_counter()
-            levels, pl = analyse(case, comm=MPI.COMM_SELF)
-            row = {"variant": name, "factor": factor, "dofs": levels[0].dofs, "places": len(pl.hotspots),
-                   "wall_s": time.perf_counter() - t0}
-            for key in ("peak", "critical"):
-                est = estimate_levels(levels, case.order, key)
-                value = getattr(levels[0], key).value_MPa
-                row[key] = {"value_MPa": value, "band_MPa": est.band, "status": est.status,
-                            "covers_reference": est.band is not None
-                            and abs(value - REFERENCES_MPA[key]) <= est.band}
-        finally:
-            meshing.mesh = mesh
+        with Mesher(case.dims, case.model, gmsh_options=VARIANTS[name]) as mesher:
+            result = run(case, three, RunContext(comm=MPI.COMM_SELF, mesher=mesher))
+        levels = result.levels
+        row = {"variant": name, "factor": factor, "dofs": levels[0].dofs, "places": len(result.places.hotspots),
+               "wall_s": time.perf_counter() - t0}
+        for key in ("peak", "critical"):
+            est = estimate_levels(levels, case.order, key)
+            value = getattr(levels[0], key).value_MPa
+            row[key] = {"value_MPa": value, "band_MPa": est.band, "status": est.status,
+                        "covers_reference": est.band is not None
+                        and abs(value - REFERENCES_MPA[key]) <= est.band}
         rows.append(row)
         print(json.dumps(row), file=sys.stderr)
     return rows

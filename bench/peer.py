@@ -36,7 +36,6 @@ import sys
 import time
 from pathlib import Path
 
-import numpy as np
 
 T_START = time.perf_counter()
 
@@ -50,31 +49,6 @@ CRITICAL_FACTORS = (10.0, 8.0)
 USER_FACTORS = (4.0, 3.0, 2.5, 2.0, 1.6, 1.3)
 USER_CRITICAL_FACTORS = (3.0, 2.5, 2.0, 1.6)
 CCX_SOLVERS = ("spooles", "iterative")
-# Voigt order of ccx's .frd stresses: xx, yy, zz, xy, yz, zx.
-VOIGT = ((0, 0), (1, 1), (2, 2), (0, 1), (1, 2), (2, 0))
-
-
-def nodal_von_mises(S: np.ndarray) -> np.ndarray:
-    """Von Mises stress (MPa) of nodal stresses S (n × 6, MPa, ccx's Voigt order)."""
-    from pipeline.post.peaks import von_mises_of
-    T = np.empty((S.shape[0], 3, 3))
-    for k, (a, b) in enumerate(VOIGT):
-        T[:, a, b] = T[:, b, a] = S[:, k]
-    return von_mises_of(T)
-
-
-def frd_peaks(case, nodes: np.ndarray, S: np.ndarray) -> dict:
-    """The peaks a CalculiX user reads from the .frd: the largest nodal von Mises (MPa) over
-    all nodes (global) and over the ligaments beside the bore (critical), with their nodes
-    (mm). ``nodes`` (n × 3, mm) and ``S`` (n × 6, MPa) in ccx's node order."""
-    from pipeline.post.features import critical_region
-    vm = nodal_von_mises(S)
-    crit = np.flatnonzero(critical_region(case)(nodes))
-    g, c = int(np.argmax(vm)), int(crit[np.argmax(vm[crit])])
-    return {"peak_MPa": float(vm[g]), "peak_location_mm": nodes[g].tolist(),
-            "critical_MPa": float(vm[c]), "critical_location_mm": nodes[c].tolist()}
-
-
 def build_points(args) -> list[dict]:
     """The specs (bench.point) of every point: pipeline and CalculiX on the pipeline's meshes
     for both peaks and for the critical one, then the user meshes with each ccx solver."""
@@ -209,7 +183,7 @@ def markdown(rows: list[dict], comp: dict) -> str:
 
 
 def make_parser() -> argparse.ArgumentParser:
-    from bench.run import csv_list as _csv
+    from bench.tables import csv_list as _csv
     p = argparse.ArgumentParser(prog="python -m bench.peer", description=__doc__,
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--out", type=Path, default=Path("results/bench-peer"), help="output folder")
@@ -267,7 +241,7 @@ def _tables_from(path: Path) -> int:
 
 
 def main(argv: list[str] | None = None) -> int:
-    from pipeline.runtime.folders import refusal
+    from pipeline.api import refusal
     args = make_parser().parse_args(argv)
     if args.tables_from is not None:
         return _tables_from(args.tables_from)

@@ -12,7 +12,7 @@ import time
 
 T_START = time.perf_counter()
 
-from pipeline.runtime.environment import configure  # noqa: E402
+from pipeline.api import configure  # noqa: E402
 
 configure()  # the pipeline's form cache and PETSc options in every point process
 
@@ -26,8 +26,8 @@ from pathlib import Path  # noqa: E402
 from typing import TYPE_CHECKING  # noqa: E402
 
 if TYPE_CHECKING:  # for annotations only: a point imports its modules when it runs (timed)
-    from pipeline.inputs.case import Case
-    from pipeline.fe.meshing import Mesher
+    from pipeline.api import Case
+    from pipeline.api import Mesher
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -44,11 +44,11 @@ def run_point(spec: dict) -> dict | None:
     imports = _import_modules(spec["kind"])
     from mpi4py import MPI
 
-    from pipeline.inputs.case import resolve
-    from pipeline.fe.meshing import Mesher
+    from pipeline.api import resolve_case as resolve
+    from pipeline.api import Mesher
     comm = MPI.COMM_WORLD
     if comm.rank == 0:  # a bench stopped while compiling left a claim that would fail every point
-        from pipeline.cache.forms import jit_cache_dir, remove_interrupted
+        from pipeline.api import jit_cache_dir, remove_interrupted
         remove_interrupted(jit_cache_dir())
     order = int(spec.get("order", 2))
     case = resolve(spec.get("size", "05"),
@@ -74,10 +74,12 @@ def _import_modules(kind: str) -> float:
     the solver's); the time this takes (s), which the point reports apart from its stages
     as ``imports_s``."""
     t_imp = time.perf_counter()
-    solver = ("pipeline.analysis.level",) if kind == "dolfinx" else ("bench.calculix", "pipeline.analysis.level")
-    solver += ("bench.peer",) if kind == "peer" else ()
-    for name in ("mpi4py.MPI", "pipeline.inputs.case", "pipeline.fe.meshing", "pipeline.analysis.pilot", *solver):
+    for name in ("mpi4py.MPI", *(("bench.calculix",) if kind != "dolfinx" else ()),
+                 *(("bench.peer",) if kind == "peer" else ())):
         importlib.import_module(name)
+    import pipeline.api as api
+    for name in ("resolve_case", "Mesher", "refinement_places", "solve_level"):
+        getattr(api, name)
     return time.perf_counter() - t_imp
 
 
@@ -87,8 +89,8 @@ def _pilot_hotspots(spec: dict, case: Case, comm, mesher: Mesher) -> tuple[tuple
     the known bore edges (pipeline.analysis.pilot.refinement_places); else no places and None."""
     if not spec.get("pilot"):
         return (), None
-    from pipeline.analysis.pilot import refinement_places
-    pl = refinement_places(case, comm=comm, mesher=mesher)
+    from pipeline.api import RunContext, refinement_places
+    pl = refinement_places(case, RunContext(comm=comm, mesher=mesher))
     return pl.hotspots, pl.time_s
 
 
@@ -96,8 +98,8 @@ def _solve_dolfinx(spec: dict, case: Case, comm, hotspots: tuple, mesher: Mesher
                    t0: float) -> tuple[float, dict[str, float], dict]:
     """Solve the point with the pipeline: its wall time since t0 (s), its stage times (s)
     and its result fields (size, iterations, both peaks in MPa and where they are, mm)."""
-    from pipeline.analysis.level import solve_level
-    lv = solve_level(case, spec["factor"], comm=comm, hotspots=hotspots, mesher=mesher)
+    from pipeline.api import LevelTask, RunContext, solve_level
+    lv = solve_level(case, LevelTask(spec["factor"], hotspots=hotspots), RunContext(comm=comm, mesher=mesher))
     mesher.close()
     total = time.perf_counter() - t0
     stages = dict(lv.timings)
@@ -116,10 +118,10 @@ def _solve_calculix(spec: dict, case: Case, comm, hotspots: tuple, mesher: Meshe
     point (a user's mesh, bench.peer) reads its peaks from ccx's .frd nodal stresses
     instead and keeps the pipeline's reading as ``pipeline_peak_MPa``, ``pipeline_critical_MPa``."""
     from bench.calculix import solve_ccx
-    from pipeline.analysis.level import peaks_of, set_up
+    from pipeline.api import LevelTask, RunContext, peaks_of, set_up
     if comm.size != 1:
         raise SystemExit("CalculiX points run on one rank (use threads)")
-    prob = set_up(case, spec["factor"], comm=comm, hotspots=hotspots, mesher=mesher)
+    prob = set_up(case, LevelTask(spec["factor"], hotspots=hotspots), RunContext(comm=comm, mesher=mesher))
     mesher.close()
     m, mat = prob.mesh, prob.material
     cx = solve_ccx(m.mesh, m.facet_tags, prob.loads, mat, threads=int(spec.get("threads", 1)),
@@ -129,7 +131,7 @@ def _solve_calculix(spec: dict, case: Case, comm, hotspots: tuple, mesher: Meshe
     read = {"peak_MPa": pk.value_MPa, "peak_location_mm": list(pk.location_mm),
             "critical_MPa": cr.value_MPa, "critical_location_mm": list(cr.location_mm)}
     if spec["kind"] == "peer":
-        from bench.peer import frd_peaks
+        from bench.calculix import frd_peaks
         read = dict(frd_peaks(case, cx.model.nodes, cx.nodal_stress),
                     pipeline_peak_MPa=pk.value_MPa, pipeline_critical_MPa=cr.value_MPa)
     t_post = time.perf_counter() - t1

@@ -23,20 +23,20 @@ from mpi4py import MPI
 def analyse_both(size: str, comm, want: str = "both") -> dict:
     """Both analyses of one size for the peaks ``want`` asks for (the case's scene): peaks
     and bands (MPa), finest DOFs, places, wall time (s)."""
-    from pipeline.analysis.analyse import analyse
-    from pipeline.post.errorbar import estimate_levels
-    from pipeline.inputs.case import resolve
-    from pipeline.analysis.pilot import known_places, pilot
+    from pipeline.api import (MeshPlan, RunContext, RunOptions, estimate_levels, known_places, pilot, resolve_case,
+                              solve_meshes)
 
-    case = resolve(size, overrides={"want": want})
+    case = resolve_case(size, overrides={"want": want})
+    ctx = RunContext(comm=comm)
+    plan = MeshPlan(factors=tuple(RunOptions().factors(case)), formula_loads=True)
     row: dict = {"size": size, "want": want}
     for name in ("pilot", "known"):
         comm.barrier()
         t0 = time.perf_counter()
         # The known places as a run of the critical scene takes them (KNOWN: analyse falls
         # back to the pilot if the critical peak lands outside them; "source" says if it did).
-        given = pilot(case, comm=comm) if name == "pilot" else known_places(case)
-        levels, pl = analyse(case, comm=comm, pl=given)
+        given = pilot(case, ctx) if name == "pilot" else known_places(case)
+        levels, pl = solve_meshes(case, plan, given, ctx)
         wall = comm.allreduce(time.perf_counter() - t0, op=MPI.MAX)
         out = {"places": len(pl.hotspots), "source": pl.source, "dofs": levels[0].dofs, "wall_s": wall}
         for key in ("peak", "critical"):

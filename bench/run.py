@@ -36,7 +36,7 @@ import time
 
 T_START = time.perf_counter()
 
-from pipeline.runtime.environment import configure  # noqa: E402
+from pipeline.api import configure  # noqa: E402
 
 configure()  # the pipeline's form cache and PETSc options in every bench process
 
@@ -50,10 +50,10 @@ import subprocess  # noqa: E402
 import sys  # noqa: E402
 from pathlib import Path  # noqa: E402
 
-from pipeline.inputs.choices import SOLVERS  # noqa: E402
-from pipeline.runtime.folders import refusal  # noqa: E402
-from pipeline.cache.codekey import code_key, source_files  # noqa: E402
-from pipeline.output.jsonio import json_safe  # noqa: E402
+from pipeline.api import SOLVERS  # noqa: E402
+from pipeline.api import refusal  # noqa: E402
+from pipeline.api import code_key, source_files  # noqa: E402
+from pipeline.api import json_safe  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 OWN_FILES = frozenset({"bench.json", "bench.csv", "bench.png", "bench.md"})  # written into --out (bench.md: earlier versions)
@@ -67,7 +67,7 @@ QUICK_FACTORS = (2.0, 1.5)
 
 
 from bench.point import point_env, spawn_point  # noqa: E402
-from bench.tables import aggregate, label, pareto_plot, summary, summary_text, table, write_csv  # noqa: E402
+from bench.tables import aggregate, csv_list, label, pareto_plot, summary, summary_text, table, write_csv  # noqa: E402
 
 
 
@@ -156,11 +156,6 @@ def build_matrix(args) -> list[tuple[dict, int, int]]:
             else:
                 pts.append((spec, n, thr))
     return pts
-
-
-def csv_list(conv):
-    """An argparse type: a comma-separated list, each item converted by ``conv``."""
-    return lambda s: [conv(x) for x in s.split(",") if x.strip()]
 
 
 def make_parser() -> argparse.ArgumentParser:

@@ -27,7 +27,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from pipeline.runtime.folders import refusal
+from pipeline.api import refusal
 
 ROOT = Path(__file__).resolve().parents[1]
 BASE = "83d9271"  # the round before the sensitivity section (docs/performance.md, `make run`)

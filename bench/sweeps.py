@@ -38,7 +38,7 @@ import sys
 import time
 from pathlib import Path
 
-from pipeline.runtime.folders import marked_kind, refusal
+from pipeline.api import marked_kind, refusal
 
 ROOT = Path(__file__).resolve().parents[1]
 GRID = ["--size", "05", "--dim", "rf=0.5:2.5:6", "--dim", "dj=16,17,18,19"]

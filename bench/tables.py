@@ -236,3 +236,8 @@ def summary_text(s: dict, scaling: bool = True) -> str:
                      f"{sc['critical_rel_diff']:.1e} relative"
                      + ("" if sc["same_mesh"] else " -- NOT THE SAME MESH (DOFs differ)"))
     return "\n".join(lines)
+
+
+def csv_list(conv):
+    """An argparse type: a comma-separated list, each item converted by ``conv``."""
+    return lambda s: [conv(x) for x in s.split(",") if x.strip()]

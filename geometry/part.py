@@ -8,7 +8,7 @@ from dataclasses import dataclass
 
 import gmsh
 
-from .table import MODELS, Dimensions
+from .table import MODELS, Dimensions, model_share
 
 
 class GeometryError(RuntimeError):
@@ -38,7 +38,7 @@ def analytic_volume(d: Dimensions, model: str = "quarter") -> float:
         t_bar = rf * (5 / 6 - math.pi / 4) / (1 - math.pi / 4)
         journal += 2 * math.pi * (rj + t_bar) * area
     full = body + 2 * journal
-    return full / 4 if model == "quarter" else full
+    return full * model_share(model)
 
 
 def _journal_piece(d: Dimensions, side: int, phi0: float, dphi: float) -> int:
@@ -182,7 +182,7 @@ def _checked_volume(d: Dimensions, model: str, volumes: list[int], seat_surfs: l
         raise GeometryError(f"CAD volume {vol:.6g} mm³ differs from closed form {expected:.6g} mm³")
     ro, ri = d.seat_outer / 2, d.seat_inner / 2
     seat_area = sum(occ.getMass(2, t) for t in seat_surfs)
-    seat_expected = math.pi * (ro ** 2 - ri ** 2) / (4 if model == "quarter" else 1)
+    seat_expected = math.pi * (ro ** 2 - ri ** 2) * model_share(model)
     if abs(seat_area - seat_expected) > 1e-6 * seat_expected:
         raise GeometryError(f"seat area {seat_area:.6g} mm² differs from {seat_expected:.6g} mm²")
     return vol

@@ -17,6 +17,14 @@ from pathlib import Path
 
 TABLE_PATH = Path(__file__).with_name("sizes.csv")
 MODELS = ("quarter", "full")  # the part as built: a quarter with symmetry planes, or whole
+
+
+def model_share(model: str) -> float:
+    """The share of the whole part that a model holds: its volume, seat area and hook load
+    (the quarter model x >= 0, y >= 0 with two symmetry planes holds a quarter)."""
+    return 0.25 if model == "quarter" else 1.0
+
+
 G_MS2 = 9.81  # m/s², kg → N for the rated loads (docs/design.md §6)
 # How a row that tools/scale_sizes.py made from No. 05 begins its source (such rows are not
 # DIN 15412 values; docs/design.md §2).
@@ -187,6 +195,11 @@ def with_overrides(d: Dimensions, **over: float) -> Dimensions:
 
 
 PUBLISHED_PATH = Path(__file__).with_name("published.csv")
+
+
+def paper_spans(d: Dimensions) -> tuple[float, float]:
+    """(approximate span, exact span) as the paper chose them for part d: (b1 + b2, b6), mm."""
+    return d.b1 + d.b2, d.b6
 
 
 def published(size: str, load_N: float, approximate_span_mm: float, exact_span_mm: float,

@@ -2,6 +2,7 @@
 parser that reports a usage error the same way.
 
 InputError (exit 2): something the user gave cannot be used; one line naming the field.
+OutputError (exit 2): the output folder could not be written.
 NumericalError (exit 3): the solve ran but its result cannot be trusted (no convergence,
 NaN, loads out of balance); nothing is written.
 """
@@ -13,13 +14,22 @@ from typing import TypeVar
 
 from geometry.table import InputError  # one class for table, case file and CLI errors
 
-__all__ = ["InputError", "NumericalError", "OneLineParser", "given_twice"]
+__all__ = ["InputError", "NumericalError", "OneLineParser", "OutputError", "given_twice"]
 
 T = TypeVar("T", bound=Hashable)
 
 
 class NumericalError(RuntimeError):
     """The numerical result failed a check; the message says which and by how much."""
+
+
+class OutputError(OSError):
+    """The output folder could not be written (disk full, permission); the message names
+    ``--out``. ``outcome`` says what became of the folder when it is not "nothing written"."""
+
+    def __init__(self, line: str, outcome: str | None = None) -> None:
+        super().__init__(line)
+        self.outcome = outcome
 
 
 class OneLineParser(argparse.ArgumentParser):

@@ -9,17 +9,13 @@ from dataclasses import dataclass, replace
 from typing import Sequence
 
 import numpy as np
-from mpi4py import MPI
-
 from geometry.meshspec import fillet_scale
 from geometry.places import at_journal_root
 
-from pipeline.cache import places as placecache
-from pipeline.cache import runs as runcache
+from pipeline.analysis.context import RunContext, quiet
+from pipeline.analysis.level import LevelTask, solve_level
 from pipeline.inputs.case import Case
 from pipeline.post.features import critical_region, known_raisers
-from pipeline.analysis.level import Progress, solve_level
-from pipeline.fe.meshing import Mesher
 from pipeline.post.peaks import hot_spots
 
 PILOT_RATIO = 2.2  # the pilot mesh: every size of the case's mesh × this
@@ -64,8 +60,7 @@ class Pilot:
     bridging: int = 0  # of the hotspots, how many were added between the found ones (bridged)
 
 
-def refinement_places(case: Case, comm: MPI.Comm = MPI.COMM_WORLD, progress: Progress | None = None,
-                      mesher: Mesher | None = None) -> Pilot:
+def refinement_places(case: Case, ctx: RunContext = RunContext()) -> Pilot:
     """The places a run refines: for the critical peak alone (``want`` critical) the two
     bore edges in the plane x = 0, known from the dimensions; otherwise the pilot's.
 
@@ -78,9 +73,9 @@ def refinement_places(case: Case, comm: MPI.Comm = MPI.COMM_WORLD, progress: Pro
     where it did not (an unusual part).
     """
     if case.want != "critical":
-        return pilot(case, comm=comm, progress=progress, mesher=mesher)
+        return pilot(case, ctx)
     known = known_places(case)
-    (progress or (lambda s: None))(
+    ctx.say(
         f"no pilot: refining near the {len(known.hotspots)} bore edges in x = 0, known from the dimensions: "
         f"{', '.join(_fmt(q) for q in known.hotspots)} mm")
     return known
@@ -99,8 +94,7 @@ def inside_refinement(place_mm: Sequence[float], pl: Pilot, radius_mm: float) ->
     return any(math.dist((abs(x), abs(y), z), q) <= radius_mm for q in pl.hotspots)
 
 
-def pilot(case: Case, comm: MPI.Comm = MPI.COMM_WORLD, progress: Progress | None = None,
-          mesher: Mesher | None = None) -> Pilot:
+def pilot(case: Case, ctx: RunContext = RunContext()) -> Pilot:
     """Find the global and the critical peak on a mesh PILOT_RATIO times coarser than the case's.
 
     Why: the peak at the shoulder fillet sits in a stress gradient of ~2/rf; with P2 the
@@ -111,20 +105,9 @@ def pilot(case: Case, comm: MPI.Comm = MPI.COMM_WORLD, progress: Progress | None
     balls, sizes scaled with the level like every other size.
     """
     t0 = time.perf_counter()
-    say = progress or (lambda s: None)
-    # What shapes the stress field, not its size: load, E and the allowable do not move the places.
-    cache_key = runcache.key("pilot", dims=case.dims, model=case.model, support=case.support, nu=case.nu, want=case.want,
-                             bearing=case.load_model(),
-                             order=case.order, solver=case.solver, spec=case.mesh_spec(pilot_factor(case)))
-    reach = max(case.dims.b1, case.dims.b6, case.dims.h3)  # mm: the part's largest dimension
-    known = placecache.earlier(cache_key, pilot_factor(case), reach) if comm.rank == 0 else None
-    known = comm.bcast(known, root=0)
-    if known is not None:
-        say(f"pilot skipped: the places found by an earlier run of this part and model are reused "
-            f"({len(known.hotspots)} places; load, E and the allowable do not move them)")
-        return Pilot(factor=known.factor, hotspots=known.hotspots, time_s=time.perf_counter() - t0,
-                     bridging=known.bridging)
-    lv = solve_level(case, pilot_factor(case), comm=comm, keep_fields=True, mesher=mesher, reuse=False)
+    say = ctx.say
+    # Its mesh and solve say nothing: the line below says what the pilot found.
+    lv = solve_level(case, LevelTask(factor=pilot_factor(case), keep_fields=True, reuse=False), replace(ctx, say=quiet))
     vm = lv.fields[1]
     d = case.dims
     scale = fillet_scale(d)
@@ -162,10 +145,7 @@ def pilot(case: Case, comm: MPI.Comm = MPI.COMM_WORLD, progress: Progress | None
     say(f"pilot ×{lv.factor:.3g}: {lv.dofs} DOFs; refining near {found_here} places within "
         f"{100 * (1 - PILOT_FRACTION):.0f} % of a peak and {len(spots) - found_here} between them on the fillet's "
         f"crest: {', '.join(_fmt(q) for q in spots)} mm ({dt:.2f} s)")
-    found = Pilot(factor=lv.factor, hotspots=tuple(spots), time_s=dt, bridging=len(spots) - found_here)
-    if comm.rank == 0:
-        placecache.store(cache_key, placecache.StoredPlaces(found.factor, found.hotspots, found.bridging, dt))
-    return found
+    return Pilot(factor=lv.factor, hotspots=tuple(spots), time_s=dt, bridging=len(spots) - found_here)
 
 
 def bridged(spots: Sequence[tuple[float, float, float]], d, radius_mm: float,

@@ -28,11 +28,15 @@ from mpi4py import MPI
 
 from geometry.table import Dimensions, InputError, validate
 
+from geometry.part import GeometryError
+from pipeline.analysis.context import RunContext
+from pipeline.analysis.level import Level
+from pipeline.analysis.meshes import MeshPlan, solve_meshes
+from pipeline.analysis.pilot import KNOWN, Pilot, known_places
+from pipeline.errors import NumericalError
+from pipeline.fe.meshing import owners
 from pipeline.inputs.case import Case, check, journal_bearing_surface
 from pipeline.inputs.choices import BEARING_SHAPES
-from pipeline.analysis.level import Level, Progress
-from pipeline.analysis.pilot import KNOWN, Pilot, known_places
-from pipeline.fe.meshing import owners
 from pipeline.post.sections import journal_nominal
 from pipeline.runtime.idle import wait_for_ranks
 
@@ -328,12 +332,8 @@ def analyse_variant(case: Case, factor: float, places: Sequence[tuple[float, flo
                     ) -> Reading:
     """One variant on this rank alone: a single mesh at ``factor`` refined at ``places``
     (mm; None: the places its own dimensions name, features.known_raisers, with the pilot
-    as analyse's fallback when the critical peak falls outside them); a variant that breaks
-    a geometry rule, or whose mesh or solve fails, says so."""
-    from geometry.part import GeometryError
-
-    from pipeline.analysis.analyse import analyse
-    from pipeline.errors import NumericalError
+    as solve_meshes' fallback when the critical peak falls outside them); a variant that
+    breaks a geometry rule, or whose mesh or solve fails, says so."""
     try:
         validate(case.dims)
     except InputError as exc:
@@ -341,7 +341,7 @@ def analyse_variant(case: Case, factor: float, places: Sequence[tuple[float, flo
     variant = replace(case, mesh_factor=factor)
     pl = known_places(variant) if places is None else Pilot(factor=None, hotspots=tuple(places), time_s=0.0)
     try:
-        lv, _ = analyse(variant, levels=1, comm=MPI.COMM_SELF, formula_loads=False, pl=pl)
+        lv, _ = solve_meshes(variant, MeshPlan(factors=(factor,)), pl, RunContext(comm=MPI.COMM_SELF))
     except (NumericalError, GeometryError) as exc:
         return Reading(failed=" ".join(str(exc).split()))
     return read_level(variant, lv[0])
@@ -350,9 +350,8 @@ def analyse_variant(case: Case, factor: float, places: Sequence[tuple[float, flo
 Places = Sequence[tuple[float, float, float]]
 
 
-def analyse_sensitivity(case: Case, comm: MPI.Comm = MPI.COMM_WORLD, progress: Progress | None = None,
-                        analyse_one: Callable[[Case, float, Places | None], Reading] = analyse_variant,
-                        levels: Sequence[Level] = (), places: Pilot | None = None) -> Sensitivity:
+def analyse_sensitivity(case: Case, ctx: RunContext, levels: Sequence[Level] = (), places: Pilot | None = None,
+                        analyse_one: Callable[[Case, float, Places | None], Reading] = analyse_variant) -> Sensitivity:
     """Every range's two ends and the nominal case, spread over the ranks (one variant per
     rank at a time, each on MPI.COMM_SELF), gathered on every rank.
 
@@ -360,7 +359,7 @@ def analyse_sensitivity(case: Case, comm: MPI.Comm = MPI.COMM_WORLD, progress: P
     the run's pilot places (``places``, the run's), or, when the run has none or they are
     the dimensions' own, at the dimensions' places on a mesh NOISE_RATIO coarser. The load
     model's ends come from ``levels`` (the run's: the one that solved them)."""
-    say = progress or (lambda s: None)
+    say, comm = ctx.say, ctx.comm
     t0 = time.perf_counter()
     ranges, skipped = ranges_of(case)
     if not levels:  # no requested mesh whose operator the load model's variants are solved on

@@ -23,22 +23,21 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, replace
-from pathlib import Path
-from typing import Callable, NamedTuple, Sequence
+from typing import NamedTuple, Sequence
 
 from mpi4py import MPI
 
-from pipeline.analysis.analyse import analyse
-from pipeline.analysis.level import Level, Progress, solve_level
+from pipeline.analysis.context import RunContext
+from pipeline.analysis.errorbars import bands_of, half_gap_pct, wanted_peaks
+from pipeline.analysis.level import Level, LevelTask
+from pipeline.analysis.memory import check_fits
+from pipeline.analysis.meshes import MeshPlan, solve_meshes, solve_one
 from pipeline.analysis.pilot import Pilot
 from pipeline.errors import InputError
-from pipeline.fe.meshing import Mesher
 from pipeline.inputs.case import Case, check
-from pipeline.post.errorbar import estimate_levels, singular_override
-from pipeline.post.features import describe_location, singular_feature
+from pipeline.inputs.options import RunOptions
 
 MAX_REFINEMENTS = 2   # finer meshes a run may add: at r = 1.3, up to 4.8× the start's DOFs
-PEAKS = {"global": "peak", "critical": "critical"}   # a wanted peak → its Level attribute
 
 
 @dataclass(frozen=True)
@@ -67,50 +66,20 @@ class Accuracy:
 
 
 class Outcome(NamedTuple):
-    """What :func:`analyse_to_tolerance` returns: the error bar's levels (finest first), the
-    pilot, the case at the finest mesh's factor, what was reached, and every level the run
-    solved (in order; the sensitivity analysis finds its load-model variants among them)."""
+    """What :func:`solve_to_tolerance` returns: the error bar's levels (finest first), the
+    places refined, the case at the finest mesh's factor, what was reached (None when the
+    run was not asked for a tolerance), and every level the run solved (in order; the
+    sensitivity analysis finds its load-model variants among them)."""
 
     levels: list[Level]
-    pilot: Pilot
+    places: Pilot
     case: Case
-    accuracy: Accuracy
+    accuracy: Accuracy | None
     solved: list[Level]
 
 
-def wanted_peaks(case: Case) -> tuple[str, ...]:
-    """The peaks the case asks for ("global", "critical"), by its ``want``."""
-    return tuple(p for p in PEAKS if case.want in ("both", p))
-
-
-def band_pct(case: Case, levels: Sequence[Level], peak: str) -> float | None:
-    """The band (% of the value) of a wanted ``peak`` over ``levels`` (finest first) as
-    results.json reports it: None with fewer than three meshes or at a singular feature."""
-    if len(levels) < 3:
-        return None
-    attr = PEAKS[peak]
-    p = getattr(levels[0], attr)
-    est, _ = singular_override(estimate_levels(levels, case.order, attr),
-                               singular_feature(case, p.location_mm), describe_location(case, p.location_mm), True)
-    if est is None or est.band is None:
-        return None
-    return 100.0 * est.band / max(abs(p.value_MPa), 1e-300)
-
-
-def bands_of(case: Case, levels: Sequence[Level]) -> dict[str, float | None]:
-    """Each wanted peak's band (%) over ``levels``."""
-    return {p: band_pct(case, levels, p) for p in wanted_peaks(case)}
-
-
-def half_gap_pct(case: Case, fine: Level) -> float:
-    """The largest half gap between the two readings (% of the value) of a wanted peak
-    read by their midpoint on the mesh ``fine``: a floor under that peak's band on any
-    set of meshes with ``fine`` as the finest (errorbar.with_bracket), so coarser meshes
-    cannot bring the band below it."""
-    from pipeline.post.peaks import MIDPOINT
-    peaks = [getattr(fine, PEAKS[p]) for p in wanted_peaks(case)]
-    return max([100.0 * p.half_width_MPa / max(abs(p.value_MPa), 1e-300) for p in peaks if p.rule == MIDPOINT],
-               default=0.0)
+def _fmt_bands(bands: dict[str, float | None]) -> str:
+    return ", ".join(f"{p} {'none' if b is None else f'{b:.2f} %'}" for p, b in bands.items())
 
 
 def within(bands: dict[str, float | None], tolerance_pct: float) -> bool:
@@ -118,15 +87,10 @@ def within(bands: dict[str, float | None], tolerance_pct: float) -> bool:
     return all(b is not None and b <= tolerance_pct for b in bands.values())
 
 
-def _fmt_bands(bands: dict[str, float | None]) -> str:
-    return ", ".join(f"{p} {'none' if b is None else f'{b:.2f} %'}" for p, b in bands.items())
-
-
 def allowed(case: Case, factor: float, comm: MPI.Comm = MPI.COMM_WORLD) -> bool:
     """Whether the run may solve the case at a finer ``factor``: the case's checks accept it
-    and its meshes' memory estimate (pipeline/runtime/resources.py, the memory free now)
+    and its meshes' memory estimate (pipeline/analysis/memory.py, the memory free now)
     fits; decided on rank 0 for every rank."""
-    from pipeline.runtime.resources import check_fits
     ok = True
     if comm.rank == 0:
         try:
@@ -137,69 +101,49 @@ def allowed(case: Case, factor: float, comm: MPI.Comm = MPI.COMM_WORLD) -> bool:
     return bool(comm.bcast(ok, root=0))
 
 
-def analyse_to_tolerance(case: Case, levels: int = 3, ratio: float = 1.3, msh_path: Path | None = None,
-                         progress: Progress | None = None, comm: MPI.Comm = MPI.COMM_WORLD,
-                         pl: Pilot | None = None,
-                         on_requested: Callable[[Level, Pilot], None] | None = None,
-                         mesher: Mesher | None = None, load_variants: Sequence[Case] = (),
-                         load_variants_at: float | None = None, formula_loads: bool = True
-                         ) -> Outcome:
-    """:func:`analyse.analyse` of ``case`` (its arguments), then more meshes until each wanted
-    peak's band is at most ``case.tolerance_pct`` (the module's steps) or no step is left.
-    Returns the :class:`Outcome` (the case in it at the finest mesh's factor: a refined
-    run's requested mesh). ``on_requested``
-    is called again for each new finest mesh (its fields replace the earlier ones); the
-    load-model variants stay on the mesh that first solved them."""
-    say = progress or (lambda s: None)
-    tol = case.tolerance_pct
-    lv, pl = analyse(case, levels, ratio, msh_path, progress, comm, pl, on_requested, mesher, load_variants,
-                     load_variants_at, formula_loads)
+def solve_to_tolerance(case: Case, options: RunOptions, plan: MeshPlan, places: Pilot, ctx: RunContext) -> Outcome:
+    """The meshes of ``plan`` (pipeline.analysis.meshes.solve_meshes), then, when
+    ``options.to_tolerance``, more meshes until each wanted peak's band is at most
+    ``case.tolerance_pct`` (the module's steps) or no step is left. The Outcome's case is at
+    the finest mesh's factor (a refined run's requested mesh); ``ctx.on_requested`` hears
+    of each new finest mesh (its fields replace the earlier ones); the load-model variants
+    stay on the mesh that first solved them."""
+    lv, places = solve_meshes(case, plan, places, ctx)
     every = list(lv)
-    if levels < 3:
-        return Outcome(lv, pl, case, Accuracy(tol, {p: None for p in wanted_peaks(case)}, False, case.mesh_pinned,
-                                              _factors(lv), _factors(lv), _dofs(lv), (),
-                                              "one mesh: no error bar, so the tolerance is not checked"), every)
+    if not options.to_tolerance:
+        return Outcome(lv, places, case, None, every)
+    tol, ratio, say = case.tolerance_pct, options.ratio, ctx.say
+    if len(lv) < 3:
+        return Outcome(lv, places, case, Accuracy(tol, {p: None for p in wanted_peaks(case)}, False, case.mesh_pinned,
+                                                  _factors(lv), _factors(lv), _dofs(lv), (),
+                                                  "one mesh: no error bar, so the tolerance is not checked"), every)
     bands = bands_of(case, lv)
     steps = [f"meshes ×{', ×'.join(f'{x.factor:.4g}' for x in lv)}: {_fmt_bands(bands)}"]
     say(f"tolerance {tol:g} %: {steps[-1]}")
-    step = math.sqrt(ratio)
-    refinements = 0
-    halved = False
+    refinements, halved = 0, False
     while not within(bands, tol):
         if any(b is None for b in bands.values()):
             note = "a wanted peak has no band (a singular feature): no mesh brings it within the tolerance"
             break
         fine = lv[0]
+        nxt = next(x for x in lv if math.isclose(x.factor, fine.factor * ratio, rel_tol=1e-9))
         if not halved and half_gap_pct(case, fine) > tol:
             halved = True   # no coarser mesh brings the band below the finest mesh's half gap
             say(f"tolerance {tol:g} %: the half gap of the requested mesh's two readings, "
                 f"{half_gap_pct(case, fine):.2f} %, is above it: no smaller step")
         if not halved:
-            f_mid = fine.factor * step
-            mid = solve_level(case, f_mid, comm=comm, progress=progress, hotspots=pl.hotspots, mesher=mesher,
-                              formula_loads=False)
+            mid = solve_one(case, LevelTask(factor=fine.factor * math.sqrt(ratio), hotspots=places.hotspots), ctx)
             every.append(mid)
-            nxt = next(x for x in lv if math.isclose(x.factor, fine.factor * ratio, rel_tol=1e-9))
-            lv = [fine, mid, nxt]
-            halved = True
-            why = "a smaller step between the meshes"
-        elif not case.mesh_pinned and refinements < MAX_REFINEMENTS and allowed(case, fine.factor / ratio, comm):
+            lv, halved, why = [fine, mid, nxt], True, "a smaller step between the meshes"
+        elif not case.mesh_pinned and refinements < MAX_REFINEMENTS and allowed(case, fine.factor / ratio, ctx.comm):
             case = replace(case, mesh_factor=fine.factor / ratio)
-            new, pl = analyse(case, 1, ratio, msh_path, progress, comm, pl, on_requested, mesher, (),
-                              None, formula_loads)
+            new, places = solve_meshes(case, replace(plan, factors=(case.mesh_factor,), load_variants=(),
+                                                     load_variants_at=None), places, ctx)
             every.append(new[0])
-            nxt = next(x for x in lv if math.isclose(x.factor, fine.factor * ratio, rel_tol=1e-9))
-            lv = [new[0], fine, nxt]
+            lv, halved, why = [new[0], fine, nxt], False, "a finer mesh"
             refinements += 1
-            halved = False
-            why = "a finer mesh"
         else:
-            note = (f"the mesh factor {fine.factor:g} is pinned (--mesh-factor): the run does not refine past it"
-                    + (f", and its two readings' half gap ({half_gap_pct(case, fine):.2f} %) is above the tolerance"
-                       if half_gap_pct(case, fine) > tol else "")
-                    if case.mesh_pinned else
-                    f"no finer mesh allowed (at most {MAX_REFINEMENTS} refinements, within the case's mesh limits "
-                    "and the memory free)")
+            note = _why_stopped(case, fine, tol)
             break
         bands = bands_of(case, lv)
         steps.append(f"{why}, meshes ×{', ×'.join(f'{x.factor:.4g}' for x in lv)}: {_fmt_bands(bands)}")
@@ -209,8 +153,18 @@ def analyse_to_tolerance(case: Case, levels: int = 3, ratio: float = 1.3, msh_pa
     met = within(bands, tol)
     if not met:
         say(f"tolerance {tol:g} % not reached ({_fmt_bands(bands)}): {note}")
-    return Outcome(lv, pl, case, Accuracy(tol, bands, met, case.mesh_pinned, _factors(lv), _factors(every),
-                                          _dofs(every), tuple(steps), note), every)
+    return Outcome(lv, places, case, Accuracy(tol, bands, met, case.mesh_pinned, _factors(lv), _factors(every),
+                                              _dofs(every), tuple(steps), note), every)
+
+
+def _why_stopped(case: Case, fine: Level, tol: float) -> str:
+    """Why no further step can bring the bands within the tolerance (%)."""
+    if case.mesh_pinned:
+        return (f"the mesh factor {fine.factor:g} is pinned (--mesh-factor): the run does not refine past it"
+                + (f", and its two readings' half gap ({half_gap_pct(case, fine):.2f} %) is above the tolerance"
+                   if half_gap_pct(case, fine) > tol else ""))
+    return (f"no finer mesh allowed (at most {MAX_REFINEMENTS} refinements, within the case's mesh limits "
+            "and the memory free)")
 
 
 def _factors(levels: Sequence[Level]) -> tuple[float, ...]:

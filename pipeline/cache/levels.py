@@ -24,16 +24,30 @@ solver's limit, DOFs a multiple of three, no peak below zero.
 from __future__ import annotations
 
 import time
-from dataclasses import replace
+from dataclasses import dataclass, replace
 
+from geometry.table import model_share
 from pipeline.cache import runs as runcache
+from pipeline.fe.linearity import stress_factor
 from pipeline.inputs.case import Case
-from pipeline.analysis.level import Level
 from pipeline.post.peaks import MIDPOINT, UNAVERAGED, NodalPeak, Peak
 
 REDO = "solved again"
 NUMBERS = ("factor", "dofs", "cells", "iterations", "residual_rel", "seat_force_N", "support_force_N",
            "equilibrium_error_N", "constraint_reaction_N", "jacobian_ratio")
+FORCES = ("seat_force_N", "support_force_N", "equilibrium_error_N", "constraint_reaction_N")  # scale with Q
+
+
+@dataclass(frozen=True)
+class StoredLevel:
+    """An error-bar mesh's numbers (NUMBERS: sizes, solver figures, forces in N), its two
+    peaks (MPa, mm), its timings (s) and the load and E it was solved at."""
+
+    numbers: dict
+    peak: NodalPeak
+    critical: NodalPeak
+    timings: dict
+    scaled_from: dict | None = None
 
 
 def key(case: Case, spec) -> str:
@@ -43,20 +57,20 @@ def key(case: Case, spec) -> str:
                         nu=case.nu, order=case.order, solver=case.solver, rtol=case.rtol)
 
 
-def store(name: str, lv: Level, case: Case) -> None:
-    """Keep ``lv``, solved at the case's load and E (its fields, if any, are not kept)."""
-    meta = {k: getattr(lv, k) for k in NUMBERS}
+def store(name: str, level: StoredLevel, case: Case) -> None:
+    """Keep ``level``, solved at the case's load and E."""
+    meta = {k: level.numbers[k] for k in NUMBERS}
     if not runcache.finite(*meta.values()):
         return  # not a result to reuse (the checks below would refuse it)
-    meta.update(load_N=case.load_N, E_MPa=case.E_MPa, peak=_plain(lv.peak), critical=_plain(lv.critical),
-                timings=dict(lv.timings), scaled_from=lv.scaled_from)
+    meta.update(load_N=case.load_N, E_MPa=case.E_MPa, peak=_plain(level.peak), critical=_plain(level.critical),
+                timings=dict(level.timings), scaled_from=level.scaled_from)
     runcache.store(name, runcache.Entry(meta))
 
 
-def earlier(name: str, case: Case, factor: float) -> Level | None:
+def earlier(name: str, case: Case, factor: float) -> StoredLevel | None:
     """The stored results ``name`` of the mesh at ``factor`` scaled to the case's load, or
-    None (a failed entry is dropped, with one line). The Level's timings are the lookup's
-    (s); its ``scaled_from`` names the stored load and E."""
+    None (a failed entry is dropped, with one line). The timings are the lookup's (s);
+    ``scaled_from`` names the stored load and E."""
     t0 = time.perf_counter()
     entry = runcache.load(name, REDO)
     if entry is None:
@@ -68,15 +82,10 @@ def earlier(name: str, case: Case, factor: float) -> Level | None:
     m = entry.meta
     if not case.load_N > 0.0:
         return None  # von Mises scales with |Q|: a sign change would need the tensor
-    k = case.load_N / m["load_N"]
-    lv = Level(**{n: m[n] for n in NUMBERS}, peak=_peak(m["peak"]), critical=_peak(m["critical"]),
-               timings={})
-    return replace(lv, peak=_scaled(lv.peak, k), critical=_scaled(lv.critical, k),
-                   seat_force_N=k * lv.seat_force_N, support_force_N=k * lv.support_force_N,
-                   equilibrium_error_N=k * lv.equilibrium_error_N,
-                   constraint_reaction_N=k * lv.constraint_reaction_N,
-                   timings={"post": time.perf_counter() - t0},
-                   scaled_from={"load_N": m["load_N"], "E_MPa": m["E_MPa"]})
+    k = stress_factor(case.load_N, m["load_N"])
+    numbers = {n: (k * m[n] if n in FORCES else m[n]) for n in NUMBERS}
+    return StoredLevel(numbers, _scaled(_peak(m["peak"]), k), _scaled(_peak(m["critical"]), k),
+                       {"post": time.perf_counter() - t0}, {"load_N": m["load_N"], "E_MPa": m["E_MPa"]})
 
 
 def problem(m: dict, case: Case, factor: float) -> str | None:
@@ -90,7 +99,7 @@ def problem(m: dict, case: Case, factor: float) -> str | None:
                                                                *p.unaveraged.location_mm, *p.averaged.location_mm)
                                               for p in peaks)):
         return "a number missing or not finite"
-    load, share = m["load_N"], 0.25 if case.model == "quarter" else 1.0
+    load, share = m["load_N"], model_share(case.model)
     if m["factor"] != factor:
         return f"mesh factor {m['factor']:g}, not {factor:g}"
     if not (load > 0 and m["E_MPa"] > 0):

@@ -41,6 +41,7 @@ from pipeline.cache import runs as runcache
 from pipeline.inputs.case import Case
 from pipeline.fe.assembly import constrained_diagonal
 from pipeline.fe.elasticity import Material, strain, stress, volume_integral, volume_measures
+from pipeline.fe.linearity import displacement_factor
 from pipeline.fe.loads import LoadCase
 from pipeline.fe.meshing import ImportedMesh
 from pipeline.fe.solve import Solution, constrained
@@ -228,23 +229,32 @@ def residual_limit(case: Case) -> float:
     return 1e-8 if case.solver == "mumps" else max(RESIDUAL_MARGIN * case.rtol, RESIDUAL_FLOOR)
 
 
-def scaled(entry: Stored, m: ImportedMesh, V, ids: np.ndarray, lc: LoadCase, case: Case, mat: Material,
-           name: str) -> Solution | None:
+@dataclass(frozen=True)
+class Target:
+    """Where a stored solution is put: mesh m, its displacement space V and the mesher's
+    number of each of this rank's DOF nodes (:func:`node_ids`)."""
+
+    m: ImportedMesh
+    V: object
+    ids: np.ndarray
+
+
+def scaled(entry: Stored, target: Target, lc: LoadCase, case: Case, mat: Material, name: str) -> Solution | None:
     """The stored solution ``name`` scaled to the case's load and E, as a Solution on space
     V of mesh m whose solver figures (iterations, residual) are those of the solve it comes
     from and whose reactions come from its own residual; None (on every rank) if some
     rank's DOF nodes are not all among the stored ones at their stored positions to 1e-6
     mm, or if the scaled field does not solve the problem (the entry is then dropped, with
     one line)."""
+    m, V, ids = target.m, target.V, target.ids
     comm = m.mesh.comm
     rows = stored_rows(entry, ids, V.tabulate_dof_coordinates(), 1e-6)
     if not comm.allreduce(rows is not None, op=MPI.LAND):
         if comm.rank == 0:
             runcache.reject(name, "its nodes are not this mesh's", REDO)
         return None
-    force = case.load_N / entry.load_N
     u = fem.Function(V, name="displacement_mm")
-    u.x.array[:] = (force * (entry.E_MPa / case.E_MPa) * entry.u_mm[rows]).ravel()
+    u.x.array[:] = (displacement_factor(case.load_N, case.E_MPa, entry.load_N, entry.E_MPa) * entry.u_mm[rows]).ravel()
     _, bc_dofs = constrained(V, m.facet_tags, lc.constraints)
     res = residual(u, m, lc, mat, case.order, bc_dofs)
     limit = residual_limit(case)

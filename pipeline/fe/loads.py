@@ -23,7 +23,7 @@ from dolfinx.fem.petsc import assemble_vector
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from geometry.table import Dimensions
+from geometry.table import Dimensions, model_share
 
 from pipeline.inputs.case import BearingBand
 from pipeline.inputs.choices import BEARING_SHAPES, SUPPORTS
@@ -59,7 +59,7 @@ def crosshead_loads(m: ImportedMesh, d: Dimensions, load_N: float, support: str,
     load vector a band is balanced on.
     """
     mesh = m.mesh
-    share = 0.25 if m.model == "quarter" else 1.0
+    share = model_share(m.model)
     q_part = load_N * share
     ds = ufl.Measure("ds", domain=mesh, subdomain_data=m.facet_tags)
     seat_id, bearing_id = m.facet_ids["seat"], m.facet_ids["journal_bearing"]
@@ -78,8 +78,7 @@ def crosshead_loads(m: ImportedMesh, d: Dimensions, load_N: float, support: str,
             bearing_t, support_fz = _bearing_traction(mesh, ds, bearing_id, d, q_part, shape,
                                                       both_journals=m.model == "full")
         else:
-            bearing_t, support_fz = _band_traction(mesh, ds, bearing_id, d, q_part, shape, band, order,
-                                                   both_journals=m.model == "full")
+            bearing_t, support_fz = _band_traction(m, ds, d, q_part, shape, band, order)
         tractions.append(Traction(bearing_id, bearing_t))
         constraints += _point_supports(m, d)
         point_idx = len(constraints) - 1
@@ -145,10 +144,10 @@ def _bearing_traction(mesh, ds: ufl.Measure, bearing_id: int, d: Dimensions, q_p
     return bearing_t, _integral(mesh, bearing_t[2], ds(bearing_id))
 
 
-def _band_traction(mesh, ds: ufl.Measure, bearing_id: int, d: Dimensions, q_part: float, shape: str,
-                   band: BearingBand, order: int, both_journals: bool) -> tuple[ufl.core.expr.Expr, float]:
-    """The bearing pressure on the band a ≤ |x| ≤ b of each journal as a traction (MPa), and
-    its z-resultant (N): q_part up, half on each journal of the full model.
+def _band_traction(m: ImportedMesh, ds: ufl.Measure, d: Dimensions, q_part: float, shape: str,
+                   band: BearingBand, order: int) -> tuple[ufl.core.expr.Expr, float]:
+    """The bearing pressure on the band a ≤ |x| ≤ b of each journal of mesh m as a traction
+    (MPa), and its z-resultant (N): q_part up, half on each journal of the full model.
 
     The band cuts facets, and an indicator of x at the quadrature points puts the discrete
     resultant neither at exactly the wanted force nor at the band's middle c. So each
@@ -158,6 +157,7 @@ def _band_traction(mesh, ds: ufl.Measure, bearing_id: int, d: Dimensions, q_part
     section moments then are exactly those of a load at c (docs/design.md §3). p0 and β
     are Constants, so the form, and its quadrature, is the same whatever their values: the
     load vector is linear in them, and two assemblies give every coefficient."""
+    mesh, bearing_id, both_journals = m.mesh, m.facet_ids["journal_bearing"], m.model == "full"
     x = ufl.SpatialCoordinate(mesh)
     a, b, c = (fem.Constant(mesh, v) for v in (band.start_mm, band.end_mm, band.centre_mm))
     unit = _unit_pressure(mesh, d, shape)

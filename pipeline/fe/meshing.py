@@ -7,6 +7,7 @@ broadcast, so later stages ask for "seat", never for a number.
 from __future__ import annotations
 
 import contextlib
+import tempfile
 import threading
 import time
 from dataclasses import asdict, dataclass, field, replace
@@ -24,9 +25,6 @@ from geometry.part import BuiltGeometry, build
 from geometry.meshspec import MeshSpec
 from geometry.sizing import mesh
 from geometry.table import Dimensions
-
-from pipeline.cache import meshes as meshcache
-from pipeline.cache import runs as runcache
 
 
 REFERENCE_H3_MM = 25.0  # No. 05's body height: every part is built and meshed at this size
@@ -57,7 +55,7 @@ def _unit(v: float, scale: float) -> float:
     return float(f"{v / scale:.12g}")
 
 
-def _normalised(d: Dimensions, spec: MeshSpec, scale: float) -> tuple[Dimensions, MeshSpec]:
+def normalised(d: Dimensions, spec: MeshSpec, scale: float) -> tuple[Dimensions, MeshSpec]:
     """Part and mesh sizes with every length divided by ``scale`` (gmsh's working units)."""
     if scale == 1.0:
         return d, spec
@@ -88,6 +86,7 @@ class ImportedMesh:
     volume_cad: float
     jacobian_ratio: float  # worst min/max det J over the tets; <= 0 is an inverted element
     timings: dict[str, float] = field(default_factory=dict)
+    msh: bytes | None = None  # the gmsh file (mesh.msh, mm), on rank 0, when asked for
 
 
 @dataclass
@@ -110,6 +109,7 @@ class MeshedPart:
     scale: float                 # mm per gmsh unit
     quality: float               # worst det J ratio of the curved tets
     timings: dict[str, float]
+    msh: bytes | None = None     # the gmsh file (mm, MSH 4.1 binary with a note), when asked for
 
 
 HEARTBEAT_S = 10.0
@@ -150,9 +150,11 @@ class Mesher:
     re-initialised it meanwhile, the part is built again.
     """
 
-    def __init__(self, d: Dimensions, model: str, progress: Callable[[str], None] | None = None) -> None:
+    def __init__(self, d: Dimensions, model: str, progress: Callable[[str], None] | None = None,
+                 gmsh_options: dict[str, float] | None = None) -> None:
         self.d, self.model = d, model
         self.progress = progress  # told every HEARTBEAT_S while one mesh takes longer
+        self.gmsh_options = gmsh_options  # gmsh options of every mesh, beside the builder's (geometry.sizing.mesh)
         self.scale = meshing_scale(d)
         self.name = f"crosshead-{id(self)}"
         self.built: BuiltGeometry | None = None
@@ -190,19 +192,11 @@ class Mesher:
             self.built = None
             raise
 
-    def generate(self, spec: MeshSpec, msh_path: Path | None = None) -> MeshedPart:
-        """Mesh the part for ``spec`` → arrays (mm). If ``msh_path`` is given the gmsh mesh
-        (with physical names) is written there too, in mm. gmsh works in units of
-        :func:`meshing_scale`."""
+    def generate(self, spec: MeshSpec, keep_msh: bool = False) -> MeshedPart:
+        """Mesh the part for ``spec`` → arrays (mm); with ``keep_msh`` the gmsh file too
+        (physical names, mm). gmsh works in units of :func:`meshing_scale`."""
         t0 = time.perf_counter()
-        cache_key = runcache.key("mesh", dims=self.d, model=self.model, spec=spec)
-        hit = meshcache.earlier(cache_key)
-        if hit is not None and (msh_path is None or hit.msh is not None):
-            if msh_path is not None:
-                Path(msh_path).write_bytes(hit.msh)
-            # Read from the cache, checked (pipeline/cache/meshes.py).
-            return MeshedPart(**hit.fields, timings={"geometry": 0.0, "mesh": time.perf_counter() - t0})
-        dn, spec_n = _normalised(self.d, spec, self.scale)
+        dn, spec_n = normalised(self.d, spec, self.scale)
         timings: dict[str, float] = {}
         if self._live():
             gmsh.model.mesh.clear()
@@ -212,9 +206,8 @@ class Mesher:
         t0 = time.perf_counter()
         # Every curved tet leaves the builder with a det J ratio >= HO_TARGET (0.3).
         with heartbeat(self.progress, f"meshing ×{spec.factor:.3g}"):
-            quality = mesh(dn, spec_n).quality
-        if msh_path is not None:
-            write_msh(Path(msh_path), self.model, self.scale)
+            quality = (mesh(dn, spec_n) if self.gmsh_options is None else mesh(dn, spec_n, self.gmsh_options)).quality
+        msh = msh_bytes(self.model, self.scale) if keep_msh else None
         names = {gmsh.model.getPhysicalName(dim, tag): tag for dim, tag in gmsh.model.getPhysicalGroups(2)}
         x = gmshio.extract_geometry(gmsh.model) * self.scale
         topo = gmshio.extract_topology_and_markers(gmsh.model)
@@ -226,16 +219,12 @@ class Mesher:
         timings["mesh"] = time.perf_counter() - t0
         if len(facet_types) != 1:
             raise RuntimeError(f"mesh: expected one kind of boundary triangle, got gmsh types {facet_types}")
-        part = MeshedPart(x=x, cells=np.asarray(topo[cell_type]["topology"], dtype=np.int64),
+        return MeshedPart(x=x, cells=np.asarray(topo[cell_type]["topology"], dtype=np.int64),
                           cell_values=np.asarray(topo[cell_type]["cell_data"], dtype=np.int32),
                           facets=np.asarray(topo[facet_types[0]]["topology"], dtype=np.int64),
                           facet_values=np.asarray(topo[facet_types[0]]["cell_data"], dtype=np.int32),
                           cell_type=int(cell_type), names=names, built=self.built, scale=self.scale,
-                          quality=quality, timings=timings)
-        if runcache.enabled():
-            fields = {k: v for k, v in vars(part).items() if k != "timings"}
-            meshcache.store(cache_key, fields, Path(msh_path).read_bytes() if msh_path is not None else None)
-        return part
+                          quality=quality, timings=timings, msh=msh)
 
 
 # mesh.msh's note on what it holds: a section gmsh and meshio skip (the MSH 4.1 format
@@ -245,21 +234,23 @@ MSH_PART = {"quarter": "quarter model x >= 0, y >= 0 of the crosshead; symmetry 
             "full": "the whole crosshead; mm"}
 
 
-def write_msh(path: Path, model: str, scale: float) -> None:
-    """Write gmsh's current mesh to ``path`` in mm (gmsh works in units of ``scale``, see
+def msh_bytes(model: str, scale: float) -> bytes:
+    """gmsh's current mesh as a file in mm (gmsh works in units of ``scale``, see
     :func:`meshing_scale`), MSH 4.1 binary, with a $Comments section after the format
     line saying which part it holds (MSH_PART of ``model``)."""
     gmsh.option.setNumber("Mesh.ScalingFactor", scale)  # write in mm
     gmsh.option.setNumber("Mesh.Binary", 1)
     try:
-        gmsh.write(str(path))
+        with tempfile.TemporaryDirectory(prefix="crosshead-msh-") as tmp:
+            path = Path(tmp) / "mesh.msh"
+            gmsh.write(str(path))
+            data = path.read_bytes()
     finally:
         gmsh.option.setNumber("Mesh.Binary", 0)
         gmsh.option.setNumber("Mesh.ScalingFactor", 1.0)
-    data = path.read_bytes()
     end = data.index(b"$EndMeshFormat\n") + len(b"$EndMeshFormat\n")
     note = f"$Comments\ncrosshead mesh.msh: {MSH_PART[model]}\n$EndComments\n".encode("ascii")
-    path.write_bytes(data[:end] + note + data[end:])
+    return data[:end] + note + data[end:]
 
 
 def given_or_new(mesher: Mesher | None, d: Dimensions, model: str) -> contextlib.AbstractContextManager[Mesher]:
@@ -272,11 +263,11 @@ def given_or_new(mesher: Mesher | None, d: Dimensions, model: str) -> contextlib
     return contextlib.nullcontext(mesher)
 
 
-def generate(d: Dimensions, model: str, spec: MeshSpec, msh_path: Path | None = None) -> MeshedPart:
+def generate(d: Dimensions, model: str, spec: MeshSpec, keep_msh: bool = False) -> MeshedPart:
     """Geometry → gmsh mesh → arrays, in this process only, in a gmsh session of its own
     (see :class:`Mesher` for several meshes of one part)."""
     with Mesher(d, model) as m:
-        return m.generate(spec, msh_path)
+        return m.generate(spec, keep_msh)
 
 
 def distribute(part: MeshedPart | None, owner: int, model: str, comm: MPI.Comm = MPI.COMM_WORLD) -> ImportedMesh:
@@ -288,8 +279,14 @@ def distribute(part: MeshedPart | None, owner: int, model: str, comm: MPI.Comm =
     meta = None
     if comm.rank == owner:
         meta = (part.cell_type, part.cells.shape[1], part.facets.shape[1], part.names, part.built,
-                part.scale, part.quality, part.timings)
-    cell_type, n_nodes, n_facet_nodes, names, built, scale, quality, timings = comm.bcast(meta, root=owner)
+                part.scale, part.quality, part.timings, part.msh is not None)
+    cell_type, n_nodes, n_facet_nodes, names, built, scale, quality, timings, has_msh = comm.bcast(meta, root=owner)
+    msh = part.msh if comm.rank == owner else None
+    if has_msh and owner != 0:  # the gmsh file goes to the rank that writes the run's files
+        if comm.rank == owner:
+            comm.send(msh, dest=0, tag=7)
+        elif comm.rank == 0:
+            msh = comm.recv(source=owner, tag=7)
     if comm.rank == owner:
         x, cells, cell_values = part.x, part.cells, part.cell_values
         facets, facet_values = part.facets, part.facet_values
@@ -318,15 +315,15 @@ def distribute(part: MeshedPart | None, owner: int, model: str, comm: MPI.Comm =
     return ImportedMesh(mesh=dmesh, cell_tags=cell_tags, facet_tags=facet_tags,
                         facet_ids=names, constraint_points=np.array(built.constraint_points) * scale,
                         model=model, volume_cad=built.volume * scale ** 3,
-                        jacobian_ratio=quality, timings=timings)
+                        jacobian_ratio=quality, timings=timings, msh=msh if comm.rank == 0 else None)
 
 
 def make_mesh(d: Dimensions, model: str, spec: MeshSpec, comm: MPI.Comm = MPI.COMM_WORLD,
-              msh_path: Path | None = None, mesher: Mesher | None = None) -> ImportedMesh:
+              keep_msh: bool = False, mesher: Mesher | None = None) -> ImportedMesh:
     """Geometry → gmsh mesh (on rank 0) → DOLFINx mesh. Times each of the three stages (s).
 
     ``mesher``: this process's :class:`Mesher` of part d, if it has one (else a new session)."""
-    return make_meshes(d, model, [spec], comm, [msh_path], mesher=mesher)[0]()
+    return make_meshes(d, model, [spec], comm, [keep_msh], mesher=mesher)[0]()
 
 
 def owners(costs: Sequence[float], ranks: int) -> list[int]:
@@ -341,7 +338,7 @@ def owners(costs: Sequence[float], ranks: int) -> list[int]:
 
 
 def make_meshes(d: Dimensions, model: str, specs: Sequence[MeshSpec], comm: MPI.Comm = MPI.COMM_WORLD,
-                msh_paths: Sequence[Path | None] | None = None,
+                keep_msh: Sequence[bool] | None = None,
                 solve_on: Sequence[int | None] | None = None,
                 mesher: Mesher | None = None) -> list[Callable[[], ImportedMesh] | None]:
     """Mesh several specs at once, each on one rank; return a loader per mesh.
@@ -355,7 +352,7 @@ def make_meshes(d: Dimensions, model: str, specs: Sequence[MeshSpec], comm: MPI.
     error on every rank, before anything is loaded, the first in spec order. ``mesher``:
     this process's :class:`Mesher` of part d, if it has one (else one for this call).
     """
-    paths = list(msh_paths) if msh_paths is not None else [None] * len(specs)
+    keep = list(keep_msh) if keep_msh is not None else [False] * len(specs)
     target = list(solve_on) if solve_on is not None else [None] * len(specs)
     who = owners([s.factor ** -3 for s in specs], comm.size)
     parts: dict[int, MeshedPart] = {}
@@ -364,7 +361,7 @@ def make_meshes(d: Dimensions, model: str, specs: Sequence[MeshSpec], comm: MPI.
         for k, spec in enumerate(specs):
             if who[k] == comm.rank and error is None:
                 try:
-                    parts[k] = m.generate(spec, paths[k])
+                    parts[k] = m.generate(spec, keep[k])
                 except Exception as exc:  # re-raised on every rank below
                     error = (k, exc)
     errors = [e for e in comm.allgather(error) if e is not None]

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field
-from typing import Callable, Sequence
+from typing import Sequence
 
 import numpy as np
 import ufl
@@ -126,32 +126,51 @@ class _System:
     ds_data: object  # the facet tags the tractions' markers refer to
 
 
-def solve(mesh, facet_tags, order: int, mat: Material, tractions: Sequence[Traction],
-          constraints: Sequence[Constraint], solver: str = "pmg", rtol: float = 1e-10,
-          progress: Callable[[str], None] | None = None, V: fem.FunctionSpace | None = None,
-          more: Sequence[Sequence[Traction]] = ()) -> Solution:
-    """Solve div σ(u) = 0 with the given tractions and constraints (on the vector Lagrange
-    space V of that order, if the caller has made it already).
+@dataclass(frozen=True)
+class Loads:
+    """What a solve carries: tractions (MPa) under constraints, and ``more`` sets of
+    tractions under the same constraints (a load-model variant: only the right-hand side
+    differs)."""
 
-    ``more``: further sets of tractions under the same constraints, solved with the same
-    matrix and preconditioner (only the right-hand side differs: a load-model variant);
-    their solutions, checked alike, are the result's ``more``.
+    tractions: Sequence[Traction]
+    constraints: Sequence[Constraint]
+    more: Sequence[Sequence[Traction]] = ()
+
+
+@dataclass(frozen=True)
+class Method:
+    """How a system is solved: the displacement's element order, the solver (SOLVERS) and
+    its relative tolerance on the true residual."""
+
+    order: int = 2
+    solver: str = "pmg"
+    rtol: float = 1e-10
+
+
+def solve(mesh, facet_tags, mat: Material, loads: Loads, method: Method = Method(),
+          V: fem.FunctionSpace | None = None) -> Solution:
+    """Solve div σ(u) = 0 with the given loads (on the vector Lagrange space V of the
+    method's order, if the caller has made it already).
+
+    ``loads.more`` are solved with the same matrix and preconditioner; their solutions,
+    checked alike, are the result's ``more``.
 
     Checks the solver's converged reason and the true relative residual ‖b − A u‖/‖b‖
     (below max(1000·rtol, 1e-6) for iterative solvers, 1e-8 for MUMPS) and that u is finite.
     Reaction forces (N) at each Constraint come from the unconstrained residual.
     For P1, "pmg" has no lower order to go to and is plain GAMG.
     """
-    if solver == "pmg" and order == 1:
-        solver = "gamg"
+    if method.solver == "pmg" and method.order == 1:
+        method = Method(1, "gamg", method.rtol)
+    solver, rtol = method.solver, method.rtol
     t0 = time.perf_counter()
-    system = _assemble(mesh, facet_tags, order, mat, tractions, constraints, solver, V)
+    system = _assemble(mesh, facet_tags, mat, loads, method, V)
     t_assemble = time.perf_counter() - t0
     t0 = time.perf_counter()
-    variants = [_variant(system, tractions_k) for tractions_k in more]
+    variants = [_variant(system, tractions_k) for tractions_k in loads.more]
     t_assemble += time.perf_counter() - t0
     t0 = time.perf_counter()
-    solved = _krylov(system, mat, facet_tags, constraints, solver, rtol, more=variants)
+    solved = _krylov(system, mat, facet_tags, loads.constraints, method, more=variants)
     t_solve = time.perf_counter() - t0
     V = system.V
     dofs = V.dofmap.index_map.size_global * V.dofmap.index_map_bs
@@ -198,9 +217,10 @@ def _variant(system: _System, tractions: Sequence[Traction]) -> _System:
                    system.a, system.diagonal, system.ds_data)
 
 
-def _assemble(mesh, facet_tags, order: int, mat: Material, tractions: Sequence[Traction],
-              constraints: Sequence[Constraint], solver: str, V: fem.FunctionSpace | None = None) -> _System:
+def _assemble(mesh, facet_tags, mat: Material, loads: Loads, method: Method,
+              V: fem.FunctionSpace | None = None) -> _System:
     """Stiffness matrix (MPa·mm) and load vector (N) of the problem, constraints applied."""
+    order, solver, tractions, constraints = method.order, method.solver, loads.tractions, loads.constraints
     V = V or fem.VectorFunctionSpace(mesh, ("Lagrange", order))
     u, v = ufl.TrialFunction(V), ufl.TestFunction(V)
     ds = ufl.Measure("ds", domain=mesh, subdomain_data=facet_tags)
@@ -219,11 +239,12 @@ def _assemble(mesh, facet_tags, order: int, mat: Material, tractions: Sequence[T
     return _System(V, v, dx_split, L_form, A, b, bcs, bc_dofs, a, diagonal, facet_tags)
 
 
-def _krylov(system: _System, mat: Material, facet_tags, constraints: Sequence[Constraint], solver: str,
-            rtol: float, more: Sequence[_System] = ()) -> list[tuple[fem.Function, int, int, float]]:
+def _krylov(system: _System, mat: Material, facet_tags, constraints: Sequence[Constraint], method: Method,
+            more: Sequence[_System] = ()) -> list[tuple[fem.Function, int, int, float]]:
     """Solve A u = b with the named solver, for the system's b and then each of ``more``'s
     with the same set-up: per b (u in mm, PETSc's converged reason, iterations, true
     relative residual ‖b − A u‖/‖b‖)."""
+    solver, rtol = method.solver, method.rtol
     A, V = system.A, system.V
     ksp = PETSc.KSP().create(V.mesh.comm)
     prefix = f"crosshead_{ksp.handle}_"  # unique while this KSP lives (its options are removed after set-up)

@@ -12,7 +12,7 @@ from pathlib import Path
 from typing import Any, Sequence
 
 from geometry.meshspec import MeshSpec
-from geometry.table import Dimensions, InputError, lookup, validate
+from geometry.table import Dimensions, InputError, lookup, paper_spans, validate
 
 from pipeline.inputs.choices import BEARING_AT, BEARING_SHAPES, MODELS, SOLVERS, SUPPORTS, WANTS
 from pipeline.inputs.tomlfile import read_toml
@@ -136,7 +136,7 @@ SCHEMA: dict[str, dict[str, tuple[str, tuple[type, ...]]]] = {
                  "allowable_MPa": ("allowable_MPa", _NUM)},
     "model": {"model": ("model", (str,)), "support": ("support", (str,)), "want": ("want", (str,)),
               "bearing_shape": ("bearing_shape", (str,)), "bearing_length_mm": ("bearing_length_mm", _NUM),
-              "bearing_centre_mm": ("bearing_centre_mm", _NUM)},
+              "bearing_centre_mm": ("bearing_centre_mm", _NUM), "bearing_at": ("bearing_at", (str,))},
     "mesh": {"order": ("order", (int,)), "factor": ("mesh_factor", _NUM), "tolerance_pct": ("tolerance_pct", _NUM),
              "size_body_mm": ("size_body_mm", _NUM), "size_feature_mm": ("size_feature_mm", _NUM),
              "size_fillet_mm": ("size_fillet_mm", _NUM), "grading_mm": ("grading_mm", _NUM)},
@@ -227,7 +227,6 @@ def formula_bands(case: "Case") -> dict[str, tuple[BearingBand, float]]:
 
 def _paper_span(d: Dimensions, which: str) -> float:
     """The paper's span of a formula (mm): b1 + b2 (approximate) or b6 (exact)."""
-    from pipeline.post.formulas import paper_spans
     return paper_spans(d)[BEARING_AT.index(which)]
 
 
@@ -271,12 +270,17 @@ def resolve(size: str | None = None, case_file: Path | None = None,
     Overrides use Case field names, or 'dims.<name>' for a dimension.
     """
     values: dict[str, Any] = {}
+    given = {k: v for k, v in (overrides or {}).items() if v is not None}
     if case_file is not None:
         values.update(read_case_file(case_file))
         if size is not None and "size" in values and str(values["size"]) != str(size):
             raise InputError(f"size: --size {size} conflicts with size = \"{values['size']}\" in "
                              f"{case_file}; give one of them")
-    values.update({k: v for k, v in (overrides or {}).items() if v is not None})
+        _one_position(values)
+        if "bearing_at" in given:  # the command line's position replaces the file's
+            values.pop("bearing_centre_mm", None)
+    _one_position(given)
+    values.update(given)
     if size is not None:
         values["size"] = size
     if "size" not in values:
@@ -294,9 +298,28 @@ def resolve(size: str | None = None, case_file: Path | None = None,
     load = values.pop("load_N", row.load_N)
     assumed = tuple(k for k in ("dj", "rf", "seat_inner", "seat_outer") if k not in dim_over)
     values.setdefault("mesh_pinned", "mesh_factor" in values)
+    at = values.pop("bearing_at", None)
     case = Case(name=str(name), size=row.size, source=row.source, dims=dims, load_N=load,
                 assumed=assumed, sensitivity_ranges=ranges, document=document, **values)
-    return check(case)
+    return check(case if at is None else at_formula_position(check(case), at))
+
+
+def _one_position(values: dict[str, Any]) -> None:
+    """InputError if one source (a case file, or the command line) gives both a formula's
+    load position (bearing_at) and a bearing centre: they name two positions."""
+    if values.get("bearing_at") is not None and values.get("bearing_centre_mm") is not None:
+        raise InputError("bearing_at: --bearing-at (bearing_at) sets the bearing centre; give it or "
+                         "--bearing-centre (bearing_centre_mm), not both")
+
+
+def at_formula_position(case: Case, which: str) -> Case:
+    """The case with its bearing band's centre (and, unless given, its length) at hand
+    formula ``which``'s own load position (:func:`formula_bearing`, the case's spans)."""
+    if which not in BEARING_AT:
+        raise InputError(f"bearing_at: must be one of {', '.join(BEARING_AT)}, got {which!r}")
+    span = case.approximate_span_mm if which == "approximate" else case.exact_span_mm
+    centre, length = formula_bearing(case.dims, which, case.bearing_length_mm, span)
+    return replace(case, bearing_centre_mm=centre, bearing_length_mm=length)
 
 
 def sensitivity_ranges(given: dict[str, Any]) -> tuple[tuple[str, float, float], ...]:
@@ -351,7 +374,6 @@ def check_spans(case: Case) -> None:
     Approximate method: the reaction's lever l/2 must exceed the bearing load's Dm/pi.
     Exact method: the curved bar needs the reaction outside the ring, l/2 > R = (b1 + di)/4.
     """
-    from pipeline.post.formulas import paper_spans
     d = case.dims
     approx, exact = paper_spans(d)
     l_a = case.approximate_span_mm if case.approximate_span_mm is not None else approx

@@ -11,7 +11,6 @@ each peak.
 """
 from __future__ import annotations
 
-import json
 import sys
 from dataclasses import dataclass
 from pathlib import Path
@@ -100,14 +99,14 @@ def panel_title(label: str, block: dict, view: View) -> str:
             f"view {2 * view.half_height_mm:.2f} mm high, surface edges ~{view.edge_mm:.2f} mm")
 
 
-def render_closeup(folder: Path) -> Path:
-    """Draw folder/mesh_closeup.png from folder/fields.vtu and the peaks of folder/results.json."""
+def render_closeup(folder: Path, res: dict) -> Path:
+    """Draw folder/mesh_closeup.png from folder/fields.vtu and the peaks of ``res``
+    (results.json's case and fe keys)."""
     import vtkmodules.vtkRenderingFreeType  # noqa: F401  (text)
     import vtkmodules.vtkRenderingOpenGL2  # noqa: F401  (the render window's backend)
     from vtkmodules.vtkRenderingCore import vtkRenderWindow
 
     folder = Path(folder)
-    res = json.loads((folder / "results.json").read_text(encoding="utf-8"))
     xyz, tets, arrays = element_nodes(folder / "fields.vtu")
     used, tri = boundary_surface(xyz, tets)
     points, vm = xyz[used], arrays["von_mises_MPa"][used]
@@ -133,4 +132,5 @@ def render_closeup(folder: Path) -> Path:
 
 
 if __name__ == "__main__":
-    render_closeup(Path(sys.argv[1]))
+    from pipeline.output.drawing import read_input
+    render_closeup(Path(sys.argv[1]), read_input(sys.argv[2:], Path(sys.argv[1])))

@@ -11,7 +11,6 @@ solves on the same cores (docs/decisions/0007-drawing-and-field-files.md).
 """
 from __future__ import annotations
 
-import json
 import sys
 from dataclasses import dataclass
 from pathlib import Path
@@ -311,11 +310,10 @@ class _Scene:
     unseen: list[str]           # peaks no panel sees, named in the title instead
 
 
-def _scene(folder: Path) -> _Scene:
-    """Read folder/results.json and fields.vtu into what the panels draw: the
-    outer surface displaced so its largest move is 4 % of b6 (mm), its colours, the load
-    arrows and where each panel marks the peaks."""
-    res = json.loads((folder / "results.json").read_text(encoding="utf-8"))
+def _scene(folder: Path, res: dict) -> _Scene:
+    """Read folder/fields.vtu and the peaks of ``res`` (results.json's case and fe keys)
+    into what the panels draw: the outer surface displaced so its largest move is 4 % of
+    b6 (mm), its colours, the load arrows and where each panel marks the peaks."""
     xyz, tets, arrays = element_nodes(folder / "fields.vtu")
     used, tri = boundary_surface(xyz, tets)
     points0, vm, disp = xyz[used], arrays["von_mises_MPa"][used], arrays["displacement_mm"][used]
@@ -490,14 +488,14 @@ def _write_png(window: vtkRenderWindow, out: Path) -> None:
     writer.Write()
 
 
-def render_folder(folder: Path, out_name: str = "von_mises.png") -> Path:
-    """Draw folder's fields with the peaks of folder/results.json into a PNG."""
+def render_folder(folder: Path, res: dict, out_name: str = "von_mises.png") -> Path:
+    """Draw folder's fields with the peaks of ``res`` (results.json's case and fe keys) into a PNG."""
     import vtkmodules.vtkRenderingFreeType  # noqa: F401  (text)
     import vtkmodules.vtkRenderingOpenGL2  # noqa: F401  (the render window's backend)
     from vtkmodules.vtkRenderingCore import vtkRenderWindow
 
     folder = Path(folder)
-    scene = _scene(folder)
+    scene = _scene(folder, res)
     window = vtkRenderWindow()
     window.SetOffScreenRendering(1)
     window.SetSize(*WINDOW)
@@ -516,4 +514,5 @@ def render_folder(folder: Path, out_name: str = "von_mises.png") -> Path:
 
 
 if __name__ == "__main__":
-    render_folder(Path(sys.argv[1]))
+    from pipeline.output.drawing import read_input
+    render_folder(Path(sys.argv[1]), read_input(sys.argv[2:], Path(sys.argv[1])))

@@ -6,9 +6,7 @@ error-bar solves and the picture (pipeline/output/picture.py), from the files th
 """
 from __future__ import annotations
 
-import json
 import sys
-import time
 from pathlib import Path
 
 
@@ -159,7 +157,7 @@ def tornado_plot(path: Path, res: dict) -> bool:
         import matplotlib.pyplot as plt
     except ImportError:
         return False
-    from pipeline.output.report import range_text
+    from pipeline.analysis.words import range_text
     fe, summ = res["fe"], res.get("sensitivity_summary") or {}
     noise = summ.get("noise_MPa") or {}
     allowable = float(res["case"]["allowable_MPa"])
@@ -202,38 +200,18 @@ def tornado_plot(path: Path, res: dict) -> bool:
     return True
 
 
-def draw_plots(folder: Path, wait_s: float = 3600.0) -> None:
-    """A run's plots from folder/results.json: sections.png when the results carry section
-    stresses, and peaks.png once the run has written the results of every mesh (at most
-    ``wait_s`` s later). The run stops this process if it fails, so the wait ends either way."""
+def draw_plots(folder: Path, res: dict) -> None:
+    """A run's plots from its results ``res`` (results.json's content) into ``folder``:
+    sections.png when the results carry section stresses, peaks.png and, with a
+    sensitivity section, sensitivity.png."""
     folder = Path(folder)
-    res = json.loads((folder / "results.json").read_text(encoding="utf-8"))
     sections = res["fe"].get("sections")
     if sections:
         sections_plot(folder / "sections.png", sections, res["analytic"], float(res["case"]["dims"]["h3"]))
-    final = _all_levels(folder, wait_s)
-    if final is not None:
-        peaks_plot(folder / "peaks.png", final)
-        tornado_plot(folder / "sensitivity.png", final)
-
-
-def _all_levels(folder: Path, wait_s: float) -> dict | None:
-    """results.json once it holds every mesh's results (its timings have the error-bar
-    meshes' total), polled every 20 ms; None after ``wait_s`` s."""
-    end = time.monotonic() + wait_s
-    seen = None
-    while time.monotonic() < end:
-        # Read only a file that changed: the wait spans the sensitivity's solves, and
-        # parsing the file 50 times a second takes a core's share from them.
-        st = (folder / "results.json").stat()
-        if (st.st_ino, st.st_mtime_ns, st.st_size) != seen:
-            seen = (st.st_ino, st.st_mtime_ns, st.st_size)
-            res = json.loads((folder / "results.json").read_text(encoding="utf-8"))
-            if "error_bar_meshes" in res.get("timings_s", {}):
-                return res
-        time.sleep(0.02)
-    return None
+    peaks_plot(folder / "peaks.png", res)
+    tornado_plot(folder / "sensitivity.png", res)
 
 
 if __name__ == "__main__":
-    draw_plots(Path(sys.argv[1]))
+    from pipeline.output.drawing import read_input
+    draw_plots(Path(sys.argv[1]), read_input(sys.argv[2:], Path(sys.argv[1])))

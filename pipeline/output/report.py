@@ -7,6 +7,7 @@ import sys
 from pathlib import Path
 
 from geometry.table import is_scaled_row
+from pipeline.analysis.words import range_text
 from pipeline.output import appendix
 from pipeline.post.errorbar import SETTLED, SETTLED_BAND
 
@@ -263,17 +264,6 @@ def verdict_section(res: dict) -> str:
              "that stress reaches the allowable; the range follows the error bar. \"undecided\": the "
              "error bar straddles the allowable.\n")
     return "\n".join(L)
-
-
-def value_text(value: float | str, unit: str) -> str:
-    """An input's value with its unit: '1.2 mm', or a choice as it is ('uniform')."""
-    return value if isinstance(value, str) else f"{value:.4g} {unit}".rstrip()
-
-
-def range_text(rng: list, unit: str) -> str:
-    """A range: '1.2–1.8 mm', or the two choices ('cosine / uniform')."""
-    lo, hi = rng
-    return f"{lo} / {hi}" if isinstance(lo, str) else f"{lo:.4g}–{hi:.4g} {unit}".rstrip()
 
 
 SENSITIVITY_COLUMNS = (("peak_MPa", "global peak (MPa)", 2), ("critical_peak_MPa", "critical peak (MPa)", 2),

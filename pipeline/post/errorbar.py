@@ -8,12 +8,9 @@ from __future__ import annotations
 
 import math
 from dataclasses import asdict, dataclass, replace
-from typing import TYPE_CHECKING, Callable, Sequence
+from typing import Callable, Sequence
 
 import numpy as np
-
-if TYPE_CHECKING:
-    from pipeline.analysis.level import Level
 
 FS = 1.25          # Roache's safety factor for three or more meshes
 P_SINGULAR = 0.5   # observed order below this: the peak is not converging
@@ -103,9 +100,10 @@ STATUS_TEXT = ("*converged* (monotone, observed order ≥ 0.5: GCI band), "
                "(grows under refinement: no finite value).")
 
 
-def estimate_levels(levels: Sequence[Level], order: int, attr: str) -> Estimate:
+def estimate_levels(levels: Sequence, order: int, attr: str) -> Estimate:
     """The error estimate of one peak ("peak" or "critical") over the solved ``levels``
-    (finest first) of an element ``order``: the trend of its values over the meshes; a
+    (finest first; each with ``dofs`` and a NodalPeak under ``attr``) of an element
+    ``order``: the trend of its values over the meshes; a
     midpoint's band is at least its own half-width. With four or more meshes a midpoint's
     two readings are fitted to one limit (:func:`two_reading_estimate`): the midpoint alone
     scatters more than it changes."""

@@ -8,7 +8,7 @@ from __future__ import annotations
 import math
 from dataclasses import asdict, dataclass
 
-from geometry.table import Dimensions
+from geometry.table import Dimensions, paper_spans
 
 
 @dataclass(frozen=True)
@@ -73,11 +73,6 @@ class HandResults:
 
     def as_dict(self) -> dict:
         return {k: asdict(v) for k, v in self.__dict__.items()}
-
-
-def paper_spans(d: Dimensions) -> tuple[float, float]:
-    """(approximate span, exact span) as the paper chose them: (b1 + b2, b6), mm."""
-    return d.b1 + d.b2, d.b6
 
 
 def hand_results(d: Dimensions, Q_N: float, approximate_span_mm: float | None = None,

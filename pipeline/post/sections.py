@@ -33,10 +33,10 @@ import numpy as np
 from dolfinx import fem, geometry
 from mpi4py import MPI
 
-from geometry.table import Dimensions
-
+from geometry.table import Dimensions, model_share
 from pipeline.fe.elasticity import Material, stress
 from pipeline.fe.solve import Solution
+from pipeline.inputs.case import Case
 
 LINE_POINTS = 81  # samples along a linearisation line (Simpson's rule needs an odd count)
 
@@ -204,15 +204,13 @@ def ligament_sections(sol: Solution, mat: Material, d: Dimensions, share: float,
     return out
 
 
-def section_results(sol: Solution, mat: Material, d: Dimensions, load_N: float, share: float,
-                    symmetry_x: int | None, global_peak_MPa: float,
-                    bearing_centre_mm: float | None = None) -> dict:
-    """Everything above for one solved mesh, as a results.json block (docs/design.md §7);
-    ``bearing_centre_mm``: where the journal load acts (mm from x = 0; None: the middle of
-    the bearing surface)."""
-    out = ligament_sections(sol, mat, d, share, symmetry_x)
-    Mj, s_nom = journal_nominal(d, load_N, bearing_centre_mm)
-    centre = (d.b1 / 2 + d.rf + d.b6 / 2) / 2 if bearing_centre_mm is None else bearing_centre_mm
+def section_results(sol: Solution, mat: Material, case: Case, symmetry_x: int | None, global_peak_MPa: float) -> dict:
+    """Everything above for one solved mesh of ``case`` (its part, load, model and journal
+    load's centre), as a results.json block (docs/design.md §7); ``symmetry_x``: the index
+    of the symmetry plane x = 0's constraint (None: the full model)."""
+    d, centre = case.dims, case.bearing_band().centre_mm
+    out = ligament_sections(sol, mat, d, model_share(case.model), symmetry_x)
+    Mj, s_nom = journal_nominal(d, case.load_N, centre)
     root: dict = {"M_Nmm": Mj, "nominal_MPa": s_nom, "Kt": global_peak_MPa / s_nom, "load_at_mm": centre}
     if d.rf > 0:
         try:
@@ -236,16 +234,30 @@ NOMINAL_QUANTITY = "FE nominal stress of the section x = 0, N/(w·h) + 6|M|/(w·
 LINE_QUANTITY = "FE σ_xx over the height at mid-ligament, x = 0, linearised: membrane + bending"
 
 
-def formula_load_sections(sol: Solution, mat: Material, d: Dimensions, share: float, symmetry_x: int | None,
-                          formula_MPa: float, formula_at_fe_load_MPa: float, which: str,
-                          band_mm: tuple[float, float], own_position_mm: float) -> dict:
+@dataclass(frozen=True)
+class FormulaLoad:
+    """A hand formula (``which``) at its own load position: its stress at its own span and
+    at the FE load's position (MPa), the band the FE load was put on and the formula's own
+    position (mm from x = 0)."""
+
+    which: str
+    formula_MPa: float
+    formula_at_fe_load_MPa: float
+    band_mm: tuple[float, float]
+    own_position_mm: float
+
+
+def formula_load_sections(sol: Solution, mat: Material, case: Case, symmetry_x: int | None,
+                          formula: FormulaLoad) -> dict:
     """One formula's row of the like-with-like table (MPa, N, N·mm, mm): the FE section
-    quantities of ``sol``, solved with the journal load on ``band_mm`` (as near as the
-    journal allows to the formula's own position ``own_position_mm``), beside the formula
-    at its own span and at the FE load's position (2 × the band's middle). The FE figure
-    is of the beam's kind for both formulas: the exact formula's curved bar is another
-    theory of the same section, which is what the row shows."""
-    full = ligament_sections(sol, mat, d, share, symmetry_x)
+    quantities of ``sol``, solved with the journal load on the formula's band (as near as
+    the journal allows to the formula's own position), beside the formula at its own span
+    and at the FE load's position (2 × the band's middle). The FE figure is of the beam's
+    kind for both formulas: the exact formula's curved bar is another theory of the same
+    section, which is what the row shows."""
+    which, formula_MPa, formula_at_fe_load_MPa = formula.which, formula.formula_MPa, formula.formula_at_fe_load_MPa
+    band_mm, own_position_mm = formula.band_mm, formula.own_position_mm
+    full = ligament_sections(sol, mat, case.dims, model_share(case.model), symmetry_x)
     lines = {k: {q: v[q] for q in ("membrane_MPa", "bending_MPa", "membrane_plus_bending_MPa", "peak_on_line_MPa")}
              for k, v in full["lines"].items()}
     cs = full.get("critical_section")

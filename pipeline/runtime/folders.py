@@ -26,6 +26,12 @@ RUN_FILES = frozenset({"results.json", "report.md", "report.html", "mesh.msh", "
                        "sections.png", "peaks.png"})
 
 
+
+def default_out(name: str) -> Path:
+    """The default output folder of a case: ``results/<name>`` in the repository, wherever
+    the command is started from (a run from ``/`` must not write ``/results``)."""
+    return REPOSITORY / "results" / name
+
 def is_field_part(name: str) -> bool:
     """A piece of the displacement field a run wrote (one .vtu per rank under MPI)."""
     return name.startswith("displacement") and name.endswith((".vtu", ".pvtu"))

@@ -40,29 +40,14 @@ from typing import Iterator
 
 from mpi4py import MPI
 
-from pipeline.errors import InputError
-from pipeline.runtime.folders import (MARKER, REPOSITORY, RUN_FILES, STAGING_MARK, enclosing_study, is_field_part,
+from pipeline.errors import InputError, OutputError
+from pipeline.runtime.folders import (MARKER, RUN_FILES, STAGING_MARK, enclosing_study, is_field_part,
                                       marked_kind, marker_data, protected_reason, tool_names, user_names)
 from pipeline.runtime.idle import wait_for_ranks
 from pipeline.runtime.interrupts import on_stop, signals_wait, stop_outcome
 
 NAME_ROOM = 200  # bytes of --out's name kept in the names beside it (see module doc)
 HASH_CHARS = 12  # hex digits of the name's hash in a shortened name (48 bits)
-
-
-class OutputError(OSError):
-    """The output folder could not be written (disk full, permission); the message names
-    ``--out``. ``outcome`` says what became of the folder when it is not "nothing written"."""
-
-    def __init__(self, line: str, outcome: str | None = None) -> None:
-        super().__init__(line)
-        self.outcome = outcome
-
-
-def default_out(name: str) -> Path:
-    """The default output folder of a case: ``results/<name>`` in the repository, wherever
-    the command is started from (a run from ``/`` must not write ``/results``)."""
-    return REPOSITORY / "results" / name
 
 
 # What the marker of each kind of results folder says it holds, for the refusal line.

@@ -26,6 +26,28 @@ STUDY_KEYS = {"size": (str,), "case": (str,), "dims": (dict,), "load": (str, int
 
 
 @dataclass(frozen=True)
+class Study:
+    """A design study as asked (mm, N): the case it starts from (a hook number ``size`` or a
+    case file, or every hook number of ``sizes``), what every variant shares (``base``: the
+    case file's keys), the axes of its grid (``dims.<name>`` or case fields, values), the
+    hook loads (empty: each case's own), each variant's meshes (``levels`` at ``ratio``),
+    whether each also varies its assumed inputs (``sensitivity``), whether the study is
+    screened (``screen``) and the memory a variant may use (GiB; None: the memory free)."""
+
+    size: str | None
+    case_file: Path | None
+    base: dict
+    axes: dict[str, list[float]]
+    loads: list[float]
+    levels: int = 3
+    ratio: float = 1.3
+    sizes: list[str] | None = None
+    sensitivity: bool = False
+    screen: bool = False
+    memory_limit_gb: float | None = None
+
+
+@dataclass(frozen=True)
 class Task:
     """One geometry and material of the grid, with every load it is asked at."""
 
@@ -36,14 +58,13 @@ class Task:
     note: str = ""
 
 
-def plan(size: str | None, case_file: Path | None, base: dict, axes: dict[str, list[float]],
-         loads: list[float], levels: int, ratio: float, sizes: list[str] | None = None,
-         sensitivity: bool = False) -> list[Task]:
-    """The grid's tasks: the product of ``axes`` (``dims.<name>`` or case fields, values),
-    each at every load of ``loads`` (or the case's own load); with ``sizes``, that grid for
-    every hook number (each at its own rated load unless loads are given). ``sensitivity``:
-    each variant also varies its assumed inputs (part of its key, so a study without it is
-    not taken for one with it)."""
+def plan(study: Study) -> list[Task]:
+    """The grid's tasks: the product of the study's axes, each at every load of its loads
+    (or the case's own load); with ``sizes``, that grid for every hook number (each at its
+    own rated load unless loads are given). Whether each variant varies its assumed inputs
+    is part of its key, so a study without it is not taken for one with it."""
+    size, case_file, base, axes, loads = study.size, study.case_file, study.base, study.axes, study.loads
+    levels, ratio, sizes, sensitivity = study.levels, study.ratio, study.sizes, study.sensitivity
     names = list(axes)
     tasks = []
     for hook, combo in itertools.product(sizes or [size], itertools.product(*(axes[n] for n in names))):

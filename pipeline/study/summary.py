@@ -338,7 +338,7 @@ def _status_notes(rows: list[dict]) -> list[str]:
 
 def _screening_notes(rows: list[dict]) -> list[str]:
     """Which rows of a screened study were decided on its cheap level and which got the
-    full error bar, with the evidence (pipeline.analysis.screening); nothing otherwise."""
+    full error bar, with the evidence (pipeline.study.screening); nothing otherwise."""
     by: dict[str, list[str]] = {}
     for r in rows:
         if r.get("decided_by"):

@@ -28,7 +28,12 @@ from typing import Callable
 
 from mpi4py import MPI
 
+from geometry.part import GeometryError
+from pipeline.analysis.context import RunContext
+from pipeline.study.screening import FILE, screen_case, screening_of
 from pipeline.errors import InputError, NumericalError
+from pipeline.inputs.options import Outputs, RunOptions
+from pipeline.output.folder import write_run
 from pipeline.runtime.interrupts import on_stop, stop_outcome
 # pipeline.fe.meshing loads DOLFINx, whose import starts PETSc collectively over COMM_WORLD:
 # importing it here, on every rank as the command starts, keeps rank 0's later memory probe
@@ -37,7 +42,7 @@ from pipeline.fe.meshing import heartbeat
 from pipeline.runtime.atomicfile import write_text
 from pipeline.runtime.idle import wait_for_ranks
 from pipeline.study.manifest import MANIFEST, failure_fault, folder_fault, write_failure, write_manifest
-from pipeline.study.plan import Task, earlier_variants, failure_file, plan, variant_folder
+from pipeline.study.plan import Study, Task, earlier_variants, failure_file, plan, variant_folder
 from pipeline.study.table import inputs_text, write_outputs
 
 Progress = Callable[[str], None]
@@ -61,7 +66,7 @@ def _done(out: Path, key: str, full: bool = True) -> bool:
     """Has task ``key`` ended, with results or with its failure written, each matching
     its checksums? (Results without them are a run that stopped, or files changed since.)
     With ``full``, results of the cheap level of a screened study
-    (pipeline.analysis.screening) do not count: the task wants its full error bar."""
+    (pipeline.study.screening) do not count: the task wants its full error bar."""
     failed = failure_file(out, key)
     if failed.is_file() and failure_fault(failed) is None:
         return True
@@ -78,7 +83,7 @@ def screening(folder: Path) -> dict | None:
     """The cheap level's reading kept in a variant's folder (screening.json), or None: a
     variant of a study that was not screened. Read only from a folder whose files match
     their checksums."""
-    from pipeline.analysis.screening import FILE
+    from pipeline.study.screening import FILE
     f = folder / FILE
     return json.loads(f.read_text(encoding="utf-8")) if f.is_file() else None
 
@@ -140,31 +145,31 @@ def _remove(path: Path) -> None:
         path.unlink(missing_ok=True)
 
 
-def run_task(task: Task, out: Path, levels: int, ratio: float, sensitivity: bool = False,
-             screen: bool = False, why_full: str | None = None) -> None:
+def run_task(task: Task, out: Path, study: Study, screen: bool = False, why_full: str | None = None) -> None:
     """Analyse one task on this rank alone, then write the checksums of its files; a
     failure is written beside (with its own checksum), never raised. What the task left
     before (files that failed their checksums) is removed first, so that only this run's
     files are found. ``screen``: the cheap level only (one coarse mesh,
-    pipeline.analysis.screening), whose reading goes into screening.json; when it fails,
+    pipeline.study.screening), whose reading goes into screening.json; when it fails,
     the full analysis runs at once. ``why_full``: the full analysis of a screened study's
     variant, which keeps the cheap level's reading with why it was not enough. No variant
     solves the journal load at the hand formulas' positions: the study's table does not
     read those sections (results.json's ``fe.sections.formula_load`` is null)."""
-    from geometry.part import GeometryError
-
-    from pipeline.analysis.screening import FILE, screen_case, screening_of
-    from pipeline.commands import execute_run
     case = replace(task.case, load_N=task.loads[0])
     folder, failed = variant_folder(out, task.key), failure_file(out, task.key)
     cheap = screening(folder) if why_full is not None and folder_fault(folder) is None else None
     _remove(folder)
     _remove(failed)
-    loads = list(task.loads) if len(task.loads) > 1 else None
+    # No variant solves the journal load at the hand formulas' positions (the study's table
+    # does not read them) nor writes fields or a mesh: its question is its peaks.
+    options = RunOptions(levels=study.levels, ratio=study.ratio, to_tolerance=False, sensitivity=study.sensitivity,
+                         formula_loads=False,
+                         loads=tuple(task.loads) if len(task.loads) > 1 else (),
+                         outputs=Outputs(fields=False, mesh=False))
+    alone = RunContext(comm=MPI.COMM_SELF)
     if screen:
         try:
-            res = execute_run(screen_case(case), folder, levels=1, ratio=ratio, write_fields=False, write_mesh=False,
-                              loads=loads, comm=MPI.COMM_SELF, formula_loads=False)
+            res = write_run(screen_case(case), replace(options, levels=1, sensitivity=False), folder, alone)
             write_text(folder / FILE, json.dumps(screening_of(res), indent=1) + "\n")
             write_manifest(folder)
             return
@@ -172,9 +177,7 @@ def run_task(task: Task, out: Path, levels: int, ratio: float, sensitivity: bool
             _remove(folder)
             why_full = f"the cheap level failed: {' '.join(str(exc).split())}"
     try:
-        execute_run(case, folder, levels=levels, ratio=ratio, write_fields=False,
-                    write_mesh=False, loads=loads, comm=MPI.COMM_SELF,
-                    sensitivity=sensitivity, formula_loads=False)
+        write_run(case, options, folder, alone)
     except (NumericalError, GeometryError, InputError) as exc:
         write_failure(failed, {"error": " ".join(str(exc).split()), "size": case.size, "parameters": task.params})
         return
@@ -184,12 +187,13 @@ def run_task(task: Task, out: Path, levels: int, ratio: float, sensitivity: bool
     write_manifest(folder)
 
 
-def work(tasks: list[Task], out: Path, levels: int, ratio: float, say: Progress, before: int,
-         sensitivity: bool = False, screen: bool = False, full: dict[str, str] | None = None) -> None:
+def work(tasks: list[Task], out: Path, study: Study, say: Progress, before: int,
+         full: dict[str, str] | None = None) -> None:
     """Every rank takes the next unclaimed, unfinished task until none is left; ``before``
-    tasks had finished when the study started (the pace counts only this run's).
-    ``screen``: each task on the cheap level only. ``full``: the full analysis of these
+    tasks had finished when the study started (the pace counts only this run's). A
+    screened study's tasks on the cheap level only; ``full``: the full analysis of these
     tasks of a screened study (key -> why the cheap level was not enough)."""
+    screen = study.screen and full is None
     todo = [t for t in tasks if t.case is not None and (full is None or t.key in full)]
     t0 = time.perf_counter()
     what = "screened" if screen else "done" if full is None else "given the full error bar"
@@ -199,15 +203,13 @@ def work(tasks: list[Task], out: Path, levels: int, ratio: float, say: Progress,
         # A variant says nothing until it ends: a large one (a fine mesh, a small fillet)
         # is heard from every HEARTBEAT_S while it runs.
         with heartbeat(say, f"sweep: variant {inputs_text(task.params)}"):
-            run_task(task, out, levels, ratio, sensitivity, screen=screen,
-                     why_full=None if full is None else full[task.key])
+            run_task(task, out, study, screen=screen, why_full=None if full is None else full[task.key])
         finished = sum(_done(out, t.key, full=not screen) if full is not None else _ended(out, t.key) for t in todo)
         say(f"sweep: {finished}/{len(todo)} variants {what}; "
             f"about {time_left_s(time.perf_counter() - t0, finished - before, len(todo) - finished):.0f} s left")
 
 
-def escalate(tasks: list[Task], out: Path, axes: dict[str, list[float]], allowable: float, levels: int,
-             ratio: float, say: Progress, comm: MPI.Comm, sensitivity: bool = False) -> None:
+def escalate(tasks: list[Task], out: Path, study: Study, allowable: float, say: Progress, comm: MPI.Comm) -> None:
     """The second step of a screened study: the variants whose cheap band holds the
     allowable (MPa), or that border a crossing of it, get the full error bar; repeated,
     since a variant analysed in full can move a crossing next to one decided cheaply,
@@ -218,14 +220,14 @@ def escalate(tasks: list[Task], out: Path, axes: dict[str, list[float]], allowab
         todo = None
         if comm.rank == 0:
             rows = with_verdicts(rows_of(tasks, out), allowable)
-            todo = {k: w for k, w in escalations(rows, swept_axes(axes), allowable).items()
+            todo = {k: w for k, w in escalations(rows, swept_axes(axes_of(study)), allowable).items()
                     if not _done(out, k, full=True)}
             if todo:
                 say(f"sweep: {_count(len(todo), 'variant')} {'needs' if len(todo) == 1 else 'need'} the full error bar")
         todo = comm.bcast(todo, root=0)
         if not todo:
             return
-        work(tasks, out, levels, ratio, say, 0, sensitivity, full=todo)
+        work(tasks, out, study, say, 0, full=todo)
 
 
 def _count(n: int, noun: str) -> str:
@@ -243,11 +245,11 @@ def time_left_s(elapsed_s: float, finished_here: int, left: int) -> float:
 
 def check_variants_fit(tasks: list[Task], limit_gb: float | None, copies: int, say: Progress) -> None:
     """Refuse (InputError, exit 2) a study a variant of which would not fit in memory
-    (pipeline.runtime.resources) when ``copies`` variants run at once on this machine (one per
+    (pipeline.analysis.memory) when ``copies`` variants run at once on this machine (one per
     rank that shares its memory). A variant's meshes are solved one after another on its
     own rank, so its requested (finest) mesh sets what it needs. Only variants that could
     be large are probed (a finer mesh factor, sizes by hand, a small fillet)."""
-    from pipeline.runtime.resources import check_fits, needs_probe
+    from pipeline.analysis.memory import check_fits, needs_probe
     large = [t for t in tasks if t.case is not None and needs_probe(t.case, [t.case.mesh_factor])]
     if large:
         say(f"sweep: estimating the memory of {_count(len(large), 'variant')} that could be large (a mesh each)")
@@ -271,20 +273,21 @@ def remove_earlier_variants(out: Path, tasks: list[Task], say: Progress) -> None
             f"(earlier inputs or code)")
 
 
-def execute_sweep(size: str | None, case_file: Path | None, base: dict, axes: dict[str, list[float]],
-                  loads: list[float], out: Path, levels: int, ratio: float, say: Progress,
-                  comm: MPI.Comm = MPI.COMM_WORLD, sizes: list[str] | None = None,
-                  memory_limit_gb: float | None = None, sensitivity: bool = False,
-                  screen: bool = False) -> dict | None:
+def axes_of(study: Study) -> dict[str, list[float]]:
+    """The study's axes as its table lists them: its grid's, and the loads when several."""
+    return dict(study.axes, **({"load_N": study.loads} if len(study.loads) > 1 else {}))
+
+
+def execute_sweep(study: Study, out: Path, say: Progress, comm: MPI.Comm = MPI.COMM_WORLD) -> dict | None:
     """Plan, check memory and the output folder, work on every rank, summarise on rank 0.
-    Only rank 0 calls ``say``. ``sensitivity``: each variant varies its assumed inputs too
-    (pipeline/analysis/sensitivity.py), and the table says whether its verdict holds.
-    ``screen``: every variant is first analysed on the cheap level, and only those it
-    does not decide get the full error bar (:func:`escalate`)."""
+    Only rank 0 calls ``say``. With the study's ``sensitivity`` each variant varies its
+    assumed inputs too (pipeline/analysis/sensitivity.py), and the table says whether its
+    verdict holds; a screened study analyses every variant on the cheap level first, and
+    only those it does not decide get the full error bar (:func:`escalate`)."""
     from pipeline.runtime.outdir import MARKER, acquire_lock, check_out
     if comm.rank != 0:
         say = lambda s: None  # noqa: E731
-    tasks = plan(size, case_file, base, axes, loads, levels, ratio, sizes, sensitivity)
+    tasks = plan(study)
     node = comm.Split_type(MPI.COMM_TYPE_SHARED)
     copies = node.size  # the ranks that share this machine's memory, each with a variant
     node.Free()
@@ -293,7 +296,7 @@ def execute_sweep(size: str | None, case_file: Path | None, base: dict, axes: di
     if comm.rank == 0:
         try:
             out = check_out(out, kind="sweep")  # the cheap check first
-            check_variants_fit(tasks, memory_limit_gb, copies, say)
+            check_variants_fit(tasks, study.memory_limit_gb, copies, say)
             out.mkdir(parents=True, exist_ok=True)
             lock = acquire_lock(out)
             shutil.rmtree(out / ".claims", ignore_errors=True)  # the lock: no other sweep is running
@@ -313,7 +316,7 @@ def execute_sweep(size: str | None, case_file: Path | None, base: dict, axes: di
     out = Path(out).expanduser().resolve()
     valid = sum(t.case is not None for t in tasks)
     before = sum(_done(out, t.key) for t in tasks if t.case is not None)
-    each = f" at {len(loads)} loads each" if len(loads) > 1 else ""
+    each = f" at {len(study.loads)} loads each" if len(study.loads) > 1 else ""
     say(f"sweep: {_count(len(tasks), 'variant')}{each} ({valid} valid, {len(tasks) - valid} invalid), "
         f"{before} already done, {comm.size} rank(s)")
     with contextlib.ExitStack() as stack:
@@ -321,11 +324,10 @@ def execute_sweep(size: str | None, case_file: Path | None, base: dict, axes: di
             stack.enter_context(on_stop(lock.release))
         try:
             allowable = next((t.case.allowable_MPa for t in tasks if t.case is not None), 80.0)
-            axes_out = dict(axes, **({"load_N": loads} if len(loads) > 1 else {}))
             for round_ in range(REPAIR_ROUNDS + 1):
-                work(tasks, out, levels, ratio, say, before, sensitivity, screen=screen)
-                if screen:
-                    escalate(tasks, out, axes_out, allowable, levels, ratio, say, comm, sensitivity)
+                work(tasks, out, study, say, before)
+                if study.screen:
+                    escalate(tasks, out, study, allowable, say, comm)
                 wait_for_ranks(comm)
                 # Before the study is summarised: every variant's files as its run wrote them.
                 again = comm.bcast(bool(discard_damaged(out, tasks, say)) if comm.rank == 0
@@ -334,7 +336,7 @@ def execute_sweep(size: str | None, case_file: Path | None, base: dict, axes: di
                     break
             if comm.rank == 0:
                 remove_earlier_variants(out, tasks, say)
-                return write_outputs(tasks, out, axes_out, allowable)
+                return write_outputs(tasks, out, axes_of(study), allowable)
             return None
         finally:
             if lock is not None:

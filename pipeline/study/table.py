@@ -65,7 +65,7 @@ def decided_rows(res: dict, folder: Path) -> list[dict]:
     ``res``), as its study decided it: a variant of a screened study decided on the cheap
     level carries that level's bands and the status "screened"; each row's ``decided_by``
     says on what evidence (empty for a study that was not screened)."""
-    from pipeline.analysis.screening import FILE, evidence, screened_rows
+    from pipeline.study.screening import FILE, evidence, screened_rows
     rows = flat.rows(res)
     f = folder / FILE
     if not f.is_file():
@@ -171,10 +171,10 @@ def crossing_pairs(rows: list[dict], axis: str, allowable: float):
 def escalations(rows: list[dict], axes: list[str], allowable: float) -> dict[str, str]:
     """The variants of a screened study that need the full error bar, each with why: a row
     of theirs whose band holds the allowable (MPa) or that has a singular peak
-    (pipeline.analysis.screening.undecided), or a neighbour of a crossing of the
+    (pipeline.study.screening.undecided), or a neighbour of a crossing of the
     allowable along one of ``axes`` (its value and band set the crossing's place and
     range). Rows already analysed in full count as they are."""
-    from pipeline.analysis.screening import undecided
+    from pipeline.study.screening import undecided
     why: dict[str, str] = {}
     for r in rows:
         if r["status"] == "done" and undecided(r, allowable):

@@ -7,7 +7,9 @@ import pytest
 
 from pipeline.analysis.sensitivity import ranges_of
 from pipeline.inputs.case import resolve
-from pipeline.output.results import contact_study_effect, verdict
+from pipeline.analysis.verdicts import contact_study_effect
+
+from helpers.answers import run_verdicts
 
 
 def _load_ranges(case):
@@ -37,16 +39,9 @@ def test_another_size_takes_the_study_as_fractions_and_says_so():
     assert all("measured on No. 05" in x.reason for k, x in r.items() if k != "bearing_shape")
 
 
-def _verdicts(case, peak, critical):
-    return verdict(case.allowable_MPa, case.load_N, {
-        "global_peak": (peak, {"error_estimate": {"band": 0.73}}),
-        "critical_peak": (critical, {"error_estimate": {"band": 0.07}})})
-
-
 def test_the_measured_effect_on_the_global_peak_is_the_studys_applied_to_the_run():
     case = resolve("05")
-    run = {"global_peak": 113.77, "critical_peak": 66.22}
-    eff = contact_study_effect(case, run, _verdicts(case, 113.77, 66.22))
+    eff = contact_study_effect(case, run_verdicts(case, 113.77, 0.73, 66.22, 0.07, nominal=None))
     # docs/load-reference.md: the fillet's peak −10.7 % (H7/g6, standing plate) to +6.9 %
     # (H9/d9, standing); the critical peak −13.2 % to −4.3 %.
     assert eff["global_peak"]["pct"] == [-10.7, 6.9]
@@ -62,8 +57,8 @@ def test_the_measured_effect_on_the_global_peak_is_the_studys_applied_to_the_run
 def test_no_effect_is_claimed_for_another_load_model():
     for over in ({"bearing_shape": "uniform"}, {"bearing_centre_mm": 27.0}, {"support": "rigid"}):
         case = resolve("05", None, over)
-        assert contact_study_effect(case, {"global_peak": 100.0, "critical_peak": 60.0}, {}) is None, over
-    other = contact_study_effect(resolve("2.5"), {"global_peak": 100.0, "critical_peak": 60.0}, {})
+        assert contact_study_effect(case, run_verdicts(case)) is None, over
+    other = contact_study_effect(resolve("2.5"), run_verdicts(resolve("2.5")))
     assert "not on this size" in other["applied_as"]
 
 
@@ -77,10 +72,12 @@ def test_the_formula_positions_are_solved_on_the_first_error_bar_mesh_and_are_st
 
     from mpi4py import MPI
 
-    from pipeline.analysis.analyse import analyse
+    from pipeline.analysis.context import RunContext
+    from pipeline.analysis.meshes import MeshPlan, solve_meshes
     from pipeline.analysis.pilot import known_places
     case = resolve("05", None, {"mesh_factor": 3.0})
-    lv, _ = analyse(case, levels=2, comm=MPI.COMM_SELF, pl=known_places(case))
+    plan = MeshPlan(factors=(3.0, 3.0 * 1.3), formula_loads=True)
+    lv, _ = solve_meshes(case, plan, known_places(case), RunContext(comm=MPI.COMM_SELF))
     rows = lv[0].sections["formula_load"]
     ri, ro = 12.5, 18.5
     x_seat = 4 / (3 * math.pi) * (ro ** 3 - ri ** 3) / (ro ** 2 - ri ** 2)

@@ -20,8 +20,11 @@ from mpi4py import MPI
 from geometry.table import InputError, load_table, validate
 from pipeline.analysis.sensitivity import Reading, analyse_sensitivity, default_range, ranges_of
 from pipeline.inputs.case import read_case_file, resolve
-from pipeline.output.results import add_sensitivity
+from pipeline.analysis.context import RunContext
+from pipeline.analysis.verdicts import sensitivity_answer
 from pipeline.post.sections import peterson_kt_bending
+
+from helpers.answers import run_verdicts
 
 pytestmark = pytest.mark.slow  # real runs or shared runs in fixtures: `make test-fast` skips them
 
@@ -88,16 +91,16 @@ def _closed_form(case, factor, places=None) -> Reading:
                    journal_MPa=0.0)
 
 
-def _results(case, peak=100.0, band=1.0):
-    """A results.json content with the stand-in's nominal values and their verdicts."""
-    from pipeline.output.results import verdict
-    fe = {"peak_MPa": peak, "critical_peak_MPa": 60.0,
-          "sections": {"critical_section": {"nominal_MPa": 40.0}, "journal_root": {"nominal_MPa": 44.56}},
-          "peak": {"error_estimate": {"band": band}}, "critical": {"error_estimate": {"band": 0.06}}}
-    fe["verdict"] = verdict(case.allowable_MPa, case.load_N, {
-        "global_peak": (peak, fe["peak"]), "critical_peak": (60.0, fe["critical"]),
-        "critical_section_nominal": (40.0, None), "journal_root_nominal": (44.56, None)})
-    return {"fe": fe, "timings_s": {}}
+def _decided(case, sens, peak=100.0, band=1.0):
+    """The sensitivity section decided against the stand-in's nominal values and their
+    verdicts, in results.json's keys: its entries and the summary's."""
+    s = sensitivity_answer(sens, run_verdicts(case, peak, band), case)
+    return {"sensitivity": [e.as_dict() for e in s.entries],
+            "sensitivity_summary": {"flips": [f.as_dict() for f in s.flips], "sentence": s.sentence,
+                                    "not_varied": dict(sens.not_varied), "noise_MPa": s.noise_MPa}}
+
+
+ALONE = RunContext(comm=MPI.COMM_SELF)
 
 
 def _seats_given(**over):
@@ -106,9 +109,8 @@ def _seats_given(**over):
 
 def test_verdict_holds_when_every_end_stays_below_the_allowable():
     case = _seats_given(allowable_MPa=200.0)
-    sens = analyse_sensitivity(case, comm=MPI.COMM_SELF, analyse_one=_closed_form)
-    res = _results(case)
-    add_sensitivity(res, sens, case)
+    sens = analyse_sensitivity(case, ALONE, analyse_one=_closed_form)
+    res = _decided(case, sens)
     s = res["sensitivity_summary"]
     assert s["flips"] == [] and s["sentence"].startswith("The verdict holds over every range")
     rf = next(e for e in res["sensitivity"] if e["input"] == "rf")
@@ -128,9 +130,8 @@ def test_verdict_flips_on_the_input_that_crosses_the_allowable():
     # Allowable 110 MPa: 100 ± 1 passes; rf 1.2 gives 111.8 (fail), dj 18 gives 123.5 (fail),
     # rf 1.8 and dj 21 stay below.
     case = _seats_given(allowable_MPa=110.0)
-    sens = analyse_sensitivity(case, comm=MPI.COMM_SELF, analyse_one=_closed_form)
-    res = _results(case)
-    add_sensitivity(res, sens, case)
+    sens = analyse_sensitivity(case, ALONE, analyse_one=_closed_form)
+    res = _decided(case, sens)
     s = res["sensitivity_summary"]
     flipped = {(f["input"], round(f["value"], 6), f["stress"], f["from"], f["to"]) for f in s["flips"]}
     assert flipped == {("rf", 1.2, "global_peak", "pass", "fail"), ("dj", 18.0, "global_peak", "pass", "fail")}
@@ -141,9 +142,8 @@ def test_verdict_flips_on_the_input_that_crosses_the_allowable():
 def test_an_invalid_end_is_reported_not_dropped():
     # rf up to 3 mm with dj 20 on h 25: dj/2 + rf = 13 > 12.5 breaks a rule.
     case = _seats_given(**{"sensitivity.rf": [1.0, 3.0]})
-    sens = analyse_sensitivity(case, comm=MPI.COMM_SELF, analyse_one=_closed_form)
-    res = _results(case)
-    add_sensitivity(res, sens, case)
+    sens = analyse_sensitivity(case, ALONE, analyse_one=_closed_form)
+    res = _decided(case, sens)
     rf = next(e for e in res["sensitivity"] if e["input"] == "rf")
     assert rf["invalid"][0] is None and "dj, rf" in rf["invalid"][1]
     assert rf["peak_MPa"][1] is None and rf["capacity_N"][1] is None
@@ -155,7 +155,7 @@ def fe_sensitivity():
     """No. 05 at the default mesh, dj and rf varied over their default ranges on the
     sensitivity meshes (the seats given, so not varied), one rank."""
     case = _seats_given()
-    return case, analyse_sensitivity(case, comm=MPI.COMM_SELF)
+    return case, analyse_sensitivity(case, ALONE)
 
 
 def _ratio(sens, name):
@@ -197,8 +197,7 @@ def test_fillet_peak_trend_with_dj_agrees_with_peterson(fe_sensitivity):
 
 def test_journal_root_nominal_follows_32M_over_pi_dj3(fe_sensitivity):
     case, sens = fe_sensitivity
-    res = _results(case)
-    add_sensitivity(res, sens, case)
+    res = _decided(case, sens)
     dj = next(e for e in res["sensitivity"] if e["input"] == "dj")
     d = case.dims
     # Q/2 at the middle of the bearing length (from x = b1/2 + rf to b6/2): lever (rf + b2)/2
@@ -293,7 +292,7 @@ def test_the_noise_is_measured_on_other_places_never_on_the_baselines_own_mesh()
                           (None, (round(f * NOISE_RATIO, 9), None)),
                           (known_places(case), (round(f * NOISE_RATIO, 9), None))):
         calls.clear()
-        analyse_sensitivity(case, comm=MPI.COMM_SELF, analyse_one=one, places=given)
+        analyse_sensitivity(case, ALONE, places=given, analyse_one=one)
         assert calls == [(round(f, 9), None), second], given
 
 
@@ -301,7 +300,7 @@ def test_a_load_model_variant_on_the_runs_operator_is_its_own_solve():
     """Each load-model end solved as a new right-hand side on the requested mesh's operator
     (level.solve_level's load_variants) equals a solve of that case from scratch on the same
     mesh (its own assembly and preconditioner), to the solver's tolerance."""
-    from pipeline.analysis.level import solve_level
+    from pipeline.analysis.level import LevelTask, solve_level
     from pipeline.analysis.sensitivity import load_variant_cases
     case = resolve("05", None, {"mesh_factor": 3.0})
     variants = load_variant_cases(case)
@@ -309,9 +308,9 @@ def test_a_load_model_variant_on_the_runs_operator_is_its_own_solve():
     # centre of pressure 27.05 mm, a band as concentrated as its largest line load 11 / 2.5 = 4.4 mm
     assert {(v.bearing_shape, v.bearing_centre_mm, v.bearing_length_mm) for v in variants} == {
         ("uniform", None, None), ("cosine", 27.05, None), ("cosine", None, 4.4)}
-    lv = solve_level(case, 3.0, with_sections=True, comm=MPI.COMM_SELF, load_variants=variants)
+    lv = solve_level(case, LevelTask(3.0, sections=True, load_variants=tuple(variants), formula_loads=True), ALONE)
     for v, (pk, crit, sec) in zip(variants, lv.load_variants):
-        own = solve_level(v, 3.0, with_sections=True, comm=MPI.COMM_SELF)
+        own = solve_level(v, LevelTask(3.0, sections=True, formula_loads=True), ALONE)
         assert pk.value_MPa == pytest.approx(own.peak.value_MPa, rel=1e-6)
         assert crit.value_MPa == pytest.approx(own.critical.value_MPa, rel=1e-6)
         assert sec["critical_section"]["nominal_MPa"] == pytest.approx(own.sections["critical_section"]["nominal_MPa"],

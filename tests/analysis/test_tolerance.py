@@ -53,22 +53,29 @@ def stand_in(monkeypatch):
     solved: list[float] = []
     state = {"scatter": 5.0}
 
-    def analyse(case, levels, ratio, *args):
-        out = [stand_in_level(case.mesh_factor * ratio ** k, state["scatter"]) for k in range(levels)]
+    def solve_meshes(case, plan, places, ctx):
+        out = [stand_in_level(f, state["scatter"]) for f in plan.factors]
         solved.extend(lv.factor for lv in out)
-        return out, SimpleNamespace(hotspots=())
+        return out, places
 
-    def solve_level(case, factor, **kw):
-        solved.append(factor)
-        return stand_in_level(factor, state["scatter"])
+    def solve_one(case, task, ctx):
+        solved.append(task.factor)
+        return stand_in_level(task.factor, state["scatter"])
 
-    monkeypatch.setattr(tolerance, "analyse", analyse)
-    monkeypatch.setattr(tolerance, "solve_level", solve_level)
+    monkeypatch.setattr(tolerance, "solve_meshes", solve_meshes)
+    monkeypatch.setattr(tolerance, "solve_one", solve_one)
     return SimpleNamespace(solved=solved, state=state)
 
 
-def _run(case, **kw):
-    return tolerance.analyse_to_tolerance(case, levels=3, ratio=1.3, **kw)
+def _run(case, levels=3, ctx=None, formula_loads=True):
+    """solve_to_tolerance of ``case`` on ``levels`` meshes at ratio 1.3, from no refined places."""
+    from pipeline.analysis.context import RunContext
+    from pipeline.analysis.meshes import MeshPlan
+    from pipeline.analysis.pilot import Pilot
+    from pipeline.inputs.options import RunOptions
+    options = RunOptions(levels=levels, ratio=1.3)
+    plan = MeshPlan(factors=tuple(options.factors(case)), formula_loads=formula_loads)
+    return tolerance.solve_to_tolerance(case, options, plan, Pilot(None, (), 0.0), ctx or RunContext())
 
 
 def test_a_loose_tolerance_keeps_today_s_three_meshes(stand_in):
@@ -121,7 +128,7 @@ def test_refinement_stops_after_its_limit_and_says_so(stand_in):
 
 def test_one_mesh_checks_no_tolerance(stand_in):
     case = replace(resolve("05"), tolerance_pct=1.0)
-    _, _, _, acc, _ = tolerance.analyse_to_tolerance(case, levels=1)
+    _, _, _, acc, _ = _run(case, levels=1)
     assert not acc.met and "no error bar" in acc.note and acc.bands_pct == {"global": None, "critical": None}
 
 
@@ -151,12 +158,10 @@ def test_a_tighter_tolerance_solves_more_dofs():
     """The global peak alone from a coarse start (×2.5, unpinned): a 50 % tolerance keeps
     the first three meshes, a 3 % one adds meshes (beyond ×1.3 the fillet is not resolved
     and the coarse meshes' band is several %, docs/accuracy.md)."""
-    from mpi4py import MPI
     base = replace(resolve("05", overrides={"want": "global"}), mesh_factor=2.5, mesh_pinned=False)
     got = {}
     for tol in (50.0, 3.0):
-        lv, _, out, acc, _ = tolerance.analyse_to_tolerance(replace(base, tolerance_pct=tol), comm=MPI.COMM_WORLD,
-                                                         formula_loads=False)
+        lv, _, out, acc, _ = _run(replace(base, tolerance_pct=tol), formula_loads=False)
         assert acc.met == (acc.bands_pct["global"] is not None and acc.bands_pct["global"] <= tol), tol
         assert acc.met or acc.note, tol
         got[tol] = acc

@@ -29,7 +29,7 @@ from pipeline.post.peaks import peak, von_mises
 from pipeline.post.features import critical_region
 from pipeline.fe.elasticity import Material, strain, stress
 from pipeline.fe.assembly import dirichlet_bc
-from pipeline.fe.solve import solve
+from pipeline.fe.solve import Loads, Method, solve
 
 pytestmark = pytest.mark.slow  # real runs or shared runs in fixtures: `make test-fast` skips them
 
@@ -45,7 +45,7 @@ def coarse(tmp_path_factory):
     m = make_mesh(case.dims, case.model, case.mesh_spec(FACTOR), comm=MPI.COMM_SELF)
     mat = Material(E=case.E_MPa, nu=case.nu)
     lc = crosshead_loads(m, case.dims, case.load_N, case.support)
-    sol = solve(m.mesh, m.facet_tags, 2, mat, lc.tractions, lc.constraints, solver="mumps")
+    sol = solve(m.mesh, m.facet_tags, mat, Loads(lc.tractions, lc.constraints), Method(2, "mumps"))
     work = tmp_path_factory.mktemp("ccx")
     cx = solve_ccx(m.mesh, m.facet_tags, lc, mat, workdir=work)
     return dict(case=case, m=m, mat=mat, lc=lc, sol=sol, cx=cx, work=work)

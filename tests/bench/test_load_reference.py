@@ -16,7 +16,8 @@ from bench.calculix import FIELD_MAX, LINE_MAX, read_dat_displacements
 from bench.contact import (C3D10_FACES, PlateSpec, PressureSamples, _face_points, contact_model, deck,
                            force_summary, nodal_contact_forces, plate_mesh, pressure_summary, solve_contact,
                            stress_samples, surface_faces)
-from pipeline.analysis.level import set_up
+from pipeline.analysis.context import RunContext
+from pipeline.analysis.level import LevelTask, set_up
 from pipeline.inputs.case import resolve
 
 FACTOR = 5.0  # a coarse crosshead: the checks below hold on any mesh
@@ -26,7 +27,7 @@ FACTOR = 5.0  # a coarse crosshead: the checks below hold on any mesh
 def coarse():
     """No. 05's quarter crosshead at mesh factor 5 and a coarse plate, zero clearance."""
     case = resolve("05", overrides={"mesh_factor": FACTOR, "solver": "mumps"})
-    prob = set_up(case, FACTOR, comm=MPI.COMM_SELF)
+    prob = set_up(case, LevelTask(FACTOR), RunContext(comm=MPI.COMM_SELF))
     spec = PlateSpec(clearance_mm=0.0, size_mm=3.0)
     cm = contact_model(prob.mesh.mesh, prob.mesh.facet_tags, prob.loads, case.dims, spec)
     return case, prob, spec, cm

@@ -13,9 +13,11 @@ import pytest
 from mpi4py import MPI
 
 from bench.calculix import build_model, inp_text, read_frd_stress, run_job
-from bench.peer import build_points, frd_peaks, make_parser, nodal_von_mises
+from bench.calculix import frd_peaks, nodal_von_mises
+from bench.peer import build_points, make_parser
 from geometry.places import at_journal_root
-from pipeline.analysis.level import set_up
+from pipeline.analysis.context import RunContext
+from pipeline.analysis.level import LevelTask, set_up
 from pipeline.inputs.case import resolve
 
 FACTOR = 2.0
@@ -28,7 +30,7 @@ def user_model(tmp_path_factory):
     assert shutil.which("ccx"), "ccx missing: tools/setup.sh installs calculix-ccx"
     case = resolve("05", overrides={"mesh_factor": FACTOR, "order": 2})
     assert case.mesh_spec(FACTOR, ()).hotspots == ()
-    prob = set_up(case, FACTOR, comm=MPI.COMM_SELF, hotspots=())
+    prob = set_up(case, LevelTask(FACTOR), RunContext(comm=MPI.COMM_SELF))
     model = build_model(prob.mesh.mesh, prob.mesh.facet_tags, prob.loads)
     wd = tmp_path_factory.mktemp("peer")
     sets = {0: "FIXX", 1: "FIXY", 2: "FIXZ"}

@@ -24,7 +24,7 @@ import numpy as np
 import pytest
 
 import pipeline.cache.runs as rc
-from pipeline.commands import execute_run
+from pipeline.api import Outputs, RunOptions, write_run
 from pipeline.inputs.case import resolve
 
 pytestmark = pytest.mark.slow  # real runs or shared runs in fixtures: `make test-fast` skips them
@@ -50,7 +50,8 @@ def numbers(res: dict) -> dict:
 
 
 def run(out: Path) -> dict:
-    return execute_run(the_case(), out, levels=LEVELS, write_fields=False)
+    return write_run(the_case(), RunOptions(levels=LEVELS, to_tolerance=False, sensitivity=False,
+                                            outputs=Outputs(fields=False)), out)
 
 
 @pytest.fixture(scope="module")

@@ -10,7 +10,13 @@ import pytest
 
 import pipeline.cache.runs as rc
 from pipeline.inputs.case import resolve
-from pipeline.commands import execute_run
+from pipeline.api import Outputs, RunOptions, write_run
+
+
+def execute_run(case, out, levels):
+    """A run of ``levels`` meshes without tolerance steps, sensitivity section or fields."""
+    return write_run(case, RunOptions(levels=levels, to_tolerance=False, sensitivity=False,
+                                      outputs=Outputs(fields=False)), out)
 
 
 @pytest.fixture
@@ -23,19 +29,19 @@ def cache(tmp_path, monkeypatch):
 @pytest.mark.slow
 def test_a_load_change_reuses_mesh_pilot_and_solution(cache, tmp_path, monkeypatch):
     case = resolve("05", None, {"mesh_factor": 3.0})
-    first = execute_run(case, tmp_path / "a", levels=3, write_fields=False)
+    first = execute_run(case, tmp_path / "a", levels=3)
     n_entries = len(list(cache.glob("*.entry")))
     # The pilot's mesh, its places; the requested mesh and its solution; each of the two
     # error-bar meshes, its solution and its results (pipeline/cache/levels.py); the
     # solutions of the journal load at the two formulas' positions on the first of them.
     assert n_entries == 12
     changed = replace(case, load_N=2.5 * case.load_N, E_MPa=70_000.0)
-    second = execute_run(changed, tmp_path / "b", levels=3, write_fields=False)
+    second = execute_run(changed, tmp_path / "b", levels=3)
     assert len(list(cache.glob("*.entry"))) == n_entries  # nothing new: all reused
     assert second["timings_s"]["pilot"] < 0.2 * first["timings_s"]["pilot"]
     assert second["fe"]["scaled_from"] == {"load_N": case.load_N, "E_MPa": case.E_MPa}
     monkeypatch.setenv("CROSSHEAD_NO_CACHE", "1")
-    fresh = execute_run(changed, tmp_path / "c", levels=3, write_fields=False)
+    fresh = execute_run(changed, tmp_path / "c", levels=3)
     assert fresh["fe"]["scaled_from"] is None
     # The same mesh (the pilot's places are the same), solved anew: equal to the solver's
     # tolerance (rtol 1e-8 on the residual).
@@ -61,9 +67,9 @@ def test_a_load_change_reuses_mesh_pilot_and_solution(cache, tmp_path, monkeypat
 def test_a_solution_of_another_mesh_or_poisson_ratio_is_not_reused(cache, tmp_path):
     """A changed ν or mesh factor changes the solution's key: the run solves anew."""
     case = resolve("05", None, {"mesh_factor": 3.0})
-    execute_run(case, tmp_path / "a", levels=1, write_fields=False)
+    execute_run(case, tmp_path / "a", levels=1)
     for other in (replace(case, nu=0.25), replace(case, mesh_factor=3.2)):
-        res = execute_run(other, tmp_path / f"b{other.nu}{other.mesh_factor}", levels=1, write_fields=False)
+        res = execute_run(other, tmp_path / f"b{other.nu}{other.mesh_factor}", levels=1)
         assert res["fe"]["scaled_from"] is None
 
 
@@ -125,12 +131,17 @@ def test_a_load_change_scales_the_load_models_variants_too(cache, monkeypatch):
     (an independent check of the scaling) and to the first run's values times the load."""
     from mpi4py import MPI
 
-    from pipeline.analysis.level import solve_level
+    from pipeline.analysis import reuse
+    from pipeline.analysis.context import RunContext
+    from pipeline.analysis.level import LevelTask
     from pipeline.analysis.sensitivity import load_variant_cases
 
     def level(case):
-        return solve_level(case, case.mesh_factor, comm=MPI.COMM_SELF, with_sections=True,
-                           load_variants=load_variant_cases(case))
+        task = LevelTask(case.mesh_factor, sections=True, formula_loads=True,
+                         load_variants=tuple(load_variant_cases(case)))
+        ctx = RunContext(comm=MPI.COMM_SELF)
+        with reuse.mesher(case.dims, case.model, ctx) as m:
+            return reuse.level(case, task, replace(ctx, mesher=m))
 
     case = resolve("05", None, {"mesh_factor": 3.0})
     first = level(case)

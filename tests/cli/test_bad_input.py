@@ -25,14 +25,17 @@ import pytest
 from hypothesis import HealthCheck, event, given, settings
 from hypothesis import strategies as st
 
-import pipeline.analysis.tolerance
 import pipeline.analysis.level
+import pipeline.api
+import pipeline.cli.summary
 import pipeline.fe.solve
-import pipeline.commands
+import pipeline.output.folder
 from geometry.part import GeometryError
 from pipeline import cli as cli_main
 from pipeline.inputs.case import SCHEMA, Case, check, resolve
 from pipeline.errors import InputError
+
+from helpers.answers import answer
 
 ROOT = Path(__file__).resolve().parents[2]
 VALID_TOML = (ROOT / "cases" / "05.toml").read_text()
@@ -76,14 +79,12 @@ def listing(folder: Path) -> set[str]:
 def tripwire(monkeypatch):
     """Meshing or solving anything fails the test: validation must stop bad input first.
 
-    ``analyse`` and ``refinement_places`` are what ``execute_run``/``execute_converge`` call
-    inside ``staged_dir``, so the real output-folder checks still run before the wire.
+    ``run`` is what ``write_run`` calls inside ``staged_dir``, so the real output-folder
+    checks still run before the wire.
     """
     def boom(*a, **k):
         raise AssertionError("bad input reached the mesher/solver")
-    monkeypatch.setattr(pipeline.commands, "analyse", boom)
-    monkeypatch.setattr(pipeline.analysis.tolerance, "analyse", boom)  # run's path to a tolerance
-    monkeypatch.setattr(pipeline.commands, "refinement_places", boom)
+    monkeypatch.setattr(pipeline.output.folder, "run", boom)
 
 
 # --------------------------------------------------------------------------- corpus
@@ -560,7 +561,7 @@ def test_resolve_random_case_files(tmp_path, text, size, overrides):
     try:
         case = resolve(size, path, overrides)
     except InputError as exc:
-        msg = cli_main._one_line(exc)
+        msg = cli_main.one_line(exc)
         assert msg and ": " in msg, msg
         field = msg.split(":", 1)[0]
         event("InputError: " + (field if field.replace(".", "_").isidentifier() and field.isascii() else "other"))
@@ -633,12 +634,11 @@ def test_cli_random_arguments(monkeypatch, fuzz_dir, argv):
     """Any argument list gives exit 0 (work reached with a usable case) or 2 (one line)."""
     calls = []
 
-    def stub(case, out_dir, levels=3, ratio=1.3, progress=None, **kw):
-        calls.append((case, Path(out_dir), levels, ratio))
+    def stub(case, options, out_dir, ctx=None):
+        calls.append((case, Path(out_dir), options.levels, options.ratio))
         return {}
-    monkeypatch.setattr(pipeline.commands, "execute_run", stub)
-    monkeypatch.setattr(pipeline.commands, "execute_converge", stub)
-    monkeypatch.setattr(cli_main, "_summary", lambda out: None)
+    monkeypatch.setattr(pipeline.api, "write_run", stub)
+    monkeypatch.setattr(pipeline.cli.summary, "run_summary", lambda out: None)
     argv = [a.replace("{valid}", str(fuzz_dir / "valid.toml")).replace("{bad}", str(fuzz_dir / "bad.toml"))
             .replace("{missing}", str(fuzz_dir / "missing.toml")).replace("{tmp}", str(fuzz_dir)) for a in argv]
     if "--out" not in argv:
@@ -669,16 +669,18 @@ def test_byte_order_mark_is_accepted(tmp_path):
 
 
 def test_singular_peak_has_no_safety_factor():
-    """results.safety_factors: a peak at a singular feature gets None and a note; others
+    """verdicts.safety_factor: a peak at a singular feature gets None and a note; others
     allowable / peak (arithmetic checked by hand: 80 / 40 = 2)."""
+    from pipeline.analysis.verdicts import safety_factor
     from pipeline.output.report import safety_text
-    from pipeline.output.results import safety_factors
-    sf = safety_factors(80.0, {"safety_factor": (812.0, {"singular_feature": "edge of the rigid patch"}),
-                               "critical_safety_factor": (40.0, {})})
-    assert sf["safety_factor"] is None and "singular" in sf["safety_factor_note"]
-    assert sf["critical_safety_factor"] == 2.0 and sf["critical_safety_factor_note"] is None
-    assert safety_text(sf, "safety_factor").startswith("**none**")
-    assert safety_text(sf, "critical_safety_factor") == "**2.00**"
+    singular = safety_factor(80.0, answer(812.0, singular="edge of the rigid patch"))
+    plain = safety_factor(80.0, answer(40.0))
+    assert singular.value is None and "singular" in singular.note
+    assert plain.value == 2.0 and plain.note is None
+    fe = {"safety_factor": singular.value, "safety_factor_note": singular.note,
+          "critical_safety_factor": plain.value, "critical_safety_factor_note": plain.note}
+    assert safety_text(fe, "safety_factor").startswith("**none**")
+    assert safety_text(fe, "critical_safety_factor") == "**2.00**"
 
 
 def test_verdict_pass_fail_undecided_and_capacity():
@@ -686,11 +688,10 @@ def test_verdict_pass_fail_undecided_and_capacity():
     margin +100 % and capacity 20 000 N (19 512-20 513 N from the band); 100 fails; 79 ± 2
     straddles 80 (undecided); a singular peak and a nominal stress without band (null,
     not 0: a band of zero would claim an exact value)."""
-    from pipeline.output.results import verdict
-    v = verdict(80.0, 10_000.0, {"a": (40.0, {"error_estimate": {"band": 1.0}}),
-                                 "b": (100.0, {}), "c": (79.0, {"error_estimate": {"band": 2.0}}),
-                                 "s": (500.0, {"singular_feature": "edge of the rigid patch"}),
-                                 "n": (50.0, None)})
+    from pipeline.analysis.verdicts import verdicts
+    v = {k: x.as_dict() for k, x in verdicts(80.0, 10_000.0, {
+        "a": (40.0, answer(40.0, 1.0)), "b": (100.0, answer(100.0)), "c": (79.0, answer(79.0, 2.0)),
+        "s": (500.0, answer(500.0, singular="edge of the rigid patch")), "n": (50.0, None)}).items()}
     assert v["a"]["verdict"] == "pass" and v["a"]["margin_pct"] == pytest.approx(100.0)
     assert v["a"]["capacity_N"] == pytest.approx(20_000.0)
     assert v["a"]["capacity_range_N"] == pytest.approx([80e4 / 41, 80e4 / 39])

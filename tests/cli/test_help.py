@@ -43,7 +43,7 @@ def test_every_numeric_default_in_help_is_the_one_used(command, sub):
 
 def test_the_output_folder_default_named_in_help_is_the_one_written(tmp_path, monkeypatch):
     """--out's help names the folder each command writes without it."""
-    from pipeline.runtime.outdir import default_out
+    from pipeline.runtime.folders import default_out
     helps = {c: next(a.help for a in sub._actions if a.dest == "out") for c, sub in _subcommands()}
     assert "results/<case name>)" in helps["run"] and str(default_out("05")).endswith("results/05")
     assert "results/<case name>-converge" in helps["converge"]

@@ -19,7 +19,7 @@ from pathlib import Path
 import pytest
 
 from pipeline.inputs.case import resolve
-from pipeline.analysis.level import solve_level
+from pipeline.analysis.level import LevelTask, solve_level
 
 ROOT = Path(__file__).resolve().parents[2]
 FACTORS = (2.5, 1.8, 1.3)      # coarse to fine
@@ -60,7 +60,7 @@ def test_iterations_bounded_under_refinement(solver):
     rows = []
     rtol = resolve("05").rtol
     for f in FACTORS:
-        lv = solve_level(resolve("05", overrides={"mesh_factor": f, "solver": solver}), f)
+        lv = solve_level(resolve("05", overrides={"mesh_factor": f, "solver": solver}), LevelTask(f))
         rows.append((f, lv.dofs, lv.iterations, lv.residual_rel))
     print(f"\nmesh factor   DOFs   CG+{solver} iterations   true residual")
     for f, dofs, its, res in rows:

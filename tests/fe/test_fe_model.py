@@ -62,7 +62,7 @@ def test_meshes_are_shared_out_largest_first():
 def test_error_bar_meshes_are_solved_one_per_rank_rank_0_least():
     """run.error_bar_ranks: the requested mesh on all ranks (None), the coarser ones shared
     out largest first, counting from the last rank (rank 0 also starts the picture)."""
-    from pipeline.analysis.analyse import error_bar_ranks
+    from pipeline.analysis.meshes import error_bar_ranks
     assert error_bar_ranks([1.0, 1.3, 1.69], 2) == [None, 1, 0]
     assert error_bar_ranks([0.77, 1.0, 1.3, 1.69], 2) == [None, 1, 0, 0]  # 1.0 against 0.66
     assert error_bar_ranks([1.0, 1.3, 1.69], 1) == [None, 0, 0]

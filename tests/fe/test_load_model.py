@@ -13,7 +13,6 @@ along the journal, against independent figures (mm, N, MPa).
 """
 from __future__ import annotations
 
-import argparse
 import math
 import subprocess
 import sys
@@ -30,11 +29,10 @@ from petsc4py import PETSc
 import pipeline.fe.elasticity as pe
 import pipeline.fe.solve as ps
 from conftest import ROOT
-from pipeline.cli import _bearing_at
 from pipeline.errors import InputError
 from pipeline.fe.loads import crosshead_loads
 from pipeline.fe.meshing import make_mesh
-from pipeline.inputs.case import formula_bearing, read_case_file, resolve
+from pipeline.inputs.case import at_formula_position, formula_bearing, read_case_file, resolve
 from pipeline.post.sections import journal_nominal, ligament_resultants, sigma_xx_at, sigma_xx_field
 
 Q = 10_000.0  # N, No. 05's load
@@ -139,7 +137,7 @@ def solve_band(case, m, length, centre):
     case = replace(case, bearing_length_mm=length, bearing_centre_mm=centre)
     lc = crosshead_loads(m, case.dims, Q, "bearing", shape=case.bearing_shape, band=case.bearing_band(), order=2)
     mat = pe.Material(case.E_MPa, case.nu)
-    sol = ps.solve(m.mesh, m.facet_tags, 2, mat, lc.tractions, lc.constraints, solver="mumps")
+    sol = ps.solve(m.mesh, m.facet_tags, mat, ps.Loads(lc.tractions, lc.constraints), ps.Method(2, "mumps"))
     sym = next(i for i, c in enumerate(lc.constraints) if c.component == 0 and c.marker == m.facet_ids["symmetry_x"])
     return sol, mat, sym
 
@@ -240,11 +238,12 @@ def test_the_case_file_and_bearing_at_set_the_band(tmp_path):
                                  "bearing_centre_mm": 30.5}
     case = resolve(None, f)
     assert (case.bearing_band().start_mm, case.bearing_band().end_mm) == (27.5, 33.5)
-    at = argparse.Namespace(bearing_at="exact", bearing_centre_mm=None)
-    exact = _bearing_at(at, replace(case, bearing_centre_mm=None))
+    exact = at_formula_position(replace(case, bearing_centre_mm=None), "exact")
     assert (exact.bearing_centre_mm, exact.bearing_length_mm) == (32.0, 6)  # the band ends at the tip, 35 mm
-    at.bearing_at = "approximate"
-    assert _bearing_at(at, resolve("05")).bearing_centre_mm == 28.75
+    assert at_formula_position(resolve("05"), "approximate").bearing_centre_mm == 28.75
+    g = tmp_path / "at.toml"
+    g.write_text('size = "05"\n[model]\nbearing_at = "approximate"\n')
+    assert resolve(None, g) == at_formula_position(resolve("05"), "approximate")
 
 
 def test_more_load_sets_on_one_operator_equal_separate_solves(meshes):
@@ -256,9 +255,8 @@ def test_more_load_sets_on_one_operator_equal_separate_solves(meshes):
     lc0 = crosshead_loads(m, d, Q, "bearing", band=case.bearing_band(), order=2)
     band = replace(case, bearing_length_mm=3.0, bearing_centre_mm=33.0).bearing_band()
     lc1 = crosshead_loads(m, d, Q, "bearing", shape="uniform", band=band, order=2)
-    both = ps.solve(m.mesh, m.facet_tags, 2, mat, lc0.tractions, lc0.constraints, solver="mumps",
-                    more=[lc1.tractions])
-    alone = ps.solve(m.mesh, m.facet_tags, 2, mat, lc1.tractions, lc1.constraints, solver="mumps")
+    both = ps.solve(m.mesh, m.facet_tags, mat, ps.Loads(lc0.tractions, lc0.constraints, [lc1.tractions]), ps.Method(2, "mumps"))
+    alone = ps.solve(m.mesh, m.facet_tags, mat, ps.Loads(lc1.tractions, lc1.constraints), ps.Method(2, "mumps"))
     u1, u = both.more[0].u.x.array, alone.u.x.array
     assert np.max(np.abs(u1 - u)) <= 1e-10 * np.max(np.abs(u))
     assert np.allclose(both.more[0].reactions, alone.reactions, rtol=1e-8, atol=1e-8 * Q)
@@ -271,9 +269,9 @@ def test_each_formulas_row_is_the_section_under_its_own_load_position():
     at the exact formula's tip (middle 33.9 mm) is the statics of those loads,
     M = −Q/2 · (position − seat centroid), the seat a uniform annulus 25 to 37 mm
     (centroid 4/(3π)·(ro³ − ri³)/(ro² − ri²)); the formula beside it is the paper's."""
-    from pipeline.analysis.level import solve_level
+    from pipeline.analysis.level import LevelTask, solve_level
     case = resolve("05", None, {"mesh_factor": FACTOR, "solver": "mumps"})
-    lv = solve_level(case, FACTOR, with_sections=True, reuse=False)
+    lv = solve_level(case, LevelTask(FACTOR, sections=True, reuse=False, formula_loads=True))
     rows = lv.sections["formula_load"]
     root = lv.sections["journal_root"]  # the case's own load: the middle of 24 to 35 mm
     assert root["load_at_mm"] == 29.5 and root["M_Nmm"] == pytest.approx(Q / 2 * (29.5 - 22.5), rel=1e-12)
@@ -308,18 +306,22 @@ def test_the_run_cache_keeps_load_models_apart_and_scaled_runs_keep_their_table(
     the field, not only its size); a run scaled from a cached solve at another load still
     solves its formulas' rows, equal to those of a run at that load solved anew."""
     import pipeline.cache.runs as rc
-    from pipeline.commands import execute_run
+    from pipeline.api import Outputs, RunOptions, write_run
+
+    def execute_run(case, out):
+        return write_run(case, RunOptions(levels=1, to_tolerance=False, sensitivity=False,
+                                          outputs=Outputs(fields=False)), out)
     monkeypatch.setenv("CROSSHEAD_NO_CACHE", "0")
     monkeypatch.setattr(rc, "ROOT", tmp_path / "runs")
     case = resolve("05", None, {"mesh_factor": FACTOR})
-    execute_run(case, tmp_path / "a", levels=1, write_fields=False)
+    execute_run(case, tmp_path / "a")
     for other in (replace(case, bearing_shape="uniform"), replace(case, bearing_length_mm=4.0, bearing_centre_mm=30.0)):
-        res = execute_run(other, tmp_path / f"b{len(list(tmp_path.iterdir()))}", levels=1, write_fields=False)
+        res = execute_run(other, tmp_path / f"b{len(list(tmp_path.iterdir()))}")
         assert res["fe"]["scaled_from"] is None
-    scaled = execute_run(replace(case, load_N=2 * Q), tmp_path / "s", levels=1, write_fields=False)
+    scaled = execute_run(replace(case, load_N=2 * Q), tmp_path / "s")
     assert scaled["fe"]["scaled_from"] == {"load_N": Q, "E_MPa": case.E_MPa}
     monkeypatch.setenv("CROSSHEAD_NO_CACHE", "1")
-    fresh = execute_run(replace(case, load_N=2 * Q), tmp_path / "f", levels=1, write_fields=False)
+    fresh = execute_run(replace(case, load_N=2 * Q), tmp_path / "f")
     for which in ("approximate", "exact"):
         a, b = (r["fe"]["sections"]["formula_load"][which] for r in (scaled, fresh))
         assert a["fe_MPa"] == pytest.approx(b["fe_MPa"], rel=1e-7)

@@ -96,9 +96,11 @@ def test_a_case_file_is_refused_alike(tmp_path):
 def _estimate(case, levels: int, which: str = "critical"):
     """(value, band) of a peak (MPa) of ``case`` solved on ``levels`` meshes (no checks:
     the case may be one the command line refuses)."""
-    from pipeline.analysis.analyse import analyse
+    from pipeline.analysis.context import RunContext
+    from pipeline.api import RunOptions, run
     from pipeline.post.errorbar import estimate_levels
-    lv, _ = analyse(case, levels=levels, ratio=1.3, comm=MPI.COMM_SELF)
+    options = RunOptions(levels=levels, ratio=1.3, to_tolerance=False, sensitivity=False)
+    lv = run(case, options, RunContext(comm=MPI.COMM_SELF)).levels
     value = getattr(lv[0], "peak" if which == "global" else "critical").value_MPa
     if levels < 3:
         return value, None

@@ -25,7 +25,7 @@ import pytest
 from geometry.part import GeometryError
 from pipeline.inputs.case import resolve
 from pipeline.errors import InputError, NumericalError
-from pipeline.analysis.level import solve_level
+from pipeline.analysis.level import LevelTask, solve_level
 
 FACTOR = 2.5
 # A cap far above the default solver's (CG + p-multigrid) ~25-40 on sound meshes; 1000 is the solver's own.
@@ -95,7 +95,7 @@ def test_near_limit_row(name):
         return
     case = resolve("05", overrides=overrides)
     try:
-        lv = solve_level(case, FACTOR)
+        lv = solve_level(case, LevelTask(FACTOR))
     except (NumericalError, GeometryError) as exc:
         msg = _clear_message(exc)
         TABLE[name] = {"outcome": "failed", "message": f"{type(exc).__name__}: {msg}"}

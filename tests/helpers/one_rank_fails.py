@@ -17,23 +17,23 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
 from mpi4py import MPI
 
-import pipeline.analysis.level
+import pipeline.analysis.reuse
 from pipeline.cli import main
 
 FAILING_RANK = int(sys.argv[1].split(":")[0])
 BUSY = sys.argv[1].endswith(":busy")
-_solve_or_scale = pipeline.analysis.level.solve_or_scale
+_solve_or_scale = pipeline.analysis.reuse.solve_or_scale
 
 
-def failing_solve_or_scale(case, prob, reuse=True, **more):
+def failing_solve_or_scale(case, prob, reuse=True, more=()):
     if MPI.COMM_WORLD.rank == FAILING_RANK and prob.mesh.mesh.comm.size > 1:
         raise RuntimeError(f"injected on rank {FAILING_RANK} alone")
     if BUSY and MPI.COMM_WORLD.rank == 0 and prob.mesh.mesh.comm.size > 1:
         sum(range(10**12))  # builtin sum in C: Python's lock is not released for minutes
-    return _solve_or_scale(case, prob, reuse, **more)
+    return _solve_or_scale(case, prob, reuse, more)
 
 
-pipeline.analysis.level.solve_or_scale = failing_solve_or_scale
+pipeline.analysis.reuse.solve_or_scale = failing_solve_or_scale
 
 if __name__ == "__main__":
     sys.exit(main(sys.argv[2:], handle_signals=True))

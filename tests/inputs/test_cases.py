@@ -111,9 +111,9 @@ def test_want_critical_skips_the_fillet_and_keeps_the_critical_peak(tmp_path):
 @pytest.mark.parametrize("study", STUDIES, ids=[s.stem for s in STUDIES])
 def test_study_files_plan_a_grid(study):
     """A study file under cases/ names a valid base case and a grid with valid variants."""
-    from pipeline.study.plan import plan, read_study
+    from pipeline.study.plan import Study, plan, read_study
     from pipeline.inputs.valuelist import MOST_DIM_VALUES, parse_values
     s = read_study(study)
     axes = {f"dims.{k}": parse_values(str(v), k, MOST_DIM_VALUES) for k, v in s["dims"].items()}
-    tasks = plan(s.get("size"), None, {"mesh_factor": s.get("mesh_factor", 1.0)}, axes, [], 3, 1.3)
+    tasks = plan(Study(s.get("size"), None, {"mesh_factor": s.get("mesh_factor", 1.0)}, axes, []))
     assert len(tasks) == len(next(iter(axes.values()))) and any(t.case is not None for t in tasks)

@@ -157,7 +157,7 @@ def test_a_study_file_s_relative_paths_are_taken_from_its_folder(tmp_path, monke
 def test_the_repository_s_study_file_writes_where_a_run_writes(monkeypatch, tmp_path):
     """cases/sweep-rf.toml's ``out`` is the repository's results/sweep-rf, started from
     anywhere: beside the default of a run (results/<name> in the repository)."""
-    from pipeline.runtime.outdir import default_out
+    from pipeline.runtime.folders import default_out
     for cwd in (ROOT, tmp_path):
         monkeypatch.chdir(cwd)
         s = read_study(ROOT / "cases" / "sweep-rf.toml")

@@ -5,8 +5,7 @@ import pytest
 
 from pipeline.inputs.case import resolve
 from pipeline.post.errorbar import TWO_READINGS, estimate, observed_order, two_reading_estimate
-from pipeline.analysis.analyse import analyse
-from pipeline.output.results import build_results
+from pipeline.api import RunOptions, run
 from pipeline.post.features import singular_feature
 
 H = [1.0, 1.3, 1.69]
@@ -132,8 +131,8 @@ def test_two_readings_need_four_meshes():
 
 def _study(overrides, factor):
     case = resolve("05", overrides=dict(overrides, mesh_factor=factor))
-    levels, pl = analyse(case, levels=3, ratio=1.4)
-    return case, levels, build_results(case, levels, {}, pl=pl)
+    result = run(case, RunOptions(levels=3, ratio=1.4, to_tolerance=False, sensitivity=False))
+    return case, result.levels, result
 
 
 @pytest.mark.slow
@@ -144,10 +143,10 @@ def test_rigid_support_peak_is_reported_singular():
     assert values[0] > values[1] > values[2], values           # grows under refinement
     # Three coarse meshes alone can look "converged" (pre-asymptotic); the report still
     # names the singularity because the peak sits on the patch edge.
-    block = res["fe"]["peak"]
-    assert block["error_estimate"]["status"] == "singular"
-    assert "rigid support patch" in block["singular_feature"]  # and it is named
-    assert block["error_estimate"]["extrapolated"] is None
+    peak = res.peaks["peak"]
+    assert peak.estimate.status == "singular"
+    assert "rigid support patch" in peak.singular  # and it is named
+    assert peak.estimate.extrapolated is None
 
 
 @pytest.mark.slow
@@ -156,10 +155,10 @@ def test_zero_fillet_peak_is_reported_singular():
     case, levels, res = _study({"dims.rf": 0.0, "size_fillet_mm": 0.5}, 1.2)
     values = [lv.peak.value_MPa for lv in levels]
     assert values[0] > values[1] > values[2], values           # grows under refinement
-    block = res["fe"]["peak"]
-    assert "re-entrant edge" in block["singular_feature"], block
-    assert block["error_estimate"]["status"] == "singular"
-    assert block["error_estimate"]["extrapolated"] is None
+    peak = res.peaks["peak"]
+    assert "re-entrant edge" in peak.singular, peak
+    assert peak.estimate.status == "singular"
+    assert peak.estimate.extrapolated is None
 
 
 def test_singular_feature_names_only_true_singularities():

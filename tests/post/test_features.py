@@ -48,13 +48,15 @@ def test_misplaced_known_places_fall_back_to_the_pilot():
     """Known places that miss the critical peak (here one place on the top face, far from
     both bore edges) make the analysis find the places by a pilot solve instead: the result
     is the pilot route's own, the same meshes and the same critical peak."""
-    from pipeline.analysis.analyse import analyse
+    from pipeline.analysis.context import RunContext
+    from pipeline.analysis.meshes import MeshPlan, solve_meshes
     from pipeline.analysis.pilot import KNOWN, PILOT, Pilot, pilot
     case = resolve("05", overrides={"want": "critical", "mesh_factor": 3.0})
     wrong = Pilot(factor=None, hotspots=((5.0, 20.0, 25.0),), time_s=0.0, source=KNOWN)
-    levels, used = analyse(case, levels=1, pl=wrong)
+    one = MeshPlan(factors=(case.mesh_factor,))
+    levels, used = solve_meshes(case, one, wrong, RunContext())
     assert used.source == PILOT and used.hotspots != wrong.hotspots
-    direct, _ = analyse(case, levels=1, pl=pilot(case))
+    direct, _ = solve_meshes(case, one, pilot(case), RunContext())
     assert levels[0].dofs == direct[0].dofs
     assert levels[0].critical.value_MPa == pytest.approx(direct[0].critical.value_MPa, rel=1e-8)
 

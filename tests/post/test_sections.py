@@ -50,7 +50,7 @@ def no05():
     m = make_mesh(case.dims, case.model, case.mesh_spec(2.5))
     mat = pe.Material(case.E_MPa, case.nu)
     lc = crosshead_loads(m, case.dims, case.load_N, case.support)
-    sol = ps.solve(m.mesh, m.facet_tags, 2, mat, lc.tractions, lc.constraints, solver="mumps")
+    sol = ps.solve(m.mesh, m.facet_tags, mat, ps.Loads(lc.tractions, lc.constraints), ps.Method(2, "mumps"))
     return case, m, lc, sol, mat
 
 
@@ -103,8 +103,8 @@ def test_cantilever_section_resultants_and_linearised_bending():
     q = F / (2 * I) * (h ** 2 / 4 - x[1] ** 2)
     mat = pe.Material(210_000.0, 0.3)
     cons = [pe.Constraint(None, marker=ids["x0"]), pe.Constraint(2, marker=ids["z0"])]
-    sol = ps.solve(mesh, prob.facet_tags, 2, mat, [pe.Traction(ids["x1"], ufl.as_vector((0 * x[0], -q, 0 * x[0])))],
-                   cons, solver="mumps")
+    sol = ps.solve(mesh, prob.facet_tags, mat,
+                   ps.Loads([pe.Traction(ids["x1"], ufl.as_vector((0 * x[0], -q, 0 * x[0])))], cons), ps.Method(2, "mumps"))
     N, M = plane_resultants(sol, 0, lever_axis=1, centre_mm=0.0)
     # Half the width is modelled (z >= 0): the whole section carries twice this.
     assert abs(2 * N) < 1e-8 * F

@@ -117,16 +117,14 @@ def test_stdout_full_after_publication_says_the_results_were_written(tmp_path, e
 def test_a_cache_failure_names_the_cache(tmp_path, earlier, monkeypatch, capsys):
     """A read-only form cache (any OSError on a path under the cache folder): the line names
     the cache and its path, not --out ("out: cannot write <the cache's file>" is untrue)."""
-    import pipeline.analysis.tolerance
-    import pipeline.commands
+    import pipeline.output.folder
     from pipeline import cli
     from pipeline.runtime.environment import CACHE_HOME
     place = CACHE_HOME / "fenics" / "libffcx_forms_x.c"
 
     def read_only(*a, **k):
         raise OSError(errno.EROFS, os.strerror(errno.EROFS), str(place))
-    monkeypatch.setattr(pipeline.commands, "analyse", read_only)
-    monkeypatch.setattr(pipeline.analysis.tolerance, "analyse", read_only)  # run's path to a tolerance
+    monkeypatch.setattr(pipeline.output.folder, "run", read_only)
     out = tmp_path / "res"
     shutil.copytree(earlier, out)
     before = {p.name: p.read_bytes() for p in out.iterdir()}
@@ -203,6 +201,7 @@ def test_a_full_stdout_met_by_the_meshing_heartbeat_is_reported_by_the_main_thre
     import threading
 
     from pipeline import cli
+    from pipeline.cli import terminal
 
     class Full(io.StringIO):
         def write(self, text: str) -> int:
@@ -210,9 +209,9 @@ def test_a_full_stdout_met_by_the_meshing_heartbeat_is_reported_by_the_main_thre
     monkeypatch.setattr(sys, "stdout", Full())
     died = []
     monkeypatch.setattr(threading, "excepthook", died.append)
-    beat = threading.Thread(target=cli._print, args=("meshing: still working (10 s so far)",))
+    beat = threading.Thread(target=terminal.show, args=("meshing: still working (10 s so far)",))
     beat.start()
     beat.join()
     assert died == []
     with pytest.raises(cli.StdoutError, match="stdout: cannot write .No space left"):
-        cli._print("the next progress line")
+        terminal.show("the next progress line")

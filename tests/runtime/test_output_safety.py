@@ -333,12 +333,12 @@ def test_disk_full_is_exit_2_with_nothing_written(tmp_path, earlier, monkeypatch
     """The disk fills up while results.json is written (in-process: a file-size limit would
     also stop MPI's shared-memory start-up): exit 2, one line, nothing written, and the
     parent folders the run created are gone again."""
-    import pipeline.commands
+    import pipeline.output.folder
     from pipeline import cli as cli_main
 
     def full(path, *a, **k):
         raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), str(path))
-    monkeypatch.setattr(pipeline.commands, "write_json", full)
+    monkeypatch.setattr(pipeline.output.folder, "write_json", full)
     out = fresh_copy(earlier, tmp_path / "res")
     before = snapshot(out)
     for target in (out, tmp_path / "a" / "b" / "c"):

@@ -1,4 +1,4 @@
-"""Screened design studies (pipeline/analysis/screening.py, pipeline/study/table.escalations):
+"""Screened design studies (pipeline/study/screening.py, pipeline/study/table.escalations):
 the cheap level's bands, which variants get the full error bar, and that the decisions
 then equal the full study's. Made-up peaks (MPa) whose answers are worked out here."""
 from __future__ import annotations
@@ -11,7 +11,7 @@ from pathlib import Path
 
 import pytest
 
-from pipeline.analysis.screening import MARGIN, SCREENED, screening_of, screened_rows, undecided
+from pipeline.study.screening import MARGIN, SCREENED, screening_of, screened_rows, undecided
 from pipeline.output import flat
 from pipeline.study.plan import read_study
 from pipeline.study.table import crossings, escalations, with_verdicts

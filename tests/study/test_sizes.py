@@ -408,7 +408,7 @@ _SOLVES: dict = {}
 def solved(key: str, factor: float = FACTOR):
     """Coarse solve of a table row, or of "05x2" (No. 05 with every length ×2, load ×4)."""
     from pipeline.post.features import known_raisers
-    from pipeline.analysis.level import solve_level
+    from pipeline.analysis.level import LevelTask, solve_level
     if (key, factor) not in _SOLVES:
         if key == "05x2":
             over = {f"dims.{k}": 2 * v for k, v in asdict(BASE.dims).items()}
@@ -419,7 +419,7 @@ def solved(key: str, factor: float = FACTOR):
         # with want = critical does): unrefined, No. 05's critical peak moved 3.6 % between
         # these coarse meshes and the rounding checks below could not see a 1 % change.
         bore = known_raisers(replace(case, want="critical"))
-        _SOLVES[key, factor] = (case, solve_level(case, factor, hotspots=bore))
+        _SOLVES[key, factor] = (case, solve_level(case, LevelTask(factor, hotspots=bore)))
     return _SOLVES[key, factor]
 
 

@@ -244,18 +244,18 @@ def test_a_plot_marks_the_variants_without_a_peak():
 def test_a_failed_variant_writes_why_with_its_size_and_inputs(tmp_path, monkeypatch):
     """A variant whose analysis fails is reported, not fatal: its <key>.failed.json says
     why, and which size and inputs it was (the size summary names it from there)."""
-    from pipeline import commands
     from pipeline.study import sweep as sweep_module
     from pipeline.errors import NumericalError
     from pipeline.study.manifest import read_failure
-    from pipeline.study.plan import failure_file, plan
+    from pipeline.study.plan import Study, failure_file, plan
 
     def fails(*a, **k):
         raise NumericalError("solver pmg did not converge (PETSc reason -3, 1000 iterations)")
-    monkeypatch.setattr(commands, "execute_run", fails)
-    task, = plan("1.6", None, {"mesh_factor": 3.0}, {"dims.rf": [2.0]}, [], 1, 1.3)
+    monkeypatch.setattr(sweep_module, "write_run", fails)
+    study = Study("1.6", None, {"mesh_factor": 3.0}, {"dims.rf": [2.0]}, [], levels=1)
+    task, = plan(study)
     (tmp_path / "variants").mkdir()
-    sweep_module.run_task(task, tmp_path, 1, 1.3)
+    sweep_module.run_task(task, tmp_path, study)
     note = read_failure(failure_file(tmp_path, task.key))  # checked against its checksum
     assert note == {"error": "solver pmg did not converge (PETSc reason -3, 1000 iterations)", "size": "1.6",
                     "parameters": {"dims.rf": 2.0}}
@@ -368,7 +368,7 @@ def test_a_study_leaves_out_the_peak_it_was_not_asked_for(tmp_path):
 @pytest.mark.slow
 def test_a_study_too_large_for_memory_is_refused_on_two_ranks(tmp_path):
     """Two variants at once on this machine, each estimated at about 2.6 GiB (mesh factor
-    0.6, pipeline/runtime/resources.py), against --memory-limit 3: one fits, two at once do not.
+    0.6, pipeline/analysis/memory.py), against --memory-limit 3: one fits, two at once do not.
     Refused with one line and exit 2, nothing written. (Rank 0's probe loaded DOLFINx alone,
     whose PETSc start-up is collective, and rank 1 aborted with 'stack smashing detected'.)"""
     out = tmp_path / "big"
@@ -433,12 +433,12 @@ def test_an_input_every_variant_shares_is_named_as_it_is():
     """E = -5 MPa makes every variant invalid for one reason, which is not the variants':
     the line is the one a run gives ("E_MPa: must be > 0, got -5"), not "every variant is
     invalid; the first: ...". Variants invalid for reasons of their own keep that line."""
-    from pipeline.study.plan import plan
+    from pipeline.study.plan import Study, plan
     with pytest.raises(InputError) as shared:
-        plan("05", None, {"E_MPa": -5.0}, {"dims.rf": [1.0, 2.0]}, [], 3, 1.3)
+        plan(Study("05", None, {"E_MPa": -5.0}, {"dims.rf": [1.0, 2.0]}, []))
     assert str(shared.value) == "E_MPa: must be > 0, got -5"
     with pytest.raises(InputError) as own:
-        plan("05", None, {}, {"dims.rf": [-1.0, -2.0]}, [], 3, 1.3)
+        plan(Study("05", None, {}, {"dims.rf": [-1.0, -2.0]}, []))
     assert str(own.value).startswith("sweep: every variant is invalid; the first: ")
 
 
@@ -449,5 +449,5 @@ def test_a_variant_s_key_follows_the_code_that_analyses_it(monkeypatch):
     keys = {}
     for code in ("old", "new"):
         monkeypatch.setattr(study, "code_key", lambda code=code: code)
-        keys[code] = [t.key for t in study.plan("05", None, {}, {"dims.rf": [1.0, 2.0]}, [], 3, 1.3)]
+        keys[code] = [t.key for t in study.plan(study.Study("05", None, {}, {"dims.rf": [1.0, 2.0]}, []))]
     assert not set(keys["old"]) & set(keys["new"])

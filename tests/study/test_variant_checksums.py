@@ -26,7 +26,7 @@ from pipeline.study.manifest import (
     write_failure,
     write_manifest,
 )
-from pipeline.study.plan import Task, failure_file, variant_folder
+from pipeline.study.plan import Study, Task, failure_file, variant_folder
 from pipeline.study.sweep import discard_damaged
 from pipeline.study.table import rows_of
 
@@ -180,7 +180,7 @@ def test_a_variant_changed_while_its_study_runs_is_analysed_again_before_the_sum
     from pipeline.study import sweep as sweep_module
     runs: list[str] = []
 
-    def run_task(task, out, levels, ratio, sensitivity=False, screen=False, why_full=None):
+    def run_task(task, out, study, screen=False, why_full=None):
         runs.append(task.key)
         folder = a_variant(out, task.key, {"run": len(runs)})
         if len(runs) == 1:  # changed after its checksums: by hand, or by another program
@@ -191,7 +191,7 @@ def test_a_variant_changed_while_its_study_runs_is_analysed_again_before_the_sum
         read_results(variant_folder(out, t.key)) for t in tasks))
     said: list[str] = []
     out = tmp_path / "study"
-    sweep_module.execute_sweep("05", None, {"mesh_factor": 3.0}, {"dims.rf": [1.0, 1.5]}, [], out, 1, 1.3,
+    sweep_module.execute_sweep(Study("05", None, {"mesh_factor": 3.0}, {"dims.rf": [1.0, 1.5]}, [], levels=1), out,
                                said.append)
     first, second = runs[:2]
     assert runs == [first, second, first]

@@ -33,7 +33,7 @@ import pytest
 from geometry.table import lookup
 from pipeline.inputs.case import resolve
 from pipeline.post.errorbar import estimate_levels
-from pipeline.analysis.level import solve_level
+from pipeline.analysis.level import LevelTask, solve_level
 
 pytestmark = pytest.mark.slow  # real runs or shared runs in fixtures: `make test-fast` skips them
 
@@ -75,7 +75,7 @@ def assert_same_peaks(got, ref, tol: float, length_scale: float = 1.0, what: str
 @pytest.fixture(scope="module")
 def base():
     """The reference: No. 05, quarter model, the default solver (CG + p-multigrid), one rank, mesh factor 2."""
-    return solve_level(case(), FACTOR, keep_fields=True)
+    return solve_level(case(), LevelTask(FACTOR, keep_fields=True))
 
 
 # ----------------------------------------------------------------- similarity, modulus
@@ -85,7 +85,7 @@ def test_geometric_similarity(base, lam):
     """Every length × λ and the load × λ²: the same stresses at points × λ; u × λ."""
     dims = {f"dims.{k}": v * lam for k, v in asdict(ROW.dims).items()}
     c = case(load_N=ROW.load_N * lam ** 2, **dims)
-    lv = solve_level(c, FACTOR, keep_fields=True)
+    lv = solve_level(c, LevelTask(FACTOR, keep_fields=True))
     assert lv.dofs == base.dofs and lv.cells == base.cells, \
         f"λ = {lam:g}: mesh differs from the unscaled part ({lv.cells} vs {base.cells} tets)"
     assert_same_peaks(lv, base, TOL, length_scale=lam, what=f"λ = {lam:g}")
@@ -98,7 +98,7 @@ def test_youngs_modulus_does_not_change_stress(base, E_MPa):
     """Traction loads only: σ independent of E, u ∝ 1/E, over the whole range of E the
     input checks accept (at E = 1e12 MPa the p-multigrid once stopped: constrained rows
     with diagonal 1 against entries ~1e12, see assembly.constrained_diagonal)."""
-    lv = solve_level(case(E_MPa=E_MPa), FACTOR, keep_fields=True)
+    lv = solve_level(case(E_MPa=E_MPa), LevelTask(FACTOR, keep_fields=True))
     ratio = E_MPa / case().E_MPa
     assert_same_peaks(lv, base, TOL, what=f"E = {E_MPa:g} MPa")
     assert rel(max_displacement(lv) * ratio, max_displacement(base)) <= TOL
@@ -127,8 +127,8 @@ def test_quarter_and_full_model_agree_within_discretisation_error(base):
     """
     from pipeline.post.features import known_raisers
     bore = known_raisers(case(want="critical"))     # the two bore edges in x = 0 (quarter coordinates)
-    levels = [solve_level(case(), FACTOR * RATIO ** k, hotspots=bore) for k in (0, 1, 2)]
-    full = solve_level(case(model="full"), FACTOR, hotspots=bore)
+    levels = [solve_level(case(), LevelTask(FACTOR * RATIO ** k, hotspots=bore)) for k in (0, 1, 2)]
+    full = solve_level(case(model="full"), LevelTask(FACTOR, hotspots=bore))
     assert full.dofs > 3 * levels[0].dofs
     assert full.constraint_reaction_N <= 1e-6 * ROW.load_N
     x, y, z = full.critical.location_mm   # at the bore's edge, both halves of the full part alike
@@ -159,7 +159,7 @@ def test_iterative_and_mumps_agree_to_the_solver_tolerance(base):
     and the 1e-6 of docs/design.md §6 at the default rtol of 1e-8.
     """
     rtol = case().rtol
-    lv = solve_level(case(solver="mumps"), FACTOR)
+    lv = solve_level(case(solver="mumps"), LevelTask(FACTOR))
     assert lv.iterations <= 1 and lv.residual_rel < 1e-8
     assert_same_peaks(lv, base, 100 * rtol, what="MUMPS vs p-multigrid")
 
@@ -172,7 +172,7 @@ def test_the_same_run_twice(base):
     (measured: the same node-coordinate hash in three processes), and so is everything
     after it. 1e-12 allows for nothing but round-off.
     """
-    lv = solve_level(case(), FACTOR, keep_fields=True)
+    lv = solve_level(case(), LevelTask(FACTOR, keep_fields=True))
     assert (lv.dofs, lv.cells, lv.iterations) == (base.dofs, base.cells, base.iterations)
     assert_same_peaks(lv, base, 1e-12, what="run twice")
     assert lv.jacobian_ratio == base.jacobian_ratio

@@ -31,14 +31,15 @@ numbers and docs/accuracy.md together.
 import pytest
 
 from pipeline.post import formulas
-from pipeline.analysis.analyse import analyse
+from pipeline.api import RunOptions, run
 from pipeline.post.errorbar import estimate_levels
 from pipeline.inputs.case import resolve
 from pipeline.analysis.pilot import pilot
-from pipeline.analysis.level import solve_level
+from pipeline.analysis.level import LevelTask, solve_level
 
 pytestmark = pytest.mark.slow  # real runs or shared runs in fixtures: `make test-fast` skips them
 
+ERROR_BAR = RunOptions(levels=3, to_tolerance=False, sensitivity=False)  # make run's three meshes, no more
 GLOBAL_LIMIT = 113.82                    # make reference (docs/fillet-reference.md)
 GLOBAL_BAND = 0.01 * GLOBAL_LIMIT
 CRITICAL_LIMIT, CRITICAL_BAND = 66.27, 0.2
@@ -54,7 +55,7 @@ def test_formulas_against_paper():
 def default_level():
     """The mesh `make run` answers on: the case's mesh, refined where the pilot found the peaks."""
     case = resolve("05")
-    return solve_level(case, case.mesh_factor, hotspots=pilot(case).hotspots)
+    return solve_level(case, LevelTask(case.mesh_factor, hotspots=pilot(case).hotspots))
 
 
 def test_default_mesh_global_peak(default_level):
@@ -75,7 +76,7 @@ def test_default_run_error_bar_covers_the_reference():
     independent reference, and the value lies within 1 % of it; the critical peak's band
     covers the P3 solutions' 66.27 MPa."""
     case = resolve("05")
-    levels, _ = analyse(case, levels=3)
+    levels = run(case, ERROR_BAR).levels
     est = estimate_levels(levels, case.order, "peak")
     value = levels[0].peak.value_MPa
     print(f"global peak {value:.3f} ± {est.band:.3f} MPa ({est.status}); reference {GLOBAL_LIMIT} MPa")
@@ -102,7 +103,7 @@ def test_default_run_error_bar_covers_other_parts_references(size, dims, referen
     (measured: +0.33 %, −0.09 %, +0.14 %; before the pilot's threshold followed the midpoint
     No. 1.6 read +3.1 % and rf = 0.3 mm +4.0 %)."""
     case = resolve(size, overrides=dims)
-    levels, _ = analyse(case, levels=3)
+    levels = run(case, ERROR_BAR).levels
     est = estimate_levels(levels, case.order, "peak")
     value = levels[0].peak.value_MPa
     print(f"{size} {dims}: global peak {value:.3f} ± {est.band:.3f} MPa ({est.status}); reference {reference} MPa")

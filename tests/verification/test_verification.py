@@ -70,8 +70,8 @@ def lame_solve(lc, order, lc_bore=None, solver="pmg"):
     n = ufl.FacetNormal(prob.mesh)
     cons = [pe.Constraint(0, marker=ids["sym_x"]), pe.Constraint(1, marker=ids["sym_y"]),
             pe.Constraint(2, marker=ids["z0"]), pe.Constraint(2, marker=ids["z1"])]
-    sol = ps.solve(prob.mesh, prob.facet_tags, order, MAT,
-                   [pe.Traction(ids["bore"], -P_BORE * n)], cons, solver=solver)
+    sol = ps.solve(prob.mesh, prob.facet_tags, MAT, ps.Loads([pe.Traction(ids["bore"], -P_BORE * n)], cons),
+                   ps.Method(order, solver))
     return prob, sol
 
 
@@ -167,7 +167,7 @@ def test_plate_with_hole_kt():
     traction = fem.Constant(mesh, PETSc.ScalarType((PS, 0.0, 0.0)))
     cons = [pe.Constraint(0, marker=ids["sym_x"]), pe.Constraint(1, marker=ids["sym_y"]),
             pe.Constraint(2, marker=ids["mid"])]
-    sol = ps.solve(mesh, prob.facet_tags, 2, MAT, [pe.Traction(ids["end"], traction)], cons)
+    sol = ps.solve(mesh, prob.facet_tags, MAT, ps.Loads([pe.Traction(ids["end"], traction)], cons), ps.Method(2))
     expected = kt_gross_peterson(PD / PW) * PS  # 3.227 × 100 MPa
     sxx, xyz = dg_values(sol.u, pe.stress(sol.u, MAT)[0, 0], 1)
     i = int(np.argmax(sxx))
@@ -207,7 +207,7 @@ def test_pure_bending_sigma_xx():
     end = ufl.as_vector((-M * x[1] / BI, 0 * x[0], 0 * x[0]))  # σ·n on x = L/2, n = +x
     cons = [pe.Constraint(0, marker=ids["x0"]), pe.Constraint(2, marker=ids["z0"]),
             pe.Constraint(1, points=np.array([[0.0, -BH / 2, 0.0]]))]
-    sol = ps.solve(mesh, prob.facet_tags, 2, MAT, [pe.Traction(ids["x1"], end)], cons)
+    sol = ps.solve(mesh, prob.facet_tags, MAT, ps.Loads([pe.Traction(ids["x1"], end)], cons), ps.Method(2))
     s_max = M * BC / BI
     sxx, xyz = dg_values(sol.u, pe.stress(sol.u, MAT)[0, 0], 1)
     away = xyz[:, 0] < BL / 4  # the half of the model away from the loaded end
@@ -236,9 +236,8 @@ def test_cantilever_bending_stress_away_from_ends():
     x = ufl.SpatialCoordinate(mesh)
     q = F / (2 * BI) * (BH ** 2 / 4 - x[1] ** 2)  # ∫ q dA over the full section = F
     cons = [pe.Constraint(None, marker=ids["x0"]), pe.Constraint(2, marker=ids["z0"])]
-    sol = ps.solve(mesh, prob.facet_tags, 2, MAT,
-                   [pe.Traction(ids["x1"], ufl.as_vector((0 * x[0], -q, 0 * x[0])))], cons,
-                   solver="mumps")
+    sol = ps.solve(mesh, prob.facet_tags, MAT,
+                   ps.Loads([pe.Traction(ids["x1"], ufl.as_vector((0 * x[0], -q, 0 * x[0])))], cons), ps.Method(2, "mumps"))
     sxx, xyz = dg_values(sol.u, pe.stress(sol.u, MAT)[0, 0], 1)
     middle = (xyz[:, 0] > BL / 4) & (xyz[:, 0] < 3 * BL / 4)
     fibre = middle & (np.abs(np.abs(xyz[:, 1]) - BC) < 1e-9)
@@ -294,7 +293,7 @@ def test_patch_constant_stress_by_tractions(box_mesh):
            (2, (0, ly, 0))]
     cons = [pe.Constraint(c, value=float(GRAD[c] @ np.array(p, float)), points=np.array([p], float))
             for c, p in pts]
-    sol = ps.solve(mesh, prob.facet_tags, order, MAT, tractions, cons, solver="mumps")
+    sol = ps.solve(mesh, prob.facet_tags, MAT, ps.Loads(tractions, cons), ps.Method(order, "mumps"))
     xyz = sol.u.function_space.tabulate_dof_coordinates()
     u_exact = xyz @ GRAD.T
     err_u = np.max(np.abs(sol.u.x.array.reshape(-1, 3) - u_exact)) / np.max(np.abs(u_exact))
@@ -323,7 +322,7 @@ def test_patch_displacement_driven(box_mesh):
     cons = []
     for i, (n0, n1) in enumerate((("x0", "x1"), ("y0", "y1"), ("z0", "z1"))):
         cons += [pe.Constraint(i, 0.0, marker=ids[n0]), pe.Constraint(i, e[i] * BOX[i], marker=ids[n1])]
-    sol = ps.solve(mesh, prob.facet_tags, order, MAT, [], cons, solver="mumps")
+    sol = ps.solve(mesh, prob.facet_tags, MAT, ps.Loads([], cons), ps.Method(order, "mumps"))
     xyz = sol.u.function_space.tabulate_dof_coordinates()
     u_exact = xyz * e
     err_u = np.max(np.abs(sol.u.x.array.reshape(-1, 3) - u_exact)) / np.max(np.abs(u_exact))

@@ -1,4 +1,4 @@
-"""The memory estimate made before meshing (pipeline/runtime/resources.py) against real meshes,
+"""The memory estimate made before meshing (pipeline/analysis/memory.py) against real meshes,
 and the refusal of runs that cannot fit (exit 2 before any meshing)."""
 from __future__ import annotations
 
@@ -12,7 +12,7 @@ import pytest
 
 from pipeline.inputs.case import resolve
 from pipeline.fe.meshing import Mesher
-from pipeline.runtime.resources import REFINED_PLACES, estimate, needs_probe, probe
+from pipeline.analysis.memory import REFINED_PLACES, estimate, needs_probe, probe
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -86,7 +86,7 @@ def _tree(tmp_path: Path, cgroup: str, files: dict[str, str]) -> tuple[Path, Pat
 def test_a_slurm_job_s_memory_limit_is_found_above_its_task(tmp_path):
     """cgroup v2 as Slurm sets it: --mem on the job's level (4 GiB, 1 GiB used), none on
     the task's: 3 GiB left, however much the node has free."""
-    from pipeline.runtime.resources import cgroup_room_bytes
+    from pipeline.analysis.memory import cgroup_room_bytes
     proc, root = _tree(tmp_path, "0::/job_7/step_0/task_0", {
         "job_7/memory.max": str(int(4 * GIB)), "job_7/memory.current": str(int(GIB)),
         "job_7/step_0/task_0/memory.max": "max", "job_7/step_0/task_0/memory.current": str(int(0.5 * GIB))})
@@ -97,7 +97,7 @@ def test_a_container_s_limit_is_read_at_its_own_root_and_no_limit_is_none(tmp_pa
     """cgroup v1 in a container: the group named in /proc/self/cgroup is not in the
     container's view of the tree, whose root is its own group (2 GiB, 0.5 used). A limit
     of 2^63 (v1's 'none') is no limit; nothing readable is no limit either."""
-    from pipeline.runtime.resources import cgroup_room_bytes
+    from pipeline.analysis.memory import cgroup_room_bytes
     proc, root = _tree(tmp_path, "4:memory:/docker/abc", {
         "memory/memory.limit_in_bytes": str(int(2 * GIB)), "memory/memory.usage_in_bytes": str(int(0.5 * GIB))})
     assert cgroup_room_bytes(proc, root) == pytest.approx(1.5 * GIB)
@@ -113,7 +113,7 @@ def test_a_part_outside_the_table_s_proportions_is_probed():
     default mesh, counted when the defect was reported) is probed, by the proportions it
     has outside the table's."""
     from geometry.table import load_table
-    from pipeline.runtime.resources import unusual_proportions
+    from pipeline.analysis.memory import unusual_proportions
     assert not any(needs_probe(resolve(size), [1.0, 1.3, 1.69]) for size in load_table())
     thin = resolve("05", None, {"dims.h3": 1.0, "dims.dj": 0.5, "dims.rf": 0.1})
     assert needs_probe(thin, [1.0]) and {"h3/b6", "dj/b6"} <= set(unusual_proportions(thin))

@@ -17,8 +17,9 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Sequence
 
-from pipeline.inputs.case import Case
 from pipeline.errors import InputError
+from pipeline.fe.meshing import Mesher
+from pipeline.inputs.case import Case
 
 PROBE_FACTOR = 2.0
 EXPONENT = 2.5
@@ -147,7 +148,6 @@ def estimate(case: Case, factors: Sequence[float], probe_tets: int, probe_factor
 
 def probe(case: Case) -> tuple[int, float]:
     """(tets, factor) of a quick first-order mesh at PROBE_FACTOR (no refined places)."""
-    from pipeline.fe.meshing import Mesher
     f = PROBE_FACTOR
     with Mesher(case.dims, case.model) as m:
         part = m.generate(replace(case.mesh_spec(f), order=1))
@@ -173,9 +173,3 @@ def check_fits(case: Case, factors: Sequence[float], limit_gb: float | None, cop
             f"{limit / 1024 ** 3:.1f} GiB {'allowed' if limit_gb is not None else 'available'} "
             f"(use a coarser --mesh-factor, or --memory-limit GB to override)")
     return est
-
-
-def factors_of(case: Case, command: str, levels: int, ratio: float) -> list[float]:
-    """The mesh factors a command solves: run = the case's and coarser; converge = finer."""
-    top = case.mesh_factor / ratio ** max(levels - 3, 0) if command == "converge" else case.mesh_factor
-    return [top * ratio ** k for k in range(levels)]
