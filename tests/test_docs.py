@@ -133,6 +133,28 @@ def test_named_paths_and_modules_exist(doc: Path):
     assert missing == [], f"{_rel(doc)}: names what the repository does not have {missing}"
 
 
+# A file named with the functions or classes it holds: `pipeline/analysis/run.py` (`run`, ...)
+# or, in a package's row, `run.py` (`run`): each name in the parentheses must be defined there.
+FILE_WITH_NAMES = re.compile(r"`([\w/]+)\.py` \(([^)]*)\)")
+NAME_SPAN = re.compile(r"`([A-Za-z_]\w*)`")
+
+
+def _defined_in(file_span: str, name: str) -> bool:
+    """Whether ``name`` is defined at the top level of the file a doc names as
+    ``file_span`` (a path from the repository's root, or a file's stem)."""
+    path = ROOT / f"{file_span}.py"
+    candidates = [path] if path.is_file() else MODULES_BY_STEM.get(Path(file_span).name, [])
+    return any(name in _top_level_names(c, imported=False) for c in candidates)
+
+
+@pytest.mark.parametrize("doc", REFERENCE_DOCS, ids=_rel)
+def test_functions_named_beside_their_files_are_there(doc: Path):
+    """docs/architecture.md puts names beside files: `pipeline/analysis/run.py` (`run`)."""
+    wrong = [f"{f}.py: {name}" for f, inside in FILE_WITH_NAMES.findall(doc.read_text(encoding="utf-8"))
+             for name in NAME_SPAN.findall(inside) if not name.isupper() and not _defined_in(f, name)]
+    assert wrong == [], f"{_rel(doc)}: names a function where the file does not define it {wrong}"
+
+
 @pytest.mark.parametrize("doc", REFERENCE_DOCS, ids=_rel)
 def test_reference_docs_carry_no_dates_or_commits(doc: Path):
     text = doc.read_text(encoding="utf-8")
@@ -161,3 +183,7 @@ def test_the_checks_catch_what_they_are_for():
     assert COMMIT.findall("4.21991607979353e-05") == []
     assert not REPO_PATH.match("results.json") and REPO_PATH.match("docs/design.md")
     assert "errorbar" in MODULES_BY_STEM and "sweepresults" not in MODULES_BY_STEM
+    assert _defined_in("pipeline/post/errorbar", "estimate_levels") and not _defined_in("pipeline/analysis/run",
+                                                                                       "estimate_levels")
+    assert FILE_WITH_NAMES.findall("`pipeline/analysis/meshes.py` (`estimate_levels`)") == [
+        ("pipeline/analysis/meshes", "`estimate_levels`")]
