@@ -30,8 +30,6 @@ from pipeline.post.sections import (journal_nominal, ligament_resultants, linear
 
                                     plane_resultants, sigma_xx_field)
 
-pytestmark = pytest.mark.slow  # real runs or shared runs in fixtures: `make test-fast` skips them
-
 
 def test_linearisation_is_exact_for_a_linear_profile():
     t = np.linspace(0.0, 25.0, 81)
@@ -162,3 +160,23 @@ def test_a_failed_pull_back_takes_the_next_cell_and_never_raises(monkeypatch):
     got = sec.sigma_xx_at(sec.SigmaXX(Field(), tree=None), np.zeros((4, 3)))
     assert got[:2].tolist() == [30.0, 40.0]
     assert np.isnan(got[2]) and np.isnan(got[3])
+
+
+def test_a_section_s_moment_is_taken_about_the_centre_it_is_given():
+    """A bar pulled by F at x = L, clamped at x = 0: the clamp's section carries N = F and,
+    about an axis at y = c off the bar's own (the load has no moment about y = 0), M = −c·N
+    (statics: M = Σ σ_xx (y − c) dA = 0 − c·N). Half the width is modelled: F/2."""
+    F, c = 1000.0, 3.0
+    prob = vp.bar(40.0, 20.0, 5.0, lc=5.0, order=2)
+    ids = prob.ids
+    area_half = 20.0 * 5.0
+    x = ufl.SpatialCoordinate(prob.mesh)
+    pull = ufl.as_vector((F / 2 / area_half + 0 * x[0], 0 * x[0], 0 * x[0]))
+    cons = [pe.Constraint(None, marker=ids["x0"]), pe.Constraint(2, marker=ids["z0"])]
+    sol = ps.solve(prob.mesh, prob.facet_tags, 2, pe.Material(210_000.0, 0.3), [pe.Traction(ids["x1"], pull)], cons,
+                   solver="mumps")
+    N, M = plane_resultants(sol, 0, lever_axis=1, centre_mm=c)
+    assert N == pytest.approx(F / 2, rel=1e-8)
+    assert M == pytest.approx(-c * F / 2, rel=1e-8)
+    N0, M0 = plane_resultants(sol, 0, lever_axis=1, centre_mm=0.0)
+    assert N0 == N and abs(M0) <= 1e-8 * F * 20.0
