@@ -406,7 +406,6 @@ def _two_p2_tets(bow: float):
     return create_mesh(MPI.COMM_SELF, np.array(cells, dtype=np.int64), np.array(x), domain)
 
 
-@pytest.mark.slow
 def test_quadrature_split_is_exact_on_straight_cells():
     """elasticity.volume_measures integrate straight cells with degree 2(k-1) and curved ones
     with UFL's own degree: the P2 stiffness matrix equals the one of UFL's degree on every
@@ -434,6 +433,14 @@ def test_quadrature_split_is_exact_on_straight_cells():
     assert split.norm() <= 1e-12 * reference.norm()
     assert low.norm() >= 1e-4 * reference.norm()                 # the bow matters
     assert not pe.curved_cells(_two_p2_tets(0.0)).any()
+
+
+def test_a_cell_is_curved_when_a_mid_edge_node_is_off_its_edge_by_1e_10_of_its_size():
+    """elasticity.curved_cells: a mid-edge node off its edge's midpoint by more than 1e-10
+    of the cell's size (here 1 mm) makes its cells curved, by less does not: a bow of 1e-3
+    mm (a fillet's faceting) is curved, 1e-12 mm (round-off) is straight."""
+    assert pe.curved_cells(_two_p2_tets(1e-3)).sum() == 1
+    assert not pe.curved_cells(_two_p2_tets(1e-12)).any()
 
 
 @pytest.mark.parametrize("order", [2, 3])
