@@ -147,6 +147,7 @@ def test_deck_fits_calculix_and_names_its_surfaces(coarse):
     assert area.sum() == pytest.approx(math.pi / 2 * d.dj / 2 * (d.b6 / 2 - d.b1 / 2 - d.rf), rel=1e-3)
 
 
+@pytest.mark.slow  # a CalculiX contact solve: 3.7 s
 @pytest.mark.skipif(shutil.which("ccx") is None, reason="ccx missing: tools/setup.sh installs calculix-ccx")
 def test_tiny_contact_case_balances_the_load(coarse):
     """The plate's held face carries the quarter's load Q/4, and so do the contact's nodal

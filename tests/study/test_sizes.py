@@ -450,6 +450,7 @@ def test_coarse_solve_of_smallest_and_largest_rows(size):
     assert min(z, d.h3 - z) < 0.02 * d.h3
 
 
+@pytest.mark.slow  # two solves: 3.5 s
 def test_exact_similarity_copy_gives_the_same_stresses():
     """No. 05 with every length ×2 and the load ×4 on the same mesh factor: the mesh is
     No. 05's scaled (pipeline.fe.meshing meshes at No. 05's size), so peaks agree to round-off."""
@@ -486,7 +487,7 @@ def _mesh_error_rel() -> float:
 
 # No. 1 at mesh factor 2 once had a 0.06-ratio curved tet on the bore wall (ligament peak
 # 96-119 instead of ~65 MPa); the mesher now relaxes every curved tet to a ratio >= 0.3 (geometry/curved.py).
-@pytest.mark.parametrize("size", [SMALLEST, "1", "10"])
+@pytest.mark.parametrize("size", [pytest.param(SMALLEST, marks=pytest.mark.slow), "1", "10"])  # the smallest: 3.9 s
 def test_rounded_row_matches_no05_within_its_rounding(size):
     """Critical (bore ligament) peak of a rounded row vs No. 05 × similarity ratio.
 

@@ -37,7 +37,6 @@ from pipeline.inputs.case import resolve
 from pipeline.analysis.pilot import pilot
 from pipeline.analysis.level import solve_level
 
-pytestmark = pytest.mark.slow  # real runs or shared runs in fixtures: `make test-fast` skips them
 
 GLOBAL_LIMIT = 113.82                    # make reference (docs/fillet-reference.md)
 GLOBAL_BAND = 0.01 * GLOBAL_LIMIT
@@ -57,12 +56,14 @@ def default_level():
     return solve_level(case, case.mesh_factor, hotspots=pilot(case).hotspots)
 
 
+@pytest.mark.slow
 def test_default_mesh_global_peak(default_level):
     lv = default_level
     assert abs(lv.peak.value_MPa - GLOBAL_LIMIT) <= GLOBAL_BAND, lv.peak
     assert 22.5 <= lv.peak.location_mm[0] <= 24.0                       # on the shoulder fillet
 
 
+@pytest.mark.slow
 def test_default_mesh_critical_peak(default_level):
     lv = default_level
     assert abs(lv.critical.value_MPa - CRITICAL_LIMIT) <= CRITICAL_BAND, lv.critical
@@ -70,6 +71,7 @@ def test_default_mesh_critical_peak(default_level):
     assert abs(x) < 1e-6 and abs(y - 10.5) < 1e-6 and z in (pytest.approx(0.0, abs=1e-6), pytest.approx(25.0, abs=1e-6))
 
 
+@pytest.mark.slow
 def test_default_run_error_bar_covers_the_reference():
     """`make run`'s three meshes (×1, ×1.3, ×1.69): the global peak's band covers the
     independent reference, and the value lies within 1 % of it; the critical peak's band
@@ -95,6 +97,7 @@ OTHER_PARTS = [
 ]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("size,dims,reference", OTHER_PARTS, ids=["1.6", "05-rf0.5-dj16", "05-rf0.3"])
 def test_default_run_error_bar_covers_other_parts_references(size, dims, reference):
     """The default path's three meshes on parts other than No. 05's row: the global peak's
