@@ -431,6 +431,7 @@ def _signed(header: bytes, payload: bytes = b"") -> bytearray:
     (b'{"name": "e", "meta": [], "arrays": []}', b""),
     (b'{"name": "e", "meta": {}, "arrays": [1]}', b""),
     (b"\xff\xfe", b""),
+    (b'{"name": "e", "meta": {}, "arrays": [["a", "<f4", [2]]]}', bytes(8)),  # a number type numpy reads, not one of DTYPES
 ])
 def test_a_well_signed_entry_that_is_not_one_is_refused_as_corrupt(header, payload):
     """What a checksum cannot catch (an entry written to pass it) still gives Corrupt, the
@@ -479,3 +480,16 @@ def test_a_flipped_bit_anywhere_after_the_first_line_fails_the_checksum(where):
     rc.decode("e", bytearray(data))  # the unflipped entry reads
     with pytest.raises(rc.Corrupt, match="sha256 differs"):
         rc.decode("e", _flipped(data, at))
+
+
+@pytest.mark.parametrize("size, limit, kept", [(100, 100, True), (101, 100, False), (100, 50, False)])
+def test_a_file_above_the_bound_is_not_read(tmp_path, size, limit, kept):
+    """read_regular reads a regular file of at most ``limit`` bytes whole, and refuses a
+    larger one as Corrupt before reading it (MAX_ENTRY_BYTES for an entry)."""
+    path = tmp_path / "x.entry"
+    path.write_bytes(bytes(range(256))[:1] * size)
+    if kept:
+        assert bytes(rc.read_regular(path, limit)) == path.read_bytes()
+    else:
+        with pytest.raises(rc.Corrupt, match="above the bound"):
+            rc.read_regular(path, limit)

@@ -26,8 +26,8 @@ import math
 import numpy as np
 import pytest
 
-from pipeline.post.errorbar import (estimate, least_squares_estimate, observed_order, three_mesh_estimate,
-                                    two_reading_estimate, verdict_against, with_bracket)
+from pipeline.post.errorbar import (estimate, least_squares_estimate, observed_order, representative_size,
+                                    three_mesh_estimate, two_reading_estimate, verdict_against, with_bracket)
 
 H3 = [1.0, 1.3, 1.69]  # a run's three meshes: ratio 1.3 (sizes relative to the finest)
 H5 = [1.0, 1.2, 1.44, 1.728, 2.0736]  # five meshes at ratio 1.2
@@ -268,3 +268,10 @@ def test_the_bracket_widens_a_narrower_trend_band_and_keeps_a_wider_one():
 def test_verdict_against_the_allowable_at_its_edges(value, band, verdict):
     """docs/design.md §5: pass when value + band ≤ allowable, fail when value − band > allowable."""
     assert verdict_against(value, band, 80.0) == verdict
+
+
+def test_a_mesh_s_size_is_its_dof_count_to_the_minus_one_third():
+    """A 3-D mesh of size h has N ∝ h^-3 degrees of freedom: h = N^(-1/3); 8× the DOFs,
+    half the size (the ratio the error bar's extrapolation uses)."""
+    assert representative_size(1_000_000) == pytest.approx(0.01, rel=1e-12)
+    assert representative_size(8 * 12_345) / representative_size(12_345) == pytest.approx(0.5, rel=1e-12)

@@ -77,6 +77,16 @@ def test_critical_section_moment_is_statics(no05):
     x_bearing = (d.b1 / 2 + d.rf + d.b6 / 2) / 2
     assert -M == pytest.approx(case.load_N / 2 * (x_bearing - x_seat), rel=3e-3)
     assert abs(N) < 1e-4 * case.load_N  # no axial load on the crosshead: the section force vanishes
+    # The section's nominal stresses from its force and moment: N/(w·h) and 6|M|/(w·h²) over
+    # both ligaments, w = b1 − di wide and h = h3 high (beam theory), M the statics above.
+    from pipeline.post.sections import ligament_sections
+    cs = ligament_sections(sol, mat, d, 0.25, sym)["critical_section"]
+    w, h = d.b1 - d.d2, d.h3
+    assert (cs["width_mm"], cs["height_mm"]) == (w, h)
+    assert cs["M_Nmm"] == pytest.approx(statics, rel=1e-7) and cs["N_N"] == N
+    assert cs["bending_MPa"] == pytest.approx(6 * abs(statics) / (w * h ** 2), rel=1e-7)
+    assert cs["membrane_MPa"] == pytest.approx(N / (w * h), rel=1e-12, abs=1e-12)
+    assert cs["nominal_MPa"] == pytest.approx(cs["membrane_MPa"] + 6 * abs(statics) / (w * h ** 2), rel=1e-7)
 
 
 def test_linearised_ligament_stress_is_near_the_beam_value(no05):
