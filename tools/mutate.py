@@ -118,6 +118,8 @@ MUTANTS = [
       "nodal average over one cell too many"),
     m("P6", "pipeline/post/peaks.py", "return max(peaks, key=lambda p: p.value_MPa)",
       "return min(peaks, key=lambda p: p.value_MPa)", POST, "the smaller feature's peak taken"),
+    m("P8", "pipeline/post/peaks.py", 'W = fem.FunctionSpace(mesh, ("DG", max(order - 1, 0)))',
+      'W = fem.FunctionSpace(mesh, ("DG", max(order - 2, 0)))', POST, "unaveraged von Mises one degree too low"),
     m("P7", "pipeline/post/peaks.py", "i = int(np.argmax(vals))", "i = int(np.argmin(vals))", POST, "a minimum for a peak"),
     m("R1", "pipeline/analysis/level.py", "pk = largest(nodal_peak(vm, averaged, MIDPOINT, fillet),",
       "pk = largest(nodal_peak(vm, averaged, UNAVERAGED, fillet),", POST, "the fillet read unaveraged"),
@@ -160,6 +162,8 @@ MUTANTS = [
       "ext = f1 - (f1 - f2) / (r21 ** p_used - 1)", ERRORBAR, "Richardson the wrong way"),
     m("B17", "pipeline/post/errorbar.py", "sigma = math.sqrt(res / 2.0 * (2 * n) / (2 * n - k))",
       "sigma = math.sqrt(res * (2 * n) / (2 * n - k))", ERRORBAR, "two readings' σ twice its variance"),
+    m("B18", "pipeline/post/errorbar.py", "return dofs ** (-1.0 / 3.0)", "return dofs ** (-1.0 / 2.0)", ERRORBAR,
+      "a mesh's size as N^(-1/2), not N^(-1/3)"),
     # pipeline/post/sections.py
     m("S1", "pipeline/post/sections.py", "halves = 2.0 if share == 0.25 else 1.0", "halves = 1.0 if share == 0.25 else 1.0",
       SECTIONS, "the quarter's half section not doubled"),
@@ -173,6 +177,8 @@ MUTANTS = [
     m("S5", "pipeline/post/sections.py", '"membrane_MPa": N / (w * h), "bending_MPa": 6.0 * abs(M) / (w * h ** 2),',
       '"membrane_MPa": N / (w * h), "bending_MPa": 6.0 * abs(M) / (w * h ** 2.05),', SECTIONS,
       "section bending stress with h^2.05"),
+    m("S6", "pipeline/post/sections.py", "lever = centre - d.b1 / 2", "lever = centre - d.b1 / 2 - d.rf", SECTIONS,
+      "journal root's lever from the fillet's end"),
     # pipeline/post/formulas.py
     m("F1", "pipeline/post/formulas.py", "lever = span_mm / 2 - Dm / math.pi", "lever = span_mm / 2 - Dm / 3.0", FORMULAS,
       "approximate formula's lever with Dm/3"),
@@ -182,6 +188,8 @@ MUTANTS = [
       "exact formula's section modulus /5"),
     m("F4", "pipeline/post/formulas.py", "N2 = N1 - Q_N / math.pi", "N2 = N1 - Q_N / 3.0", FORMULAS,
       "exact formula's N2 with Q/3"),
+    m("F5", "pipeline/post/formulas.py", "R = (b + di) / 4", "R = (b + di) / 4.1", FORMULAS,
+      "Rudenko's ring radius 2.5 % small"),
     # pipeline/analysis/sensitivity.py: the ranges' ends
     m("Se1", "pipeline/analysis/sensitivity.py",
       '    value = round(round(value / STEP_MM) * STEP_MM, 9)\n    if value <= limit:',
@@ -197,6 +205,8 @@ MUTANTS = [
       "nearest = max(cs.centre_standing[0], cs.centre_hanging[0])", RANGES, "the load centre's range from the farthest"),
     m("Se7", "pipeline/analysis/sensitivity.py", "        return round(round(v / STEP_MM) * STEP_MM, 9)\n",
       "        return round(v, 9)\n", RANGES, "load-model range ends not rounded"),
+    m("Se8", "pipeline/analysis/sensitivity.py", "SEAT_SPREAD = 0.06 ", "SEAT_SPREAD = 0.07 ", RANGES,
+      "seats ± 0.07·Dm"),
     # pipeline/output/fields.py: the arrays derived for the field file
     m("Fi1", "pipeline/output/fields.py", "TENSOR_ORDER = [(0, 0), (1, 1), (2, 2), (0, 1), (1, 2), (0, 2)]",
       "TENSOR_ORDER = [(0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2)]", FIELDS, "yz and xz swapped"),
