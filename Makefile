@@ -30,7 +30,7 @@ lint: $(SETUP)
 
 # Targeted mutation testing of the modules that decide the numbers, against the fast tests,
 # in a scratch copy of the tree (tools/mutate.py; score and survivors: docs/testing.md).
-# About 15 minutes on 2 cores.
+# About 6 minutes on 2 cores.
 mutate: $(SETUP)
 	$(PY) tools/mutate.py
 

@@ -10,7 +10,7 @@ either a gap in the tests or an equivalent mutant (a change no test can see beca
 numbers do not change); the equivalent ones are listed here with the reason
 (``equivalent=``) and reported as such. docs/testing.md gives the score and the list.
 
-    python tools/mutate.py                 # every mutant (about 15 minutes on 2 cores)
+    python tools/mutate.py                 # every mutant (about 6 minutes on 2 cores)
     python tools/mutate.py --only B2 L1    # some of them
     python tools/mutate.py --list          # what each one changes
 
