@@ -11,7 +11,7 @@ CROSSHEAD := .venv/bin/crosshead
 RUN := $(if $(filter 1,$(RANKS)),$(CROSSHEAD),$(PY) -m pipeline.runtime.launch $(RANKS))
 SIZES := $(shell awk -F, '!/^\#/ && $$1 != "size" && NF > 1 {print $$1}' geometry/sizes.csv)
 
-.PHONY: run test test-fast lint converge bench bench-peer bench-sweeps reference load-reference sizes setup clean clean-cache $(SIZES)
+.PHONY: run test test-fast lint mutate converge bench bench-peer bench-sweeps reference load-reference sizes setup clean clean-cache $(SIZES)
 
 run: $(SETUP)
 	$(RUN) run --size 05 --out results/05
@@ -27,6 +27,12 @@ test-fast: $(SETUP)
 
 lint: $(SETUP)
 	$(PY) -m ruff check .
+
+# Targeted mutation testing of the modules that decide the numbers, against the fast tests,
+# in a scratch copy of the tree (tools/mutate.py; score and survivors: docs/testing.md).
+# About 6 minutes on 2 cores.
+mutate: $(SETUP)
+	$(PY) tools/mutate.py
 
 converge: $(SETUP)
 	$(RUN) converge --size 05 --out results/05-converge

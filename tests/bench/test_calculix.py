@@ -31,7 +31,6 @@ from pipeline.fe.elasticity import Material, strain, stress
 from pipeline.fe.assembly import dirichlet_bc
 from pipeline.fe.solve import Loads, Method, solve
 
-pytestmark = pytest.mark.slow  # real runs or shared runs in fixtures: `make test-fast` skips them
 
 ROOT = Path(__file__).resolve().parents[2]
 FACTOR = 2.0
@@ -63,6 +62,7 @@ def test_float_fields_fit_calculix():
         assert float(s) == pytest.approx(x, rel=1e-11, abs=0)
 
 
+@pytest.mark.slow
 def test_inp_fields_and_lines(coarse):
     text = (coarse["work"] / "job.inp").read_text()
     lines = text.splitlines()
@@ -75,6 +75,7 @@ def test_inp_fields_and_lines(coarse):
     assert np.abs(xyz - coarse["cx"].model.nodes).max() <= 1e-11 * np.abs(xyz).max()
 
 
+@pytest.mark.slow
 def test_c3d10_node_order_and_orientation(coarse):
     model = coarse["cx"].model
     x = model.nodes[model.elements - 1]                          # (E, 10, 3)
@@ -95,6 +96,7 @@ def test_c3d10_node_order_and_orientation(coarse):
     assert np.all(v > 0)
 
 
+@pytest.mark.slow
 def test_supports_and_loads_match_the_pipeline(coarse):
     model, d, lc = coarse["cx"].model, coarse["case"].dims, coarse["lc"]
     X = model.nodes
@@ -109,6 +111,7 @@ def test_supports_and_loads_match_the_pipeline(coarse):
     assert abs(fz.sum()) < 1e-9 * coarse["case"].load_N
 
 
+@pytest.mark.slow
 def test_same_discrete_problem_with_calculix_quadrature(coarse):
     """DOLFINx with CalculiX's 4-point rule (degree 2) reproduces CalculiX: measured 3e-7 in
     u (the .dat's 7 significant digits) and ~1e-5 in the peaks; asserted 2e-6 and 2e-4."""
@@ -130,6 +133,7 @@ def test_same_discrete_problem_with_calculix_quadrature(coarse):
     assert c_c == pytest.approx(c_d, rel=2e-4)
 
 
+@pytest.mark.slow
 def test_peaks_agree_with_pipeline(coarse):
     """Against the pipeline's own solve (degree-5 quadrature): the critical (ligament) peak
     sits on straight elements and agrees to ~1e-4 (asserted 1e-3); the global peak sits on
@@ -153,6 +157,7 @@ def test_dat_reader_rejects_missing_nodes(tmp_path):
     np.testing.assert_allclose(read_dat_displacements(p, 1), [[1e-3, 0.0, -2e-3]])
 
 
+@pytest.mark.slow
 def test_bench_quick(tmp_path):
     """--quick: 2 levels, P2 pmg + mumps + CalculiX, one repeat; every output written. Run
     with the run cache on, as `make bench` is: every point still meshes (points at the same

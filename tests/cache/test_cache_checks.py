@@ -27,7 +27,6 @@ import pipeline.cache.runs as rc
 from pipeline.api import Outputs, RunOptions, write_run
 from pipeline.inputs.case import resolve
 
-pytestmark = pytest.mark.slow  # real runs or shared runs in fixtures: `make test-fast` skips them
 
 LEVELS = 3  # the requested mesh and two error-bar meshes: every kind of entry is made
 REPOSITORY = Path(__file__).resolve().parents[2]
@@ -151,6 +150,7 @@ def no_hang(seconds: int):
         signal.signal(signal.SIGALRM, old)
 
 
+@pytest.mark.slow
 def test_a_valid_cache_gives_the_cache_off_answer_bit_for_bit_and_says_nothing(cache, reference, tmp_path, capfd):
     res = run(tmp_path / "out")
     assert res["fe"]["scaled_from"] is not None  # reused, not solved
@@ -161,6 +161,7 @@ def test_a_valid_cache_gives_the_cache_off_answer_bit_for_bit_and_says_nothing(c
 # One bit of each kind of entry flipped (an exponent bit of a float where there is one):
 # the sha256 differs. ``byte`` counts from the start of the array or, if None, of the JSON
 # header (a digit of the numbers).
+@pytest.mark.slow
 @pytest.mark.parametrize("kind, largest, array, byte, bit", [
     ("mesh", True, "x", 8 * 3 * 100 + 7, 4),  # node 100's x: ×2^16
     ("solution", True, "u_mm", 8 * 3 * 50 + 7, 0),  # node 50's u_x
@@ -200,6 +201,7 @@ def _unsorted_places(e: rc.Entry) -> None:
     e.meta["hotspots"] = e.meta["hotspots"][::-1]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("kind, largest, why", [
     ("mesh", True, "volume"),
     ("solution", True, "relative residual"),
@@ -220,6 +222,7 @@ def test_an_entry_changed_with_a_valid_checksum_is_caught_by_its_own_checks(cach
     check_one_line(capfd.readouterr().err, path, why)
 
 
+@pytest.mark.slow
 def test_a_solution_of_another_mesh_with_the_same_counts_is_not_used(cache, reference, tmp_path, capfd):
     """The stored node positions moved 1e-5 mm (what another mesh of the same counts
     would have): the solution is solved again."""
@@ -229,6 +232,7 @@ def test_a_solution_of_another_mesh_with_the_same_counts_is_not_used(cache, refe
     check_one_line(capfd.readouterr().err, path, "nodes are not this mesh's")
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("damage", ["truncated", "garbage", "pickle", "huge length", "oversized", "empty"])
 def test_a_damaged_entry_is_dropped_with_one_line(cache, reference, tmp_path, capfd, monkeypatch, damage):
     """Truncated to half; random bytes; a pickle of an unsupported protocol (``\\x80\\x63``)
@@ -277,6 +281,7 @@ class _Touch:
         return (Path.touch, (Path(self.path),))
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("what", ["fifo", "symlink to a fifo", "symlink to a valid copy"])
 def test_an_entry_that_is_not_a_regular_file_is_not_opened(cache, reference, tmp_path, capfd, what):
     """A FIFO (opening it for reading would wait for a writer for ever) and symlinks are
@@ -303,6 +308,7 @@ def test_an_entry_that_is_not_a_regular_file_is_not_opened(cache, reference, tmp
     assert target.exists() or what == "fifo"
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("content", [False, True])
 def test_a_folder_named_like_an_entry(cache, reference, tmp_path, capfd, content):
     """An empty folder is removed and the entry made again; a folder with something in it
@@ -321,6 +327,7 @@ def test_a_folder_named_like_an_entry(cache, reference, tmp_path, capfd, content
         assert path.is_file()
 
 
+@pytest.mark.slow
 def test_a_cache_folder_that_is_a_file_costs_one_line_each_way(reference, tmp_path, capfd, monkeypatch):
     """The cache folder is a file: nothing can be read or written there. The run gives the
     cache-off answer, one line for reading and one for writing, naming the cache folder."""
@@ -335,6 +342,7 @@ def test_a_cache_folder_that_is_a_file_costs_one_line_each_way(reference, tmp_pa
     assert root.read_text() == "not a folder"
 
 
+@pytest.mark.slow
 def test_a_full_disk_costs_one_line(cache, reference, tmp_path, capfd, monkeypatch):
     """Every write fails as on a full disk (ENOSPC); the entries there are still read."""
     import errno
@@ -352,6 +360,7 @@ def test_a_full_disk_costs_one_line(cache, reference, tmp_path, capfd, monkeypat
     assert len(lines) == 1 and "No space left on device" in lines[0] and str(cache) in lines[0], lines
 
 
+@pytest.mark.slow
 def test_the_command_line_names_the_cache_not_the_output_folder(filled, tmp_path):
     """The issue's probes through the command line: an entry starting ``\\x80\\x63`` and a
     folder named like an entry end no run (exit 0) and the lines name the cache entries,
@@ -423,6 +432,7 @@ def _signed(header: bytes, payload: bytes = b"") -> bytearray:
     (b'{"name": "e", "meta": [], "arrays": []}', b""),
     (b'{"name": "e", "meta": {}, "arrays": [1]}', b""),
     (b"\xff\xfe", b""),
+    (b'{"name": "e", "meta": {}, "arrays": [["a", "<f4", [2]]]}', bytes(8)),  # a number type numpy reads, not one of DTYPES
 ])
 def test_a_well_signed_entry_that_is_not_one_is_refused_as_corrupt(header, payload):
     """What a checksum cannot catch (an entry written to pass it) still gives Corrupt, the
@@ -442,3 +452,45 @@ def test_an_entry_reads_back_as_written():
     assert back.arrays.keys() == e.arrays.keys()
     for k, a in e.arrays.items():
         assert back.arrays[k].dtype == a.dtype and np.array_equal(back.arrays[k], a)
+
+
+def _flipped(data: bytes, at: int) -> bytearray:
+    out = bytearray(data)
+    out[at] ^= 0x01
+    return out
+
+
+def test_the_checksum_is_sha256_of_everything_after_the_first_line():
+    """The first line's digest is hashlib's sha256 of the header and payload bytes that
+    follow it, worked out here over the file's bytes, not only over the header."""
+    import hashlib
+    data = rc.encode("e", rc.Entry({"n": 1}, {"x": np.arange(6, dtype=np.float64)}))
+    end = data.index(b"\n")
+    digest = data[:end].split(b" ")[2].decode()
+    assert digest == hashlib.sha256(data[end + 1:]).hexdigest()
+
+
+@pytest.mark.parametrize("where", ["header", "payload", "last byte"])
+def test_a_flipped_bit_anywhere_after_the_first_line_fails_the_checksum(where):
+    """One bit flipped in the JSON header, in an array's bytes, or in the file's last byte:
+    Corrupt("sha256 differs"), whatever part the bit is in."""
+    data = rc.encode("e", rc.Entry({"n": 1}, {"x": np.arange(6, dtype=np.float64)}))
+    start = data.index(b"\n") + 1
+    n_header = int(data[:start].split()[3])
+    at = {"header": start + n_header // 2, "payload": start + n_header + 12, "last byte": len(data) - 1}[where]
+    rc.decode("e", bytearray(data))  # the unflipped entry reads
+    with pytest.raises(rc.Corrupt, match="sha256 differs"):
+        rc.decode("e", _flipped(data, at))
+
+
+@pytest.mark.parametrize("size, limit, kept", [(100, 100, True), (101, 100, False), (100, 50, False)])
+def test_a_file_above_the_bound_is_not_read(tmp_path, size, limit, kept):
+    """read_regular reads a regular file of at most ``limit`` bytes whole, and refuses a
+    larger one as Corrupt before reading it (MAX_ENTRY_BYTES for an entry)."""
+    path = tmp_path / "x.entry"
+    path.write_bytes(bytes(range(256))[:1] * size)
+    if kept:
+        assert bytes(rc.read_regular(path, limit)) == path.read_bytes()
+    else:
+        with pytest.raises(rc.Corrupt, match="above the bound"):
+            rc.read_regular(path, limit)

@@ -7,7 +7,6 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-pytestmark = pytest.mark.slow  # real runs or shared runs in fixtures: `make test-fast` skips them
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -25,6 +24,7 @@ def coarse_run(tmp_path_factory):
     return out, p
 
 
+@pytest.mark.slow
 def test_contract_keys(coarse_run):
     out, _ = coarse_run
     res = json.loads((out / "results.json").read_text())
@@ -55,6 +55,7 @@ def test_contract_keys(coarse_run):
         assert (out / name).stat().st_size > 0, name
 
 
+@pytest.mark.slow
 def test_msh_has_physical_names(coarse_run):
     out, _ = coarse_run
     text = (out / "mesh.msh").read_text(errors="replace")
@@ -63,6 +64,7 @@ def test_msh_has_physical_names(coarse_run):
         assert f'"{name}"' in head
 
 
+@pytest.mark.slow
 def test_report_mentions_inputs_formulas_and_units(coarse_run):
     out, _ = coarse_run
     rep = (out / "report.md").read_text()
@@ -71,6 +73,7 @@ def test_report_mentions_inputs_formulas_and_units(coarse_run):
         assert s in rep, s
 
 
+@pytest.mark.slow
 def test_progress_lines(coarse_run):
     _, p = coarse_run
     assert p.stderr.count("] solve") == 3 and "output:" in p.stderr and "] " not in p.stdout
@@ -182,6 +185,7 @@ def test_picture_marks_a_peak_only_where_the_camera_sees_it():
     assert np.allclose(whole[0], (-1.5, 0.5, 0.5)) and np.allclose(whole[1], peak)
 
 
+@pytest.mark.slow
 def test_picture_shows_the_field(coarse_run):
     """von_mises.png is a drawn field, not an empty window: 2240 x 950 pixels, a white
     background, and the turbo colours of the stress field (a few hundred distinct colours);
@@ -200,6 +204,7 @@ def test_picture_shows_the_field(coarse_run):
     assert len(colours) > 300
 
 
+@pytest.mark.slow
 def test_a_load_sweep_matches_a_direct_solve_and_scales_its_error_bars(tmp_path):
     """`run --load 5000,10000` solves at 5 kN and scales (linear elasticity, traction loads
     only). Independent check: a run of its own at 10 kN (run cache off, so nothing is
@@ -227,6 +232,7 @@ def test_a_load_sweep_matches_a_direct_solve_and_scales_its_error_bars(tmp_path)
     assert f"10000 N {at10['peak_MPa']:.2f} ± {at10['peak_band_MPa']:.2f}" in swept.stdout
 
 
+@pytest.mark.slow
 def test_a_long_load_sweep_keeps_the_terminal_line_readable(tmp_path):
     """200 loads printed a 5 200-character line. Beyond six loads the line shows the first
     and last three and counts the rest, which results.json holds: 20 loads, 14 counted."""

@@ -111,7 +111,10 @@ def test_the_uniform_shape_is_p0_everywhere_on_the_projected_area(meshes, band):
     mean = total(fem.assemble_scalar(fem.form(inner * mag * ds))) / area
     spread = math.sqrt(total(fem.assemble_scalar(fem.form(inner * (mag - mean) ** 2 * ds))) / area)
     p0 = Q / 2 / (d.dj * b.length_mm)
-    assert mean == pytest.approx(p0, rel=0.01 if b.whole else 0.05)
+    # Whole surface: to the faceting of the curved surface (its area within 1e-4 of the
+    # cylinder's, tests/fe/test_traction_pinned.py). A band: p0·w(x) with the tilt w that
+    # puts the cut facets' resultant at the band's middle (up to a few percent).
+    assert mean == pytest.approx(p0, rel=1e-4 if b.whole else 0.05)
     assert spread < (1e-6 if b.whole else 0.05) * p0
 
 

@@ -11,7 +11,6 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-pytestmark = pytest.mark.slow  # real runs or shared runs in fixtures: `make test-fast` skips them
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -75,6 +74,7 @@ def _cad_area(dims: dict) -> float:
         gmsh.finalize()
 
 
+@pytest.mark.slow
 def test_the_whole_part_is_one_connected_mesh_with_the_cad_s_surface(whole):
     from vtkmodules.util.numpy_support import vtk_to_numpy
     from vtkmodules.vtkFiltersCore import vtkConnectivityFilter
@@ -141,6 +141,7 @@ def _unaveraged_at(grid, point) -> float:
     return float(max(found))
 
 
+@pytest.mark.slow
 def test_a_probe_at_each_reported_place_reads_the_reported_values(whole):
     """At the node of each reported place the file holds the reported readings to Float32's
     precision; ParaView's Probe there (interpolating in the curved tet whose Float32 corners
@@ -161,6 +162,7 @@ def test_a_probe_at_each_reported_place_reads_the_reported_values(whole):
         assert reading == pytest.approx(p["value_MPa"], rel=2e-6), key
 
 
+@pytest.mark.slow
 def test_the_stress_tensor_s_invariants_are_consistent(whole):
     """von Mises and principal stresses written beside the tensor are the tensor's (checked
     at every node by an independent formula: von Mises from the principal stresses)."""
@@ -175,6 +177,7 @@ def test_the_stress_tensor_s_invariants_are_consistent(whole):
     np.testing.assert_allclose(t[:, 0] + t[:, 1] + t[:, 2], s1 + s2 + s3, rtol=1e-4, atol=1e-4 * vm.max())
 
 
+@pytest.mark.slow
 def test_the_quarter_fields_hold_the_quarter(tmp_path):
     out = _run(tmp_path / "q", "--quarter-fields")
     x = _grid(out / "fields.vtu").GetPoints()

@@ -104,3 +104,64 @@ def test_vtu_writer_refuses_a_mismatched_array(tmp_path):
     with pytest.raises(ValueError, match="von_mises_MPa"):
         write_vtu(tmp_path / "bad.vtu", np.zeros((4, 3)), np.array([[0, 1, 2, 3]]), "tetra",
                   {"von_mises_MPa": np.zeros(3)})
+
+
+# A stress state with known principal stresses: diag(120, 30, −45) MPa turned by 30° about z
+# then 40° about x. Its principal stresses are those three (largest first), its von Mises
+# √(½((s1 − s2)² + (s2 − s3)² + (s3 − s1)²)), and its six VTK components xx, yy, zz, xy, yz, xz
+# are the entries of R·diag·Rᵀ, worked out with the rotation below.
+PRINCIPAL = np.array([120.0, 30.0, -45.0])
+
+
+def _rotation() -> np.ndarray:
+    a, b = np.radians(30.0), np.radians(40.0)
+    rz = np.array([[np.cos(a), -np.sin(a), 0.0], [np.sin(a), np.cos(a), 0.0], [0.0, 0.0, 1.0]])
+    rx = np.array([[1.0, 0.0, 0.0], [0.0, np.cos(b), -np.sin(b)], [0.0, np.sin(b), np.cos(b)]])
+    return rx @ rz
+
+
+def test_the_derived_arrays_are_the_tensor_s_components_von_mises_and_principal_stresses():
+    from pipeline.output.fields import _with_invariants
+    R = _rotation()
+    s = R @ np.diag(PRINCIPAL) @ R.T
+    n = 3
+    out = _with_invariants({"displacement_mm": np.tile([0.1, -0.2, 0.3], (n, 1)),
+                            "stress_MPa": np.tile(s.ravel(), (n, 1))})
+    s1, s2, s3 = PRINCIPAL
+    vm = np.sqrt(0.5 * ((s1 - s2) ** 2 + (s2 - s3) ** 2 + (s3 - s1) ** 2))
+    tol = 1e-6 * np.abs(PRINCIPAL).max()  # Float32 arrays: 7 digits
+    for k, i, j in ((0, 0, 0), (1, 1, 1), (2, 2, 2), (3, 0, 1), (4, 1, 2), (5, 0, 2)):  # VTK's order
+        np.testing.assert_allclose(out["stress_MPa"][:, k], s[i, j], atol=tol)
+    np.testing.assert_allclose(out["von_mises_averaged_MPa"], vm, atol=tol)
+    for i, value in enumerate(PRINCIPAL, start=1):
+        np.testing.assert_allclose(out[f"principal_stress_{i}_MPa"], value, atol=tol)
+    np.testing.assert_allclose(out["displacement_mm"], [[0.1, -0.2, 0.3]] * n, atol=1e-7)
+    assert all(a.dtype == np.float32 for a in out.values())
+
+
+def test_the_field_file_holds_a_uniform_stress_at_every_node(tmp_path):
+    """u = ε·x with a constant strain ε: the stress σ = 2μ ε + λ tr(ε) I (Hooke, the Lamé
+    constants of E = 210 000 MPa, ν = 0.3 written out here) at every node of the file, with its
+    von Mises and principal stresses (those of σ, by numpy's eigvalsh of the closed form)."""
+    E, nu = 210_000.0, 0.3
+    mu, lam = E / (2 * (1 + nu)), E * nu / ((1 + nu) * (1 - 2 * nu))
+    eps = np.array([[4e-4, 1e-4, -2e-4], [1e-4, -1e-4, 3e-4], [-2e-4, 3e-4, 2e-4]])
+    sigma = 2 * mu * eps + lam * np.trace(eps) * np.eye(3)
+    mesh = create_box(MPI.COMM_WORLD, [np.zeros(3), np.array([2.0, 1.0, 1.5])], [2, 2, 2], CellType.tetrahedron)
+    u = fem.Function(fem.VectorFunctionSpace(mesh, ("CG", 2)))
+    u.interpolate(lambda x: eps @ x)
+    files = write_fields(tmp_path, u, von_mises(u, Material(E, nu)), Material(E, nu))
+    if MPI.COMM_WORLD.rank != 0:
+        return
+    m = meshio.read(tmp_path / files["fields"])
+    pd = {k: v.astype(float) for k, v in m.point_data.items()}
+    tol = 1e-6 * np.abs(sigma).max()  # Float32
+    vtk = [sigma[0, 0], sigma[1, 1], sigma[2, 2], sigma[0, 1], sigma[1, 2], sigma[0, 2]]
+    np.testing.assert_allclose(pd["stress_MPa"], np.tile(vtk, (len(m.points), 1)), atol=tol)
+    dev = sigma - np.trace(sigma) / 3 * np.eye(3)
+    np.testing.assert_allclose(pd["von_mises_averaged_MPa"], np.sqrt(1.5 * np.sum(dev * dev)), atol=tol)
+    principal = np.linalg.eigvalsh(sigma)[::-1]
+    for i in range(3):
+        np.testing.assert_allclose(pd[f"principal_stress_{i + 1}_MPa"], principal[i], atol=tol)
+    # Each tet's own von Mises at its vertices: the same uniform value.
+    np.testing.assert_allclose(m.cell_data["von_mises_unaveraged_MPa"][0], np.sqrt(1.5 * np.sum(dev * dev)), atol=tol)

@@ -16,7 +16,6 @@ import pytest
 
 from pipeline.output.mirror import mirror_quarter
 
-pytestmark = pytest.mark.slow  # real runs or shared runs in fixtures: `make test-fast` skips them
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -105,6 +104,7 @@ def run_folder(tmp_path_factory):
     return out
 
 
+@pytest.mark.slow
 def test_html_report_has_every_section_and_embeds_every_picture(run_folder):
     md = (run_folder / "report.md").read_text()
     doc = _Html()
@@ -117,6 +117,7 @@ def test_html_report_has_every_section_and_embeds_every_picture(run_folder):
     assert all(src.startswith("data:image/png;base64,") for src in doc.images)
 
 
+@pytest.mark.slow
 def test_fields_show_the_whole_part(run_folder):
     """fields.vtu covers x and y of both signs: the quarter mirrored (bounds ± b6/2, ± b1/2)."""
     import meshio
@@ -127,6 +128,7 @@ def test_fields_show_the_whole_part(run_folder):
     assert m.points[:, 0].max() == pytest.approx(d["b6"] / 2, rel=1e-6)
 
 
+@pytest.mark.slow
 def test_published_values_only_for_their_row(run_folder, tmp_path):
     """No. 05 at the paper's load and spans shows the published values; another load does not."""
     res = json.loads((run_folder / "results.json").read_text())
@@ -159,6 +161,7 @@ def test_load_arrows_point_where_the_loads_act():
             assert d["b1"] / 2 < abs(tip[0]) < d["b6"] / 2
 
 
+@pytest.mark.slow
 def test_verdict_capacities_follow_linearity_and_the_lowest_is_named(run_folder):
     """Each row's capacity is the hook load at which that stress reaches the allowable:
     Q·allowable/σ (linear elasticity, loads only); the report names the row with the lowest."""
@@ -173,6 +176,7 @@ def test_verdict_capacities_follow_linearity_and_the_lowest_is_named(run_folder)
     assert f"Lowest capacity: **{VERDICT_NAMES[lowest]}**" in (run_folder / "report.md").read_text()
 
 
+@pytest.mark.slow
 def test_report_flags_scaled_rows_and_singular_peaks(run_folder):
     """A scaled row of the size table is said to be no DIN value at the top; a singular global
     peak gets no Kt and names its singular feature where the peak is listed."""
@@ -188,6 +192,7 @@ def test_report_flags_scaled_rows_and_singular_peaks(run_folder):
     assert "none: the peak is singular" in md
 
 
+@pytest.mark.slow
 def test_the_inputs_name_the_bearing_pressure_the_run_used(run_folder):
     """The Inputs section names the journals' pressure shape of results.json's case: a run with
     `bearing_shape = uniform` was described as cos θ."""
@@ -261,6 +266,7 @@ def _title_block(md: str) -> dict[str, str]:
     return {label.strip(): value.strip() for label, value in rows}
 
 
+@pytest.mark.slow
 def test_title_block_comes_from_the_case_file_and_leaves_missing_fields_blank(run_folder):
     """Part, number, revision and author as the case file wrote them (escaped for Markdown and
     HTML), the checker it left out blank, the run's UTC day and the package's version; the
@@ -280,6 +286,7 @@ def test_title_block_comes_from_the_case_file_and_leaves_missing_fields_blank(ru
     assert "<b>" not in html.split("</h1>", 1)[1].split("</table>", 1)[0]  # the case file's text is text
 
 
+@pytest.mark.slow
 def test_the_report_stands_alone_with_its_method_in_an_appendix(run_folder):
     """No link into docs/ (a reviewer outside the repository cannot open it); the appendix
     carries the load model, the error-bar method, the formulas and the sensitivity method,
@@ -300,6 +307,7 @@ def _pdf_pages(pdf: bytes) -> int:
     return len(re.findall(rb"/Type\s*/Page(?![s\w])", pdf))
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(shutil.which("chromium") is None,
                     reason="no chromium: tools/setup.sh installs it (Debian's chromium package)")
 def test_a_headless_browser_prints_the_report_with_page_numbers_and_title_block(run_folder, tmp_path):
@@ -327,6 +335,7 @@ def test_a_headless_browser_prints_the_report_with_page_numbers_and_title_block(
     assert "Document number CN-0815" in first and "Revision B" in first and "Checked by" in first
 
 
+@pytest.mark.slow
 def test_mesh_msh_says_it_holds_the_quarter_and_opens_in_gmsh_and_meshio(run_folder):
     """mesh.msh is MSH 4.1 binary with a $Comments note naming the quarter and its symmetry
     planes; meshio and gmsh read past the note, and the nodes they find do lie in x, y >= 0
@@ -351,6 +360,7 @@ def test_mesh_msh_says_it_holds_the_quarter_and_opens_in_gmsh_and_meshio(run_fol
         gmsh.finalize()
 
 
+@pytest.mark.slow
 def test_the_whole_part_s_mesh_is_four_connected_quarters_with_their_groups(run_folder, tmp_path):
     """pipeline.output.wholemesh from the run's mesh.msh: four times the quarter's tets and
     volume (tet corners' volumes summed here), every tet positively oriented, no face on a

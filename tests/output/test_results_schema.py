@@ -14,7 +14,6 @@ import pytest
 from pipeline import __version__
 from pipeline.output.flat import COLUMNS
 
-pytestmark = pytest.mark.slow  # real runs: `make test-fast` skips them
 
 ROOT = Path(__file__).resolve().parents[2]
 COARSE = ["--mesh-factor", "3", "--no-fields", "--quiet"]
@@ -38,6 +37,7 @@ def written(tmp_path_factory) -> dict[str, dict]:
     return out
 
 
+@pytest.mark.slow
 def test_every_written_file_holds_to_the_schema(written):
     schema = json.loads((ROOT / "docs" / "results.schema.json").read_text())
     jsonschema.Draft202012Validator.check_schema(schema)
@@ -47,6 +47,7 @@ def test_every_written_file_holds_to_the_schema(written):
         assert not errors, (name, errors[:5])
 
 
+@pytest.mark.slow
 def test_the_same_keys_in_every_run(written):
     first = next(iter(written.values()))
     for name, res in written.items():
@@ -63,6 +64,7 @@ def test_the_same_keys_in_every_run(written):
             assert "formula_load" in res["fe"]["sections"], name
 
 
+@pytest.mark.slow
 def test_about_says_where_the_numbers_come_from(written):
     import dolfinx
     import gmsh
@@ -73,6 +75,7 @@ def test_about_says_where_the_numbers_come_from(written):
         assert about["command_line"][:2] == ["crosshead", RUNS[name][0]] and "--out" in about["command_line"]
 
 
+@pytest.mark.slow
 def test_the_summary_is_the_run_s_own_row(written):
     """The summary block agrees with the nested blocks it flattens (an independent reading of
     the same file): the peaks, the formulas and the load."""

@@ -30,8 +30,6 @@ from pipeline.post.sections import (journal_nominal, ligament_resultants, linear
 
                                     plane_resultants, sigma_xx_field)
 
-pytestmark = pytest.mark.slow  # real runs or shared runs in fixtures: `make test-fast` skips them
-
 
 def test_linearisation_is_exact_for_a_linear_profile():
     t = np.linspace(0.0, 25.0, 81)
@@ -79,6 +77,16 @@ def test_critical_section_moment_is_statics(no05):
     x_bearing = (d.b1 / 2 + d.rf + d.b6 / 2) / 2
     assert -M == pytest.approx(case.load_N / 2 * (x_bearing - x_seat), rel=3e-3)
     assert abs(N) < 1e-4 * case.load_N  # no axial load on the crosshead: the section force vanishes
+    # The section's nominal stresses from its force and moment: N/(w·h) and 6|M|/(w·h²) over
+    # both ligaments, w = b1 − di wide and h = h3 high (beam theory), M the statics above.
+    from pipeline.post.sections import ligament_sections
+    cs = ligament_sections(sol, mat, d, 0.25, sym)["critical_section"]
+    w, h = d.b1 - d.d2, d.h3
+    assert (cs["width_mm"], cs["height_mm"]) == (w, h)
+    assert cs["M_Nmm"] == pytest.approx(statics, rel=1e-7) and cs["N_N"] == N
+    assert cs["bending_MPa"] == pytest.approx(6 * abs(statics) / (w * h ** 2), rel=1e-7)
+    assert cs["membrane_MPa"] == pytest.approx(N / (w * h), rel=1e-12, abs=1e-12)
+    assert cs["nominal_MPa"] == pytest.approx(cs["membrane_MPa"] + 6 * abs(statics) / (w * h ** 2), rel=1e-7)
 
 
 def test_linearised_ligament_stress_is_near_the_beam_value(no05):
@@ -162,3 +170,23 @@ def test_a_failed_pull_back_takes_the_next_cell_and_never_raises(monkeypatch):
     got = sec.sigma_xx_at(sec.SigmaXX(Field(), tree=None), np.zeros((4, 3)))
     assert got[:2].tolist() == [30.0, 40.0]
     assert np.isnan(got[2]) and np.isnan(got[3])
+
+
+def test_a_section_s_moment_is_taken_about_the_centre_it_is_given():
+    """A bar pulled by F at x = L, clamped at x = 0: the clamp's section carries N = F and,
+    about an axis at y = c off the bar's own (the load has no moment about y = 0), M = −c·N
+    (statics: M = Σ σ_xx (y − c) dA = 0 − c·N). Half the width is modelled: F/2."""
+    F, c = 1000.0, 3.0
+    prob = vp.bar(40.0, 20.0, 5.0, lc=5.0, order=2)
+    ids = prob.ids
+    area_half = 20.0 * 5.0
+    x = ufl.SpatialCoordinate(prob.mesh)
+    pull = ufl.as_vector((F / 2 / area_half + 0 * x[0], 0 * x[0], 0 * x[0]))
+    cons = [pe.Constraint(None, marker=ids["x0"]), pe.Constraint(2, marker=ids["z0"])]
+    sol = ps.solve(prob.mesh, prob.facet_tags, pe.Material(210_000.0, 0.3), ps.Loads([pe.Traction(ids["x1"], pull)], cons),
+                   ps.Method(2, "mumps"))
+    N, M = plane_resultants(sol, 0, lever_axis=1, centre_mm=c)
+    assert N == pytest.approx(F / 2, rel=1e-8)
+    assert M == pytest.approx(-c * F / 2, rel=1e-8)
+    N0, M0 = plane_resultants(sol, 0, lever_axis=1, centre_mm=0.0)
+    assert N0 == N and abs(M0) <= 1e-8 * F * 20.0

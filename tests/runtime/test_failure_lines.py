@@ -23,14 +23,12 @@ from pathlib import Path
 
 import pytest
 
-pytestmark = pytest.mark.slow  # real runs or shared runs in fixtures: `make test-fast` skips them
 
 ROOT = Path(__file__).resolve().parents[2]
 PY = sys.executable
 FAST = ["run", "--size", "05", "--mesh-factor", "3", "--levels", "1", "--no-fields"]
 ENV = dict(os.environ, PYTHONPATH=str(ROOT), CROSSHEAD_NO_CACHE="1")
 BAD = ["run", "--size", "05", "--levels", "9"]  # levels must lie in 1..8 (docs/design.md §8: exit 2)
-
 
 
 PROGRESS = re.compile(r"^\[\s*[0-9.]+ s\] ")   # a progress line's stamp (they go to stderr too)
@@ -63,6 +61,7 @@ def earlier(tmp_path_factory) -> Path:
 
 # ------------------------------------------------------------------ stdout on a full device
 
+@pytest.mark.slow
 def test_stdout_on_a_full_device_names_stdout_and_says_what_was_written(tmp_path, earlier):
     """The line names stdout, not --out ("error: out: cannot write: No space left ..." would
     send the user after the wrong thing), and says what became of the output: stdout takes
@@ -96,6 +95,7 @@ class FullAtTheSummary(io.StringIO):
             raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
 
 
+@pytest.mark.slow
 def test_stdout_full_after_publication_says_the_results_were_written(tmp_path, earlier, monkeypatch, capsys):
     """The results are in place (5000 N -> 20000 N) when stdout fails: the line says so, and
     not "nothing written, the output folder is as it was"."""
@@ -114,6 +114,7 @@ def test_stdout_full_after_publication_says_the_results_were_written(tmp_path, e
     assert sorted(os.listdir(tmp_path)) == ["res"]
 
 
+@pytest.mark.slow
 def test_a_cache_failure_names_the_cache(tmp_path, earlier, monkeypatch, capsys):
     """A read-only form cache (any OSError on a path under the cache folder): the line names
     the cache and its path, not --out ("out: cannot write <the cache's file>" is untrue)."""
@@ -140,6 +141,7 @@ def test_a_cache_failure_names_the_cache(tmp_path, earlier, monkeypatch, capsys)
 
 # ------------------------------------------------------------------ closed and full streams
 
+@pytest.mark.slow
 @pytest.mark.parametrize("quiet", [[], ["--quiet"]], ids=["progress", "quiet"])
 def test_a_closed_stdout_still_writes_the_result(tmp_path, quiet):
     """No traceback (sys.stdout is None when descriptor 1 is closed at start), exit 0, the
@@ -158,6 +160,7 @@ def test_bad_input_with_stderr_closed_or_full_is_still_exit_2(tmp_path, redirect
     assert os.listdir(tmp_path) == []
 
 
+@pytest.mark.slow
 def test_a_run_with_stderr_closed_finishes(tmp_path):
     out = tmp_path / "res"
     proc = shell("2>&-", FAST + ["--quiet", "--out", out])
@@ -165,6 +168,7 @@ def test_a_run_with_stderr_closed_finishes(tmp_path):
     assert (out / "results.json").is_file()
 
 
+@pytest.mark.slow
 def test_an_ascii_stdout_gets_every_line(tmp_path):
     """With PYTHONIOENCODING=ascii every line comes out, "×" as "x" (the first "×", the
     pilot's "×4", must not silence the rest of the run)."""

@@ -28,7 +28,6 @@ from pathlib import Path
 
 import pytest
 
-pytestmark = pytest.mark.slow  # real runs or shared runs in fixtures: `make test-fast` skips them
 
 ROOT = Path(__file__).resolve().parents[2]
 PY = sys.executable
@@ -94,6 +93,7 @@ def test_user_folder_with_a_file_is_refused_and_the_file_survives(tmp_path):
     assert debris(tmp_path, "u") == []
 
 
+@pytest.mark.slow
 def test_symlink_is_judged_by_its_target(tmp_path):
     user = tmp_path / "target"
     user.mkdir()
@@ -112,6 +112,7 @@ def test_protected_folders_are_refused_before_any_work(out):
     assert {p.name for p in ROOT.iterdir()} == before
 
 
+@pytest.mark.slow
 def test_out_dot_in_a_scratch_copy_deletes_nothing(tmp_path):
     """From a scratch copy of the code: --out . and --out '' leave every file as it was."""
     scratch = tmp_path / "scratch"
@@ -130,6 +131,7 @@ def test_out_dot_in_a_scratch_copy_deletes_nothing(tmp_path):
         {k: v for k, v in before.items() if "__pycache__" not in k}
 
 
+@pytest.mark.slow
 def test_one_kind_of_results_is_never_written_over_another(tmp_path, earlier):
     """A run (or converge) pointed at a design study's folder would have replaced it, its
     finished variants with it; a study pointed at a run's folder wrote its report.md over
@@ -149,6 +151,7 @@ def test_one_kind_of_results_is_never_written_over_another(tmp_path, earlier):
     assert debris(tmp_path, "run") == [] and debris(tmp_path, "study") == []
 
 
+@pytest.mark.slow
 def test_an_empty_folder_and_our_own_results_are_replaced(tmp_path, earlier):
     empty = tmp_path / "empty"
     empty.mkdir()
@@ -179,6 +182,7 @@ def wait_for_staging(parent: Path, name: str, proc: subprocess.Popen, timeout: f
     time.sleep(1.0)  # well inside the run: pilot meshing or solving
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("sig,code,word", [(signal.SIGINT, 130, "interrupted"),
                                            (signal.SIGTERM, 143, "terminated")])
 @pytest.mark.parametrize("ranks", [None, 2], ids=["one-process", "mpi-2-ranks"])
@@ -212,6 +216,7 @@ def test_a_stop_while_the_program_loads_says_so_in_one_line(tmp_path, sig, code,
     assert sorted(os.listdir(tmp_path)) == []
 
 
+@pytest.mark.slow
 def test_staging_left_by_sigkill_is_removed_by_the_next_run(tmp_path, earlier):
     out = fresh_copy(earlier, tmp_path / "res")
     proc = start(SLOW + ["--out", out])
@@ -225,6 +230,7 @@ def test_staging_left_by_sigkill_is_removed_by_the_next_run(tmp_path, earlier):
     assert debris(tmp_path, "res") == []
 
 
+@pytest.mark.slow
 def test_a_stopped_sweep_says_it_keeps_what_it_finished_and_resumes(tmp_path):
     """Ctrl-C in a study after its first variant is finished: its folder keeps the finished
     variants (it is resumable), so the line says so, not "nothing written" nor that one
@@ -257,6 +263,7 @@ def stopped_at_the_end(out: Path, when: str, load_N: float) -> subprocess.Comple
                           cwd=ROOT, env=ENV, capture_output=True, text=True, timeout=120)
 
 
+@pytest.mark.slow
 def test_a_stop_while_the_run_still_writes_keeps_the_earlier_result(tmp_path, earlier):
     """Ctrl-C when every file is staged, the main thread still writing into the staging
     folder: the stop removes the staging folder whole (none of the late files revives it)
@@ -271,6 +278,7 @@ def test_a_stop_while_the_run_still_writes_keeps_the_earlier_result(tmp_path, ea
     assert debris(tmp_path, "res") == []
 
 
+@pytest.mark.slow
 def test_a_stop_during_a_solve_acts_before_the_solve_ends(tmp_path, earlier):
     """Ctrl-C as the first Krylov solve starts (tests/helpers/stop_while_solving.py): the stop's
     clean-ups run while that solve is still iterating (PETSc's reason 0), the solve never
@@ -288,6 +296,7 @@ def test_a_stop_during_a_solve_acts_before_the_solve_ends(tmp_path, earlier):
     assert snapshot(out) == before and debris(tmp_path, "res") == []
 
 
+@pytest.mark.slow
 def test_a_stop_during_publication_waits_for_it_and_says_so(tmp_path, earlier):
     """Ctrl-C just as the finished result replaces the earlier one: the stop waits for the
     replacement (two renames) and then says the results were written, instead of claiming
@@ -304,6 +313,7 @@ def test_a_stop_during_publication_waits_for_it_and_says_so(tmp_path, earlier):
 
 # ------------------------------------------------------------------ 3. two runs, one folder
 
+@pytest.mark.slow
 def test_second_run_to_a_folder_being_written_exits_2_naming_the_other(tmp_path, earlier):
     out = fresh_copy(earlier, tmp_path / "res")
     first = start(SLOW + ["--out", out])
@@ -317,6 +327,7 @@ def test_second_run_to_a_folder_being_written_exits_2_naming_the_other(tmp_path,
 
 # ------------------------------------------------------------------ 4. failures are one line
 
+@pytest.mark.slow
 def test_closed_stdout_does_not_lose_the_result(tmp_path):
     out = tmp_path / "res"
     proc = subprocess.Popen([PY, "-m", "pipeline", *FAST, "--out", str(out)], cwd=ROOT, env=ENV,
@@ -329,6 +340,7 @@ def test_closed_stdout_does_not_lose_the_result(tmp_path):
     assert (out / "results.json").is_file() and (out / ".crosshead-results").is_file()
 
 
+@pytest.mark.slow
 def test_disk_full_is_exit_2_with_nothing_written(tmp_path, earlier, monkeypatch, capsys):
     """The disk fills up while results.json is written (in-process: a file-size limit would
     also stop MPI's shared-memory start-up): exit 2, one line, nothing written, and the
@@ -350,6 +362,7 @@ def test_disk_full_is_exit_2_with_nothing_written(tmp_path, earlier, monkeypatch
     assert not (tmp_path / "a").exists()
 
 
+@pytest.mark.slow
 def test_a_failed_replacement_puts_the_earlier_result_back(tmp_path, earlier, monkeypatch, capsys):
     """Publishing is two renames (the earlier result aside, the new one in). When the
     second fails, the earlier result goes back in its place: left aside, the next run to
@@ -382,6 +395,7 @@ def one_rank_fails(out: Path, how: str) -> tuple[subprocess.CompletedProcess, fl
     return proc, time.monotonic() - t0
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(shutil.which("mpirun") is None, reason="mpirun not installed")
 @pytest.mark.parametrize("failing_rank", [0, 1])
 def test_a_failure_on_one_rank_ends_every_rank_with_one_line(tmp_path, earlier, failing_rank):
@@ -399,6 +413,7 @@ def test_a_failure_on_one_rank_ends_every_rank_with_one_line(tmp_path, earlier, 
     assert debris(tmp_path, "res") == []
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(shutil.which("mpirun") is None, reason="mpirun not installed")
 def test_a_failure_while_rank_0_cannot_listen_still_ends_the_run(tmp_path, earlier):
     """Rank 1 fails while rank 0 holds Python's lock in a long C call, so its listener

@@ -24,7 +24,6 @@ from pathlib import Path
 
 import pytest
 
-pytestmark = pytest.mark.slow  # real runs or shared runs in fixtures: `make test-fast` skips them
 
 ROOT = Path(__file__).resolve().parents[2]
 PY = sys.executable
@@ -69,6 +68,7 @@ def earlier(tmp_path_factory) -> Path:
 
 # ------------------------------------------------------------------ a re-run keeps the user's files
 
+@pytest.mark.slow
 def test_a_rerun_keeps_the_files_the_user_added(tmp_path, earlier):
     """notes.txt and sub/view.pvsm survive the re-run and the next one, byte for byte."""
     out = tmp_path / "res"
@@ -87,6 +87,7 @@ def test_a_rerun_keeps_the_files_the_user_added(tmp_path, earlier):
     assert (out / "notes.txt").read_text() == "my notes\n" and load_of(out) == 10000.0
 
 
+@pytest.mark.slow
 def test_a_users_file_with_a_name_a_run_writes_is_refused_up_front(tmp_path, earlier):
     """A --no-fields run wrote no peaks.png; the user's peaks.png would be overwritten by a
     run with fields: refused before any work, named, everything as it was."""
@@ -166,6 +167,7 @@ def test_another_folders_staging_folder_is_not_a_leftover(tmp_path):
 
 # ------------------------------------------------------------------ names, modes, mounts, studies
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", ["L" * 255, "é" * 120 + "L" * 15], ids=["255-ascii", "255-bytes-utf8"])
 def test_a_folder_name_of_255_bytes_can_be_an_output_folder(tmp_path, name):
     """The names beside the folder (lock, staging, set-aside) must fit 255 bytes too: the
@@ -181,6 +183,7 @@ def test_a_folder_name_of_255_bytes_can_be_an_output_folder(tmp_path, name):
     assert os.listdir(tmp_path) == [name]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("umask,folder_mode,file_mode", [(0o022, 0o755, 0o644), (0o002, 0o775, 0o664)],
                          ids=["umask-022", "umask-002"])
 def test_results_get_the_modes_the_umask_gives(tmp_path, umask, folder_mode, file_mode):
@@ -239,6 +242,7 @@ def study(tmp_path, earlier) -> Path:
     return folder
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("inside", ["variants/0123456789ab", "variants/new", "elsewhere/deeper"])
 def test_a_run_inside_a_design_study_is_refused_naming_the_study(study, inside):
     """A run in variants/<key> (the variant carries a run marker) would be reported by the
@@ -253,6 +257,7 @@ def test_a_run_inside_a_design_study_is_refused_naming_the_study(study, inside):
 
 # ------------------------------------------------------------------ make clean
 
+@pytest.mark.slow
 def test_make_clean_keeps_what_the_tool_did_not_write(tmp_path, earlier):
     """Only the tool's JSON marker makes a folder removable, only the files it lists are
     removed (a user's notes inside stay), and the lock of a run still writing stays."""

@@ -450,6 +450,7 @@ def test_coarse_solve_of_smallest_and_largest_rows(size):
     assert min(z, d.h3 - z) < 0.02 * d.h3
 
 
+@pytest.mark.slow  # two solves: 3.5 s
 def test_exact_similarity_copy_gives_the_same_stresses():
     """No. 05 with every length ×2 and the load ×4 on the same mesh factor: the mesh is
     No. 05's scaled (pipeline.fe.meshing meshes at No. 05's size), so peaks agree to round-off."""
@@ -461,6 +462,7 @@ def test_exact_similarity_copy_gives_the_same_stresses():
     assert b.critical.location_mm == pytest.approx(tuple(2 * c for c in a.critical.location_mm), abs=1e-6 * 140)
 
 
+@pytest.mark.slow  # a mesh and a solve: 1.8–3.1 s
 @pytest.mark.parametrize("size", [LARGEST])
 def test_unrounded_row_matches_no05_by_similarity(size):
     """No. 50 is No. 05 × 10 exactly (nothing to round): both peaks = No. 05's × 0.981."""
@@ -486,6 +488,7 @@ def _mesh_error_rel() -> float:
 
 # No. 1 at mesh factor 2 once had a 0.06-ratio curved tet on the bore wall (ligament peak
 # 96-119 instead of ~65 MPa); the mesher now relaxes every curved tet to a ratio >= 0.3 (geometry/curved.py).
+@pytest.mark.slow  # a mesh and a solve per size: 1.7–3.9 s each (the first in a process pays ~2 s more)
 @pytest.mark.parametrize("size", [SMALLEST, "1", "10"])
 def test_rounded_row_matches_no05_within_its_rounding(size):
     """Critical (bore ligament) peak of a rounded row vs No. 05 × similarity ratio.

@@ -35,7 +35,6 @@ from pipeline.inputs.case import resolve
 from pipeline.post.errorbar import estimate_levels
 from pipeline.analysis.level import LevelTask, solve_level
 
-pytestmark = pytest.mark.slow  # real runs or shared runs in fixtures: `make test-fast` skips them
 
 ROOT = Path(__file__).resolve().parents[2]
 FACTOR = 2.0              # coarse mesh for every solve in this file
@@ -80,6 +79,7 @@ def base():
 
 # ----------------------------------------------------------------- similarity, modulus
 
+@pytest.mark.slow
 @pytest.mark.parametrize("lam", [1e-3, 1e3])
 def test_geometric_similarity(base, lam):
     """Every length × λ and the load × λ²: the same stresses at points × λ; u × λ."""
@@ -93,6 +93,7 @@ def test_geometric_similarity(base, lam):
     assert lv.jacobian_ratio == pytest.approx(base.jacobian_ratio, rel=1e-6)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("E_MPa", [210_000.0 * 1e3, 1.0, 1e12], ids=["E-x1e3", "E-least-allowed", "E-most-allowed"])
 def test_youngs_modulus_does_not_change_stress(base, E_MPa):
     """Traction loads only: σ independent of E, u ∝ 1/E, over the whole range of E the
@@ -106,6 +107,7 @@ def test_youngs_modulus_does_not_change_stress(base, E_MPa):
 
 # ------------------------------------------------------------------- quarter vs full
 
+@pytest.mark.slow
 def test_quarter_and_full_model_agree_within_discretisation_error(base):
     """Symmetry: the quarter (symmetry planes) and the full part (statically determinate
     point supports) solve the same problem, on different meshes.
@@ -149,6 +151,7 @@ def test_quarter_and_full_model_agree_within_discretisation_error(base):
 
 # ---------------------------------------------------------------- solver, ranks, repeat
 
+@pytest.mark.slow
 def test_iterative_and_mumps_agree_to_the_solver_tolerance(base):
     """Direct (MUMPS) vs CG + p-multigrid (the default) stopped at ‖b − Au‖ ≤ rtol·‖b‖ (the case's rtol).
 
@@ -164,6 +167,7 @@ def test_iterative_and_mumps_agree_to_the_solver_tolerance(base):
     assert_same_peaks(lv, base, 100 * rtol, what="MUMPS vs p-multigrid")
 
 
+@pytest.mark.slow
 def test_the_same_run_twice(base):
     """Same input, same process: the same mesh (topology) and the same peaks.
 
@@ -196,6 +200,7 @@ def cli_run(out: Path, ranks: int, levels: int = 1) -> dict:
     return json.loads((out / "results.json").read_text())["fe"]
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(shutil.which("mpirun") is None, reason="mpirun not installed")
 def test_one_and_two_mpi_ranks_agree(tmp_path):
     """The CLI on 1 and 2 ranks, with the error bar's three meshes: same meshes, same

@@ -37,7 +37,6 @@ from pipeline.inputs.case import resolve
 from pipeline.analysis.pilot import pilot
 from pipeline.analysis.level import LevelTask, solve_level
 
-pytestmark = pytest.mark.slow  # real runs or shared runs in fixtures: `make test-fast` skips them
 
 ERROR_BAR = RunOptions(levels=3, to_tolerance=False, sensitivity=False)  # make run's three meshes, no more
 GLOBAL_LIMIT = 113.82                    # make reference (docs/fillet-reference.md)
@@ -58,12 +57,14 @@ def default_level():
     return solve_level(case, LevelTask(case.mesh_factor, hotspots=pilot(case).hotspots))
 
 
+@pytest.mark.slow
 def test_default_mesh_global_peak(default_level):
     lv = default_level
     assert abs(lv.peak.value_MPa - GLOBAL_LIMIT) <= GLOBAL_BAND, lv.peak
     assert 22.5 <= lv.peak.location_mm[0] <= 24.0                       # on the shoulder fillet
 
 
+@pytest.mark.slow
 def test_default_mesh_critical_peak(default_level):
     lv = default_level
     assert abs(lv.critical.value_MPa - CRITICAL_LIMIT) <= CRITICAL_BAND, lv.critical
@@ -71,6 +72,7 @@ def test_default_mesh_critical_peak(default_level):
     assert abs(x) < 1e-6 and abs(y - 10.5) < 1e-6 and z in (pytest.approx(0.0, abs=1e-6), pytest.approx(25.0, abs=1e-6))
 
 
+@pytest.mark.slow
 def test_default_run_error_bar_covers_the_reference():
     """`make run`'s three meshes (×1, ×1.3, ×1.69): the global peak's band covers the
     independent reference, and the value lies within 1 % of it; the critical peak's band
@@ -96,6 +98,7 @@ OTHER_PARTS = [
 ]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("size,dims,reference", OTHER_PARTS, ids=["1.6", "05-rf0.5-dj16", "05-rf0.3"])
 def test_default_run_error_bar_covers_other_parts_references(size, dims, reference):
     """The default path's three meshes on parts other than No. 05's row: the global peak's

@@ -107,6 +107,46 @@ def test_lame_bore_stresses_p2_curved_mesh():
     assert abs(math.hypot(pk.location_mm[0], pk.location_mm[1]) - LA) < 1e-6  # peak on the bore
 
 
+# P2 stresses: the energy norm of the error, ‖e‖_E² = ∫ σ(e):ε(e) dx with σ by Hooke's law
+# written out here (not pipeline.fe.elasticity), falls as h^k for Pk on a smooth solution
+# (Ciarlet, The Finite Element Method for Elliptic Problems, Th. 3.2.2; curved P2 geometry
+# keeps the rate: Ciarlet & Raviart 1972): the stresses' own convergence rate, 2 for P2.
+STRESS_LEVELS = [4.0, 2.8, 2.0, 1.4]  # mm: in-plane sizes, ratio about 1.4
+
+
+def test_lame_p2_stress_energy_norm_converges_at_order_2():
+    """Fitted rate of the energy-norm error over four meshes = 2 ± 0.15.
+
+    The tolerance: the fit spans a factor 2.9 in h on unstructured meshes whose sizes step
+    by about 1.4, where the error's constant drifts from mesh to mesh by a few percent;
+    a drift of 5 % per step moves the fitted rate by ln(1.05)/ln(1.4) = 0.15. A wrong
+    constitutive law (a stiffness that is not the stress's) stops the error from falling
+    (rate near 0), a half-order loss (e.g. a quadrature too low for curved cells) shows as
+    1.5."""
+    hs, errs = [], []
+    for lc in STRESS_LEVELS:
+        prob, sol = lame_solve(lc, 2)
+        mesh = prob.mesh
+        x = ufl.SpatialCoordinate(mesh)
+        ur_over_r = (1 + NU) / E * ((1 - 2 * NU) * A_L + B_L / (x[0] ** 2 + x[1] ** 2))
+        u_exact = ufl.as_vector((ur_over_r * x[0], ur_over_r * x[1], 0 * x[0]))
+        e = sol.u - u_exact
+        eps = ufl.sym(ufl.grad(e))
+        sig = 2 * MU * eps + LAM * ufl.tr(eps) * ufl.Identity(3)
+        dx = ufl.dx(domain=mesh, metadata={"quadrature_degree": 8})
+        eps_x = ufl.sym(ufl.grad(u_exact))
+        sig_x = 2 * MU * eps_x + LAM * ufl.tr(eps_x) * ufl.Identity(3)
+        errs.append(math.sqrt(integrate(mesh, ufl.inner(sig, eps), dx) / integrate(mesh, ufl.inner(sig_x, eps_x), dx)))
+        area = integrate(mesh, fem.Constant(mesh, 1.0), dx) / LT
+        n_cells = mesh.comm.allreduce(mesh.topology.index_map(3).size_local, op=MPI.SUM)
+        hs.append(math.sqrt(2 * area / (n_cells / 3)))
+    rate = np.polyfit(np.log(hs), np.log(errs), 1)[0]
+    table = ", ".join(f"h={h:.3f}: {e:.3e}" for h, e in zip(hs, errs))
+    print(f"\nLamé P2 relative energy-norm errors {table}; fitted rate {rate:.3f} (theory 2)")
+    assert all(e1 < e0 for e0, e1 in zip(errs, errs[1:])), f"error not decreasing: {table}"
+    assert abs(rate - 2.0) < 0.15, f"P2 energy-norm rate {rate:.3f}, expected 2: {table}"
+
+
 # P1 on straight (first-order) meshes, P2 on curved (second-order) meshes: the boundary
 # approximation error is then of the same order as the interpolation error.
 LAME_LEVELS = {1: [2.0, 1.4, 1.0, 0.7, 0.5], 2: [4.0, 2.8, 2.0, 1.4, 1.0]}
@@ -365,7 +405,6 @@ def _two_p2_tets(bow: float):
     return create_mesh(MPI.COMM_SELF, np.array(cells, dtype=np.int64), np.array(x), domain)
 
 
-@pytest.mark.slow
 def test_quadrature_split_is_exact_on_straight_cells():
     """elasticity.volume_measures integrate straight cells with degree 2(k-1) and curved ones
     with UFL's own degree: the P2 stiffness matrix equals the one of UFL's degree on every
@@ -393,6 +432,14 @@ def test_quadrature_split_is_exact_on_straight_cells():
     assert split.norm() <= 1e-12 * reference.norm()
     assert low.norm() >= 1e-4 * reference.norm()                 # the bow matters
     assert not pe.curved_cells(_two_p2_tets(0.0)).any()
+
+
+def test_a_cell_is_curved_when_a_mid_edge_node_is_off_its_edge_by_1e_10_of_its_size():
+    """elasticity.curved_cells: a mid-edge node off its edge's midpoint by more than 1e-10
+    of the cell's size (here 1 mm) makes its cells curved, by less does not: a bow of 1e-3
+    mm (a fillet's faceting) is curved, 1e-12 mm (round-off) is straight."""
+    assert pe.curved_cells(_two_p2_tets(1e-3)).sum() == 1
+    assert not pe.curved_cells(_two_p2_tets(1e-12)).any()
 
 
 @pytest.mark.parametrize("order", [2, 3])
