@@ -1,0 +1,536 @@
+"""Sensitivity variants by moving the nominal mesh's nodes (pipeline.fe.morph) against
+meshing each variant anew: the peaks' variant / nominal ratios, the time per variant, where
+one variant's time goes, and where a whole `make run`'s goes.
+
+    CROSSHEAD_NO_CACHE=1 .venv/bin/python -m bench.morph --accuracy --factors 2.2 --out /tmp/morph-acc.json
+    CROSSHEAD_NO_CACHE=1 .venv/bin/python -m bench.morph --timing --repeats 5
+    CROSSHEAD_NO_CACHE=1 .venv/bin/python -m bench.morph --stages
+    CROSSHEAD_NO_CACHE=1 .venv/bin/python -m bench.morph --runs --repeats 3 --out /tmp/morph-runs
+
+The variants are the sensitivity section's (pipeline.analysis.sensitivity): the nominal
+case and both ends of each assumed dimension's default range, each on one mesh at the
+run's mesh factor × MESH_RATIO (× ``--factors``/2.2 to see other sizes), refined at the
+places its dimensions name, on one process.
+
+``--accuracy``: per factor, each variant meshed anew (sensitivity.analyse_variant, today's
+way) and the nominal mesh moved onto it (the same solve, level.solve_level); per variant
+the global and critical peaks (MPa), variant / nominal of each way and their difference
+(%), beside the section's own noise (the nominal case on the run's pilot places instead,
+as the run states it; with ``--noise``). ``--timing``: the nine jobs of the section on one
+process per way, each way in a process of its own and the ways interleaved (rotated each
+repeat): meshed anew ("fresh"), moved and solved by solve_level ("moved"), moved and solved
+again on the first job's set-up from the last solution (pipeline.fe.resolve, "resolved"),
+and the same stopped at ``--loose-rtol`` ("resolved-loose"); per job the median wall and
+CPU time (s), the readings checked against the fresh ones. ``--stages``: one fresh job and
+one resolved job taken apart (geometry, gmsh, import, loads, assembly, the preconditioner's
+set-up, the iterations, reactions, peaks, sections). ``--runs``: `make run`'s command
+(2 ranks, cache off) whole, with --no-sensitivity and with --no-fields, interleaved: wall
+and CPU time (every process), results.json's timings_s; then each drawing process
+(pipeline.output.picture, plots, closeup) alone on the last full run's folder: its wall
+and CPU time.
+
+Lengths in mm, stresses in MPa, times in s. Results go to stdout, progress to stderr.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import resource
+import shutil
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from dataclasses import replace
+from pathlib import Path
+
+from pipeline.runtime.environment import configure
+
+configure()  # before numpy, PETSc or DOLFINx load: the pipeline's form cache, threads, PETSc options
+
+from mpi4py import MPI  # noqa: E402
+
+ROOT = Path(__file__).resolve().parents[1]
+WAYS = ("fresh", "moved", "resolved", "resolved-loose")
+LOOSE_RTOL = 1e-5  # --timing's "resolved-loose": the relative residual it stops at
+
+
+def _say(text: str) -> None:
+    print(text, file=sys.stderr, flush=True)
+
+
+def variant_cases(size: str) -> list[tuple[str, object]]:
+    """(label, case) of the section's dimension jobs: the nominal case first, then both ends
+    of each assumed dimension's range (sensitivity.ranges_of)."""
+    from pipeline.analysis.sensitivity import DIMENSION, ranges_of
+    from pipeline.inputs.case import resolve
+    case = resolve(size=size)
+    out = [("nominal", case)]
+    for r in ranges_of(case)[0]:
+        if r.kind == DIMENSION:
+            out += [(f"{r.input}={v:g}", r.variant(case, v)) for v in (r.low, r.high)]
+    return out
+
+
+def _values(rd) -> dict:
+    return {"peak_MPa": rd.peak_MPa, "critical_MPa": rd.critical_MPa, "section_MPa": rd.section_MPa}
+
+
+class Moved:
+    """The nominal case's sensitivity mesh at ``factor`` on this process, moved onto each
+    variant in turn and solved by level.solve_level (``resolver`` False) or by one
+    resolve.Resolver set up on the first solve (``rtol``: its relative residual; None: the
+    case's)."""
+
+    def __init__(self, case, factor: float, resolver: bool, rtol: float | None = None) -> None:
+        from pipeline.analysis.level import set_up
+        from pipeline.analysis.pilot import known_places
+        from pipeline.fe import morph
+        self.nominal = replace(case, mesh_factor=factor)
+        self.factor = factor
+        self.problem = set_up(self.nominal, factor, comm=MPI.COMM_SELF,
+                              hotspots=known_places(self.nominal).hotspots)
+        self.mover = morph.Mover.of(self.problem.mesh.mesh, case.dims)
+        self.resolver_wanted, self.rtol = resolver, rtol
+        self.resolver = None
+
+    def close(self) -> None:
+        if self.resolver is not None:
+            self.resolver.close()
+        self.mover.reset()
+
+    def reading(self, v) -> tuple[dict, dict]:
+        """The readings of case ``v`` (the nominal case with other dimensions) on the moved
+        mesh, and how the move left the tets and the solver's iterations."""
+        from pipeline.analysis.level import Problem, solve_level
+        from pipeline.analysis.sensitivity import read_level
+        from pipeline.fe import morph
+        from pipeline.fe.elasticity import Material
+        from pipeline.fe.loads import crosshead_loads
+        v = replace(v, mesh_factor=self.factor)
+        t0 = time.perf_counter()
+        q = self.mover.move_to(v.dims)
+        m = morph.as_variant(self.problem.mesh, v.dims, q, time.perf_counter() - t0)
+        mat = Material(E=v.E_MPa, nu=v.nu)
+        t0 = time.perf_counter()
+        lc = crosshead_loads(m, v.dims, v.load_N, v.support, shape=v.bearing_shape, band=v.bearing_band(),
+                             order=v.order)
+        info = {"jacobian_ratio": q.jacobian_ratio, "squeeze": q.squeeze, "stretch": q.stretch,
+                "stages_s": {"move nodes, check tets": m.timings["morph"], "loads": time.perf_counter() - t0}}
+        if not self.resolver_wanted:
+            lv = solve_level(v, self.factor, problem=Problem(m, mat, lc, 0.0), with_sections=True,
+                             formula_loads=False, reuse=False)
+            return _values(read_level(v, lv)), dict(info, iterations=lv.iterations)
+        rd, its = self._resolved(v, m, mat, lc, info["stages_s"])
+        return rd, dict(info, iterations=its)
+
+    def _resolved(self, v, m, mat, lc, stages_s: dict) -> tuple[dict, int]:
+        """Solve on the Resolver and read as solve_level does (equilibrium checked)."""
+        from pipeline.analysis.level import peaks_of
+        from pipeline.errors import NumericalError
+        from pipeline.fe.loads import equilibrium
+        from pipeline.fe.resolve import ResolveOptions, Resolver
+        from pipeline.post.sections import section_results
+        if self.resolver is None:
+            self.resolver = Resolver(m.mesh, m.facet_tags, v.order, mat, lc.constraints, v.rtol,
+                                     ResolveOptions(warm_start=True, rtol=self.rtol))
+        sol = self.resolver.solve(lc.tractions)
+        stages_s.update(self.resolver.last_timings)
+        _, eq_err, point_r = equilibrium(lc, sol.reactions)
+        if not max(eq_err, point_r) <= 1e-6 * v.load_N:
+            raise NumericalError(f"loads out of balance: {eq_err:.3g} N, {point_r:.3g} N")
+        t0 = time.perf_counter()
+        _, pk, crit = peaks_of(v, sol.u, mat)
+        stages_s["peaks"] = time.perf_counter() - t0
+        t0 = time.perf_counter()
+        sym_x = m.facet_ids.get("symmetry_x")
+        sym_idx = next((i for i, c in enumerate(lc.constraints) if c.component == 0 and c.marker == sym_x
+                        and sym_x is not None), None)
+        sec = section_results(sol, mat, v.dims, v.load_N, 0.25 if v.model == "quarter" else 1.0, sym_idx,
+                              pk.value_MPa, bearing_centre_mm=v.bearing_band().centre_mm)
+        stages_s["sections"] = time.perf_counter() - t0
+        return {"peak_MPa": pk.value_MPa, "critical_MPa": crit.value_MPa,
+                "section_MPa": sec["critical_section"]["nominal_MPa"]}, sol.iterations
+
+
+def accuracy(size: str, factors: list[float], noise: bool) -> list[dict]:
+    """Per factor and job: the fresh and the moved readings and their ratios to the nominal's."""
+    from pipeline.analysis.sensitivity import MESH_RATIO, analyse_variant
+    cases = variant_cases(size)
+    rows = []
+    for fac in factors:
+        f = cases[0][1].mesh_factor * fac
+        moved = Moved(cases[0][1], f, resolver=False)
+        try:
+            for label, c in cases:
+                fresh = _values(analyse_variant(c, f))
+                mv, info = moved.reading(c) if label != "nominal" else (fresh, {})
+                rows.append({"factor": fac, "job": label, "fresh": fresh, "moved": mv, **info})
+                _say(f"×{fac:g} {label}: fresh {fresh['peak_MPa']:.3f} / {fresh['critical_MPa']:.3f}, moved "
+                     f"{mv['peak_MPa']:.3f} / {mv['critical_MPa']:.3f} MPa")
+        finally:
+            moved.close()
+        if noise and abs(fac - MESH_RATIO) < 1e-9:
+            rows.append({"factor": fac, "job": "noise", **_noise(cases[0][1], f)})
+    return rows
+
+
+def _noise(case, f: float) -> dict:
+    """The section's noise as a run states it: the nominal case on the run's pilot places
+    against the dimensions' places, same factor (MPa and %)."""
+    from pipeline.analysis.pilot import pilot
+    from pipeline.analysis.sensitivity import analyse_variant
+    places = pilot(case, comm=MPI.COMM_SELF).hotspots
+    a, b = analyse_variant(case, f), analyse_variant(case, f, places)
+    return {"known_places": _values(a), "pilot_places": _values(b),
+            "global_pct": 100 * abs(a.peak_MPa - b.peak_MPa) / a.peak_MPa,
+            "critical_MPa": abs(a.critical_MPa - b.critical_MPa)}
+
+
+def ratios(rows: list[dict]) -> list[dict]:
+    """Per factor and variant: variant / nominal of the fresh and of the moved readings, and
+    moved − fresh (% points), for the global and the critical peak."""
+    base = {r["factor"]: r for r in rows if r["job"] == "nominal"}
+    out = []
+    for r in rows:
+        if r["job"] in ("nominal", "noise"):
+            continue
+        b = base[r["factor"]]
+        row = {"factor": r["factor"], "job": r["job"], "jacobian_ratio": r.get("jacobian_ratio")}
+        for k in ("peak_MPa", "critical_MPa"):
+            fr, mr = r["fresh"][k] / b["fresh"][k], r["moved"][k] / b["moved"][k]
+            row[k] = {"fresh": fr, "moved": mr, "diff_pct": 100 * (mr - fr)}
+        out.append(row)
+    return out
+
+
+def accuracy_table(rows: list[dict]) -> str:
+    """The ratios as text, with the noise when measured and each variant's mean and largest
+    difference over the factors."""
+    lines = [f"{'factor':>6s} {'variant':18s} {'global fresh':>12s} {'moved':>7s} {'diff %':>7s}   "
+             f"{'critical fresh':>14s} {'moved':>7s} {'diff %':>7s} {'MPa':>6s}  det J ratio", "-" * 104]
+    crit_nom = {r["factor"]: r["fresh"]["critical_MPa"] for r in rows if r["job"] == "nominal"}
+    rs = ratios(rows)
+    for r in rs:
+        g, c = r["peak_MPa"], r["critical_MPa"]
+        lines.append(f"{r['factor']:6.3g} {r['job']:18s} {g['fresh']:12.4f} {g['moved']:7.4f} {g['diff_pct']:+7.3f}   "
+                     f"{c['fresh']:14.4f} {c['moved']:7.4f} {c['diff_pct']:+7.3f} "
+                     f"{c['diff_pct'] / 100 * crit_nom[r['factor']]:+6.3f}  {r['jacobian_ratio']:.3f}")
+    for r in rows:
+        if r["job"] == "noise":
+            lines.append(f"noise at ×{r['factor']:g} (the run's places against the dimensions'): global "
+                         f"{r['global_pct']:.2f} %, critical {r['critical_MPa']:.3f} MPa")
+    jobs = sorted({r["job"] for r in rs}, key=[r["job"] for r in rs].index)
+    if len({r["factor"] for r in rs}) > 1:
+        lines.append("over the factors: mean and largest |moved − fresh| (% points); SD of the fresh and the moved ratio")
+        for j in jobs:
+            sel = [r for r in rs if r["job"] == j]
+            parts = []
+            for k in ("peak_MPa", "critical_MPa"):
+                d = [r[k]["diff_pct"] for r in sel]
+                sd = [statistics.stdev([100 * r[k][w] for r in sel]) for w in ("fresh", "moved")]
+                parts.append(f"{k[:-4]:8s} {statistics.mean(d):+6.3f} {max(map(abs, d)):6.3f} SD {sd[0]:.3f} {sd[1]:.3f}")
+            lines.append(f"  {j:18s} " + "   ".join(parts))
+    return "\n".join(lines)
+
+
+def job(way: str, size: str, factor_ratio: float) -> dict:
+    """The section's nine dimension jobs on this process, one way: per job its wall and CPU
+    time (s) and readings; the set-up of the nominal mesh counts in the nominal job."""
+    from pipeline.analysis.sensitivity import analyse_variant
+    cases = variant_cases(size)
+    f = cases[0][1].mesh_factor * factor_ratio
+    out = []
+    moved = None
+    for label, c in cases:
+        t0, c0 = time.perf_counter(), time.process_time()
+        if way == "fresh":
+            rd, its = _values(analyse_variant(c, f)), None
+        else:
+            if moved is None:
+                moved = Moved(c, f, resolver=way != "moved", rtol=LOOSE_RTOL if way == "resolved-loose" else None)
+            rd, info = moved.reading(c)
+            its = info["iterations"]
+        out.append({"job": label, "wall_s": time.perf_counter() - t0, "cpu_s": time.process_time() - c0,
+                    "iterations": its, **rd})
+    if moved is not None:
+        moved.close()
+    return {"way": way, "jobs": out}
+
+
+def _children_cpu_s() -> float:
+    r = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return r.ru_utime + r.ru_stime
+
+
+def timing(size: str, repeats: int, ways: list[str], factor_ratio: float) -> dict:
+    """Each way's nine jobs in a process of its own, the ways interleaved (the order rotated
+    by one each repeat, after one warm-up round); per way and job the runs' times."""
+    runs: dict[str, list[dict]] = {w: [] for w in ways}
+    for k in range(repeats + 1):
+        order = ways[k % len(ways):] + ways[:k % len(ways)]
+        for w in order:
+            t0, c0 = time.perf_counter(), _children_cpu_s()
+            p = subprocess.run([sys.executable, "-m", "bench.morph", "--job", w, "--size", size,
+                                "--factor-ratio", repr(factor_ratio)], cwd=ROOT, capture_output=True, text=True,
+                               env=dict(os.environ, CROSSHEAD_NO_CACHE="1"))
+            if p.returncode != 0:
+                raise SystemExit(f"{w}: exit {p.returncode}: {(p.stderr.strip().splitlines() or ['?'])[-1]}")
+            res = json.loads(p.stdout.strip().splitlines()[-1])
+            res["process_wall_s"], res["process_cpu_s"] = time.perf_counter() - t0, _children_cpu_s() - c0
+            if k > 0:  # round 0 warms the file caches and compiled forms
+                runs[w].append(res)
+            _say(f"{'warm-up' if k == 0 else f'repeat {k}/{repeats}'} {w}: jobs "
+                 f"{sum(j['wall_s'] for j in res['jobs']):.2f} s wall, {sum(j['cpu_s'] for j in res['jobs']):.2f} s CPU; "
+                 f"process {res['process_wall_s']:.2f} s")
+    return runs
+
+
+def timing_table(runs: dict[str, list[dict]]) -> str:
+    """Per way: the median per job and of the nine jobs' sum (wall, CPU), against fresh; the
+    iterations; the largest difference of a reading from the fresh way's ratios."""
+    def med(w: str, key: str, job: str | None = None) -> float:
+        return statistics.median(sum(j[key] for j in r["jobs"] if job in (None, j["job"])) for r in runs[w])
+
+    ways = list(runs)
+    labels = [j["job"] for j in runs[ways[0]][0]["jobs"]]
+    lines = [f"{'way':16s} {'9 jobs wall':>11s} {'CPU':>6s} {'per variant (8) wall':>21s} {'CPU':>6s} "
+             f"{'nominal job':>11s}  vs fresh (CPU)  iterations", "-" * 110]
+    for w in ways:
+        tot_w, tot_c = med(w, "wall_s"), med(w, "cpu_s")
+        var_w = statistics.median(sum(j["wall_s"] for j in r["jobs"][1:]) / (len(labels) - 1) for r in runs[w])
+        var_c = statistics.median(sum(j["cpu_s"] for j in r["jobs"][1:]) / (len(labels) - 1) for r in runs[w])
+        rel = ""
+        if "fresh" in runs and w != "fresh":
+            pairs = [sum(j["cpu_s"] for j in a["jobs"]) / sum(j["cpu_s"] for j in b["jobs"])
+                     for a, b in zip(runs[w], runs["fresh"])]
+            rel = f"{statistics.median(pairs):.2f}"
+        its = [j["iterations"] for j in runs[w][0]["jobs"]]
+        lines.append(f"{w:16s} {tot_w:11.2f} {tot_c:6.2f} {var_w:21.3f} {var_c:6.3f} {med(w, 'cpu_s', 'nominal'):11.3f}  "
+                     f"{rel:>14s}  {'' if its[0] is None else ' '.join(map(str, its))}")
+    if "fresh" in runs:
+        base = runs["fresh"][0]["jobs"]
+        for w in ways:
+            if w in ("fresh", "moved"):
+                continue
+            ref = runs["moved"][0]["jobs"] if "moved" in runs else None
+            if ref is None:
+                continue
+            worst = max(abs(a[k] - b[k]) for a, b in zip(runs[w][0]["jobs"], ref) for k in ("peak_MPa", "critical_MPa"))
+            lines.append(f"{w}: readings within {worst:.4f} MPa of the moved way's (solve_level on the moved mesh)")
+        del base
+    return "\n".join(lines)
+
+
+def stages(size: str) -> dict:
+    """One fresh job (dj at its low end) and one resolved job taken apart, each after a
+    warm-up job: per stage [wall, CPU] time (s)."""
+    import pipeline.analysis.analyse as analyse_mod
+    import pipeline.analysis.level as level
+    import pipeline.fe.meshing as meshing
+    import pipeline.fe.solve as solve
+    from pipeline.analysis.sensitivity import MESH_RATIO, analyse_variant
+    cases = dict(variant_cases(size))
+    nominal = cases["nominal"]
+    variant = next(c for k, c in cases.items() if k.startswith("dj="))
+    f = nominal.mesh_factor * MESH_RATIO
+    spent: dict[str, list[float]] = {}
+    marks: dict[str, tuple[float, float]] = {}
+    iterations = [0]
+
+    def now() -> tuple[float, float]:
+        return time.perf_counter(), time.process_time()
+
+    def timed(name: str, fn):
+        def wrapper(*a, **k):
+            t0 = now()
+            try:
+                return fn(*a, **k)
+            finally:
+                t1 = now()
+                w, c = spent.get(name, [0.0, 0.0])
+                spent[name] = [w + t1[0] - t0[0], c + t1[1] - t0[1]]
+                marks[name] = t1
+        return wrapper
+
+    def monitor(ksp, its, rnorm):
+        marks.setdefault("first_iteration", now())
+        marks["last_iteration"] = now()
+        iterations[0] = its
+
+    def between(a: str, b: str) -> list[float]:
+        return [marks[b][0] - marks[a][0], marks[b][1] - marks[a][1]]
+
+    patches = [(meshing, "build", "geometry (OCC)"), (meshing, "mesh", "gmsh meshing"),
+               (meshing, "distribute", "import to DOLFINx"), (level, "crosshead_loads", "loads"),
+               (solve, "_assemble", "forms, sparsity, assembly"),
+               (solve, "p_multigrid", "P1 matrix, interpolation"), (solve, "_reactions", "reactions"),
+               (level, "peaks_of", "peaks"), (level, "section_results", "sections"),
+               (analyse_mod, "solve_level", "solve_level")]
+    saved = [(mod, name, getattr(mod, name)) for mod, name, _ in patches]
+    saved.append((solve, "_let_threads_run", solve._let_threads_run))
+    out: dict[str, dict] = {}
+    try:
+        for mod, name, label in patches:
+            setattr(mod, name, timed(label, getattr(mod, name)))
+        solve._let_threads_run = monitor
+        analyse_variant(nominal, f)  # warm-up
+        spent.clear()
+        marks.clear()
+        t0 = now()
+        analyse_variant(variant, f)
+        t1 = now()
+        parts = {k: v for k, v in spent.items() if k != "solve_level"}
+        parts["preconditioner set-up (GAMG, Chebyshev)"] = between("P1 matrix, interpolation", "first_iteration")
+        parts["CG iterations"] = between("first_iteration", "last_iteration")
+        total = [t1[0] - t0[0], t1[1] - t0[1]]
+        parts["rest (places, specs, analyse, checks)"] = [total[i] - sum(v[i] for v in parts.values()) for i in (0, 1)]
+        out["fresh"] = {**{k: [round(x, 4) for x in v] for k, v in parts.items()},
+                        "iterations": iterations[0], "total": [round(x, 4) for x in total]}
+    finally:
+        for mod, name, fn in saved:
+            setattr(mod, name, fn)
+    moved = Moved(nominal, f, resolver=True)
+    try:
+        moved.reading(nominal)  # the nominal job: the set-up
+        t0, c0 = time.perf_counter(), time.process_time()
+        _, info = moved.reading(variant)
+        total = [time.perf_counter() - t0, time.process_time() - c0]
+        out["resolved"] = {**{k: [round(v, 4), None] for k, v in info["stages_s"].items()},
+                           "iterations": info["iterations"], "total": [round(x, 4) for x in total]}
+    finally:
+        moved.close()
+    return out
+
+
+def stages_table(rows: dict) -> str:
+    """The stages of each job as text: wall and CPU (s; the resolved job's stages wall only)."""
+    lines = []
+    for way, parts in rows.items():
+        lines += [f"{way} job, dj at its low end:", f"  {'stage':42s} {'wall':>7s} {'CPU':>7s}"]
+        for k, v in parts.items():
+            if k == "iterations":
+                lines.append(f"  {'CG iterations (count)':42s} {v:7d}")
+            else:
+                lines.append(f"  {k:42s} {v[0]:7.3f} " + ("" if v[1] is None else f"{v[1]:7.3f}"))
+    return "\n".join(lines)
+
+
+RUN_CONFIGS = {"full": [], "no-sensitivity": ["--no-sensitivity"], "no-fields": ["--no-fields"]}
+DRAWINGS = ("pipeline.output.picture", "pipeline.output.plots", "pipeline.output.closeup")
+
+
+def runs(out: Path, repeats: int) -> dict:
+    """`make run`'s command whole, with --no-sensitivity and with --no-fields, interleaved
+    after a warm-up each: wall and CPU (s) and results.json's timings_s; then each drawing
+    process alone on the last full run's folder."""
+    out.mkdir(parents=True, exist_ok=True)
+    env = dict(os.environ, CROSSHEAD_NO_CACHE="1")
+    res: dict[str, list[dict]] = {c: [] for c in RUN_CONFIGS}
+    keep = out / "full-run"
+    for k in range(repeats + 1):
+        for c, extra in RUN_CONFIGS.items():
+            folder = Path(tempfile.mkdtemp(dir=out, prefix=f"{c}-")) / "run"
+            cmd = [sys.executable, "-m", "pipeline.runtime.launch", "2", "run", "--size", "05", "--out", str(folder),
+                   "--quiet", *extra]
+            t0, c0 = time.perf_counter(), _children_cpu_s()
+            p = subprocess.run(cmd, cwd=ROOT, env=env, capture_output=True, text=True)
+            wall, cpu = time.perf_counter() - t0, _children_cpu_s() - c0
+            if p.returncode != 0:
+                raise SystemExit(f"{c}: exit {p.returncode}: {(p.stderr.strip().splitlines() or ['?'])[-1]}")
+            timings = json.loads((folder / "results.json").read_text())["timings_s"]
+            if k > 0:
+                res[c].append({"wall_s": wall, "cpu_s": cpu, "timings_s": timings})
+            _say(f"{'warm-up' if k == 0 else f'repeat {k}/{repeats}'} {c}: {wall:.2f} s wall, {cpu:.2f} s CPU")
+            if c == "full":
+                shutil.rmtree(keep, ignore_errors=True)
+                shutil.move(str(folder), keep)
+            shutil.rmtree(folder.parent, ignore_errors=True)
+    drawings: dict[str, list[dict]] = {m: [] for m in DRAWINGS}
+    for k in range(repeats):
+        for m in DRAWINGS:
+            t0, c0 = time.perf_counter(), _children_cpu_s()
+            p = subprocess.run([sys.executable, "-m", m, str(keep)], cwd=ROOT, env=env, capture_output=True,
+                               text=True)
+            if p.returncode != 0:
+                raise SystemExit(f"{m}: exit {p.returncode}")
+            drawings[m].append({"wall_s": time.perf_counter() - t0, "cpu_s": _children_cpu_s() - c0})
+    shutil.rmtree(keep, ignore_errors=True)
+    return {"runs": res, "drawings": drawings}
+
+
+def runs_table(r: dict) -> str:
+    """Medians of the whole runs, their timings_s and the drawing processes."""
+    def med(xs: list[float]) -> float:
+        return statistics.median(xs)
+
+    lines = [f"{'make run (2 ranks, cache off)':34s} {'wall':>6s} {'CPU':>6s}  results.json timings_s (median)",
+             "-" * 100]
+    keys = ("pilot", "error_bar_meshes", "sensitivity", "output", "picture", "total")
+    for c, rows in r["runs"].items():
+        t = {k: med([x["timings_s"].get(k, 0.0) for x in rows]) for k in keys}
+        lines.append(f"{c:34s} {med([x['wall_s'] for x in rows]):6.2f} {med([x['cpu_s'] for x in rows]):6.2f}  "
+                     + ", ".join(f"{k} {v:.2f}" for k, v in t.items()))
+    full = r["runs"]["full"]
+    for c in ("no-sensitivity", "no-fields"):
+        pairs_w = [a["wall_s"] - b["wall_s"] for a, b in zip(full, r["runs"][c])]
+        pairs_c = [a["cpu_s"] - b["cpu_s"] for a, b in zip(full, r["runs"][c])]
+        lines.append(f"full − {c}: wall {med(pairs_w):+.2f} s, CPU {med(pairs_c):+.2f} s (median of the pairs)")
+    for m, rows in r["drawings"].items():
+        lines.append(f"{m:34s} {med([x['wall_s'] for x in rows]):6.2f} {med([x['cpu_s'] for x in rows]):6.2f}  "
+                     "(alone, its process's start included)")
+    return "\n".join(lines)
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(prog="python -m bench.morph", description=__doc__.splitlines()[0])
+    what = ap.add_mutually_exclusive_group(required=True)
+    what.add_argument("--accuracy", action="store_true", help="fresh against moved readings and ratios")
+    what.add_argument("--timing", action="store_true", help="time per variant, each way")
+    what.add_argument("--stages", action="store_true", help="one fresh and one resolved job taken apart")
+    what.add_argument("--runs", action="store_true", help="make run whole, without the section, without fields")
+    what.add_argument("--job", choices=WAYS, help=argparse.SUPPRESS)  # --timing's child process
+    ap.add_argument("--size", default="05", help="hook number (default 05)")
+    ap.add_argument("--factors", default="2.2", help="--accuracy: mesh factors / the run's (default 2.2, the section's)")
+    ap.add_argument("--noise", action="store_true", help="--accuracy: also the section's noise at 2.2 (a pilot solve)")
+    ap.add_argument("--ways", default=",".join(WAYS), help=f"--timing: which ways (default {','.join(WAYS)})")
+    ap.add_argument("--factor-ratio", type=float, default=2.2, help="--timing: the mesh factor / the run's")
+    ap.add_argument("--repeats", type=int, default=3, help="--timing, --runs: rounds after the warm-up (default 3)")
+    ap.add_argument("--out", type=Path, help="write the rows as JSON here (--runs: a folder for the runs)")
+    args = ap.parse_args(argv)
+    if args.repeats < 1:
+        print("--repeats: at least 1", file=sys.stderr)
+        return 2
+    if args.job:
+        print(json.dumps(job(args.job, args.size, args.factor_ratio)))
+        return 0
+    if args.accuracy:
+        rows = accuracy(args.size, [float(f) for f in args.factors.split(",")], args.noise)
+        print(accuracy_table(rows))
+    elif args.timing:
+        ways = [w.strip() for w in args.ways.split(",") if w.strip()]
+        if any(w not in WAYS for w in ways):
+            print(f"--ways: one of {', '.join(WAYS)}", file=sys.stderr)
+            return 2
+        rows = timing(args.size, args.repeats, ways, args.factor_ratio)
+        print(timing_table(rows))
+    elif args.stages:
+        rows = stages(args.size)
+        print(stages_table(rows))
+    else:
+        if args.out is None:
+            print("--runs needs --out (a folder for the runs)", file=sys.stderr)
+            return 2
+        rows = runs(args.out, args.repeats)
+        print(runs_table(rows))
+        (args.out / "runs.json").write_text(json.dumps(rows, indent=1))
+        return 0
+    if args.out is not None:
+        args.out.write_text(json.dumps(rows, indent=1))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
