@@ -13,17 +13,22 @@ run's mesh factor × MESH_RATIO (× ``--factors``/2.2 to see other sizes), refin
 places its dimensions name, on one process.
 
 ``--accuracy``: per factor, each variant meshed anew (sensitivity.analyse_variant, today's
-way) and the nominal mesh moved onto it (the same solve, level.solve_level); per variant
+way) and the nominal mesh moved onto it (the same solve, level.solve_level; every variant,
+also those pipeline.fe.morph.remesh_reason sends to a fresh mesh); per variant
 the global and critical peaks (MPa), variant / nominal of each way and their difference
 (%), beside the section's own noise (the nominal case on the run's pilot places instead,
 as the run states it; with ``--noise``). ``--timing``: the nine jobs of the section on one
-process per way, each way in a process of its own and the ways interleaved (rotated each
-repeat): meshed anew ("fresh"), moved and solved by solve_level ("moved"), moved and solved
-again on the first job's set-up from the last solution (pipeline.fe.resolve, "resolved"),
-and the same stopped at ``--loose-rtol`` ("resolved-loose"); per job the median wall and
-CPU time (s), the readings checked against the fresh ones. ``--stages``: one fresh job and
-one resolved job taken apart (geometry, gmsh, import, loads, assembly, the preconditioner's
-set-up, the iterations, reactions, peaks, sections). ``--runs``: `make run`'s command
+process, each way in a process of its own and the ways interleaved (rotated each repeat):
+meshed anew ("fresh"), moved and solved by solve_level ("moved"), moved and solved on the
+first job's forms, matrices and DOFs from the last solution (pipeline.fe.resolve, a new
+preconditioner set-up each: "resolved"), the same on the first job's preconditioner with
+the second end of a range started from the line through the nominal and the first end
+("reused"), and that stopped at a relative residual of LOOSE_RTOL instead of the case's
+("reused-loose"); a variant that morph.remesh_reason refuses is meshed anew in every way;
+per way the median wall and CPU time (s) of the nine jobs and per variant, and how far the
+readings are from the moved way's. ``--stages``: one fresh job
+and one resolved and one reused job taken apart (geometry, gmsh, import, loads, assembly,
+the preconditioner's set-up, the iterations, reactions, peaks, sections). ``--runs``: `make run`'s command
 (2 ranks, cache off) whole, with --no-sensitivity and with --no-fields, interleaved: wall
 and CPU time (every process), results.json's timings_s; then each drawing process
 (pipeline.output.picture, plots, closeup) alone on the last full run's folder: its wall
@@ -53,8 +58,8 @@ configure()  # before numpy, PETSc or DOLFINx load: the pipeline's form cache, t
 from mpi4py import MPI  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
-WAYS = ("fresh", "moved", "resolved", "resolved-loose")
-LOOSE_RTOL = 1e-5  # --timing's "resolved-loose": the relative residual it stops at
+WAYS = ("fresh", "moved", "resolved", "reused", "reused-loose")
+LOOSE_RTOL = 1e-5  # --timing's "reused-loose": the relative residual it stops at
 
 
 def _say(text: str) -> None:
@@ -80,11 +85,11 @@ def _values(rd) -> dict:
 
 class Moved:
     """The nominal case's sensitivity mesh at ``factor`` on this process, moved onto each
-    variant in turn and solved by level.solve_level (``resolver`` False) or by one
-    resolve.Resolver set up on the first solve (``rtol``: its relative residual; None: the
-    case's)."""
+    variant in turn and solved by level.solve_level (``options`` None) or by one
+    resolve.Resolver set up on the first solve with these options; with ``extrapolate``
+    the second end of a range starts CG from resolve.extrapolated."""
 
-    def __init__(self, case, factor: float, resolver: bool, rtol: float | None = None) -> None:
+    def __init__(self, case, factor: float, options=None, extrapolate: bool = False, strict: bool = True) -> None:
         from pipeline.analysis.level import set_up
         from pipeline.analysis.pilot import known_places
         from pipeline.fe import morph
@@ -93,8 +98,9 @@ class Moved:
         self.problem = set_up(self.nominal, factor, comm=MPI.COMM_SELF,
                               hotspots=known_places(self.nominal).hotspots)
         self.mover = morph.Mover.of(self.problem.mesh.mesh, case.dims)
-        self.resolver_wanted, self.rtol = resolver, rtol
+        self.options, self.extrapolate, self.strict = options, extrapolate, strict
         self.resolver = None
+        self.solved: dict[tuple[str, float], object] = {}  # (input, value) -> this rank's DOF values
 
     def close(self) -> None:
         if self.resolver is not None:
@@ -110,16 +116,22 @@ class Moved:
         from pipeline.fe.elasticity import Material
         from pipeline.fe.loads import crosshead_loads
         v = replace(v, mesh_factor=self.factor)
-        t0 = time.perf_counter()
-        q = self.mover.move_to(v.dims)
+        why = morph.remesh_reason(self.nominal.dims, v.dims) if self.strict else None
+        if why is not None:  # meshed anew, as today
+            from pipeline.analysis.sensitivity import analyse_variant
+            return _values(analyse_variant(v, self.factor)), {"fresh": why, "iterations": None}
+        t0, c0 = time.perf_counter(), time.process_time()
+        q = self.mover.move_to(v.dims, strict=self.strict)
         m = morph.as_variant(self.problem.mesh, v.dims, q, time.perf_counter() - t0)
+        cpu_move = time.process_time() - c0
         mat = Material(E=v.E_MPa, nu=v.nu)
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), time.process_time()
         lc = crosshead_loads(m, v.dims, v.load_N, v.support, shape=v.bearing_shape, band=v.bearing_band(),
                              order=v.order)
         info = {"jacobian_ratio": q.jacobian_ratio, "squeeze": q.squeeze, "stretch": q.stretch,
-                "stages_s": {"move nodes, check tets": m.timings["morph"], "loads": time.perf_counter() - t0}}
-        if not self.resolver_wanted:
+                "stages_s": {"move nodes, check tets": [m.timings["morph"], cpu_move],
+                             "loads": [time.perf_counter() - t0, time.process_time() - c0]}}
+        if self.options is None:
             lv = solve_level(v, self.factor, problem=Problem(m, mat, lc, 0.0), with_sections=True,
                              formula_loads=False, reuse=False)
             return _values(read_level(v, lv)), dict(info, iterations=lv.iterations)
@@ -131,26 +143,35 @@ class Moved:
         from pipeline.analysis.level import peaks_of
         from pipeline.errors import NumericalError
         from pipeline.fe.loads import equilibrium
-        from pipeline.fe.resolve import ResolveOptions, Resolver
+        from pipeline.fe.resolve import Resolver
         from pipeline.post.sections import section_results
+        from pipeline.fe.morph import MOVABLE
+        from pipeline.fe.resolve import extrapolated
         if self.resolver is None:
-            self.resolver = Resolver(m.mesh, m.facet_tags, v.order, mat, lc.constraints, v.rtol,
-                                     ResolveOptions(warm_start=True, rtol=self.rtol))
-        sol = self.resolver.solve(lc.tractions)
-        stages_s.update(self.resolver.last_timings)
+            self.resolver = Resolver(m.mesh, m.facet_tags, v.order, mat, lc.constraints, v.rtol, self.options)
+        changed = [k for k in MOVABLE if getattr(v.dims, k) != getattr(self.nominal.dims, k)]
+        key = (changed[0], getattr(v.dims, changed[0])) if len(changed) == 1 else ("nominal", 0.0)
+        guess = None
+        ends = [(val, u) for (k, val), u in self.solved.items() if k == key[0] and val != key[1]]
+        if self.extrapolate and ends and ("nominal", 0.0) in self.solved:
+            nominal = getattr(self.nominal.dims, key[0])
+            guess = extrapolated(self.solved[("nominal", 0.0)], ends[0][1], nominal, ends[0][0], key[1])
+        sol = self.resolver.solve(lc.tractions, guess)
+        self.solved[key] = sol.u.x.array.copy()
+        stages_s.update({k: [w, self.resolver.last_cpu_timings[k]] for k, w in self.resolver.last_timings.items()})
         _, eq_err, point_r = equilibrium(lc, sol.reactions)
         if not max(eq_err, point_r) <= 1e-6 * v.load_N:
             raise NumericalError(f"loads out of balance: {eq_err:.3g} N, {point_r:.3g} N")
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), time.process_time()
         _, pk, crit = peaks_of(v, sol.u, mat)
-        stages_s["peaks"] = time.perf_counter() - t0
-        t0 = time.perf_counter()
+        stages_s["peaks"] = [time.perf_counter() - t0, time.process_time() - c0]
+        t0, c0 = time.perf_counter(), time.process_time()
         sym_x = m.facet_ids.get("symmetry_x")
         sym_idx = next((i for i, c in enumerate(lc.constraints) if c.component == 0 and c.marker == sym_x
                         and sym_x is not None), None)
         sec = section_results(sol, mat, v.dims, v.load_N, 0.25 if v.model == "quarter" else 1.0, sym_idx,
                               pk.value_MPa, bearing_centre_mm=v.bearing_band().centre_mm)
-        stages_s["sections"] = time.perf_counter() - t0
+        stages_s["sections"] = [time.perf_counter() - t0, time.process_time() - c0]
         return {"peak_MPa": pk.value_MPa, "critical_MPa": crit.value_MPa,
                 "section_MPa": sec["critical_section"]["nominal_MPa"]}, sol.iterations
 
@@ -162,7 +183,7 @@ def accuracy(size: str, factors: list[float], noise: bool) -> list[dict]:
     rows = []
     for fac in factors:
         f = cases[0][1].mesh_factor * fac
-        moved = Moved(cases[0][1], f, resolver=False)
+        moved = Moved(cases[0][1], f, strict=False)
         try:
             for label, c in cases:
                 fresh = _values(analyse_variant(c, f))
@@ -236,6 +257,13 @@ def accuracy_table(rows: list[dict]) -> str:
     return "\n".join(lines)
 
 
+def _way_options() -> dict:
+    from pipeline.fe.resolve import ResolveOptions
+    return {"moved": (None, False), "resolved": (ResolveOptions(warm_start=True), False),
+            "reused": (ResolveOptions(warm_start=True, reuse_preconditioner=True), True),
+            "reused-loose": (ResolveOptions(warm_start=True, reuse_preconditioner=True, rtol=LOOSE_RTOL), True)}
+
+
 def job(way: str, size: str, factor_ratio: float) -> dict:
     """The section's nine dimension jobs on this process, one way: per job its wall and CPU
     time (s) and readings; the set-up of the nominal mesh counts in the nominal job."""
@@ -244,13 +272,14 @@ def job(way: str, size: str, factor_ratio: float) -> dict:
     f = cases[0][1].mesh_factor * factor_ratio
     out = []
     moved = None
+    WAY_OPTIONS = _way_options()
     for label, c in cases:
         t0, c0 = time.perf_counter(), time.process_time()
         if way == "fresh":
             rd, its = _values(analyse_variant(c, f)), None
         else:
             if moved is None:
-                moved = Moved(c, f, resolver=way != "moved", rtol=LOOSE_RTOL if way == "resolved-loose" else None)
+                moved = Moved(c, f, *WAY_OPTIONS[way])
             rd, info = moved.reading(c)
             its = info["iterations"]
         out.append({"job": label, "wall_s": time.perf_counter() - t0, "cpu_s": time.process_time() - c0,
@@ -392,21 +421,22 @@ def stages(size: str) -> dict:
     finally:
         for mod, name, fn in saved:
             setattr(mod, name, fn)
-    moved = Moved(nominal, f, resolver=True)
-    try:
-        moved.reading(nominal)  # the nominal job: the set-up
-        t0, c0 = time.perf_counter(), time.process_time()
-        _, info = moved.reading(variant)
-        total = [time.perf_counter() - t0, time.process_time() - c0]
-        out["resolved"] = {**{k: [round(v, 4), None] for k, v in info["stages_s"].items()},
-                           "iterations": info["iterations"], "total": [round(x, 4) for x in total]}
-    finally:
-        moved.close()
+    for way in ("resolved", "reused"):
+        moved = Moved(nominal, f, *_way_options()[way])
+        try:
+            moved.reading(nominal)  # the nominal job: the set-up
+            t0, c0 = time.perf_counter(), time.process_time()
+            _, info = moved.reading(variant)
+            total = [time.perf_counter() - t0, time.process_time() - c0]
+            out[way] = {**{k: [round(x, 4) for x in v] for k, v in info["stages_s"].items()},
+                        "iterations": info["iterations"], "total": [round(x, 4) for x in total]}
+        finally:
+            moved.close()
     return out
 
 
 def stages_table(rows: dict) -> str:
-    """The stages of each job as text: wall and CPU (s; the resolved job's stages wall only)."""
+    """The stages of each job as text: wall and CPU (s)."""
     lines = []
     for way, parts in rows.items():
         lines += [f"{way} job, dj at its low end:", f"  {'stage':42s} {'wall':>7s} {'CPU':>7s}"]
@@ -414,7 +444,7 @@ def stages_table(rows: dict) -> str:
             if k == "iterations":
                 lines.append(f"  {'CG iterations (count)':42s} {v:7d}")
             else:
-                lines.append(f"  {k:42s} {v[0]:7.3f} " + ("" if v[1] is None else f"{v[1]:7.3f}"))
+                lines.append(f"  {k:42s} {v[0]:7.3f} {v[1]:7.3f}")
     return "\n".join(lines)
 
 

@@ -56,6 +56,17 @@ SEAT_DEPTH = 0.5
 # A straight edge: its mid-edge node within this × the edge's length of its middle
 # (elasticity.curved_cells' test, 1e-10 of the cell's size).
 STRAIGHT_TOL = 1e-10
+# How far a move may squeeze or stretch a ring of elements between a surface it moves and
+# one it keeps (the ring's new width over its old) and still read the peaks as a mesh made
+# anew does: measured on No. 05's sensitivity meshes, the journal's end-face ring at 0.5
+# (dj +5 %) and 2.0 (dj −10 %) and the fillet's blend ring at 0.7 (rf +20 %) and 1.3 held
+# variant / nominal within the section's noise (docs/decisions/0034-sensitivity-variants-by-morphing.md).
+RING_MIN, RING_MAX = 0.5, 2.0
+# The ring between the bore and the seat's inner circle: when the seat comes near the bore
+# the critical peak moves to the top bore edge, inside this ring. Squeezed to 0.535 (the
+# default range's low end) it read the critical peak 0.17-0.22 % low on the ×2.2 mesh (3×
+# the section's noise), to 0.65 0.11 %, to 0.75 0.02 %: below this, mesh the variant anew.
+BORE_RING_MIN = 0.75
 
 Map = Callable[[np.ndarray], np.ndarray]  # (n, 3) points (mm) -> (n, 3) moved points (mm)
 
@@ -151,7 +162,7 @@ def journal_map(d: Dimensions, dj: float) -> Map:
     return phi
 
 
-def seat_map(d: Dimensions, seat_inner: float, seat_outer: float, keep: float | None = None) -> Map:
+def seat_map(d: Dimensions, seat_inner: float, seat_outer: float) -> Map:
     """Φ taking the part ``d``'s seat annulus (diameters d.seat_inner..d.seat_outer on the
     top face) to ``seat_inner``..``seat_outer`` (mm).
 
@@ -166,9 +177,8 @@ def seat_map(d: Dimensions, seat_inner: float, seat_outer: float, keep: float | 
     if not (rb < ri2 < ro2 < a and rb < ri < ro < a):
         raise MorphError(f"no room to move the seat: {d.seat_inner:g}..{d.seat_outer:g} -> "
                          f"{seat_inner:g}..{seat_outer:g} mm between the bore {d.d2:g} and b1 {d.b1:g} mm")
-    keep = 0.0 if keep is None else keep
-    knots = np.array([rb, rb + keep, ri, ro, a])
-    moves = np.array([0.0, 0.0, ri2 - ri, ro2 - ro, 0.0])
+    knots = np.array([rb, ri, ro, a])
+    moves = np.array([0.0, ri2 - ri, ro2 - ro, 0.0])
     z0 = SEAT_DEPTH * d.h3
 
     def phi(x: np.ndarray) -> np.ndarray:
@@ -205,6 +215,43 @@ def part_map(d: Dimensions, v: Dimensions) -> Map:
         return x
 
     return phi
+
+
+def rings(d: Dimensions, v: Dimensions) -> dict[str, float]:
+    """The rings of elements :func:`part_map` squeezes or stretches from part ``d`` to part
+    ``v``, each as its new width over its old (1: untouched): the fillet's blend ring, the
+    journal's core and its end-face ring, and the seat's rings between the bore, its circles
+    and b1/2."""
+    out: dict[str, float] = {}
+    if v.rf != d.rf:
+        d0, d1 = d.rf, end_face_radius(d) - d.dj / 2
+        out["fillet blend ring"] = (d1 - v.rf) / (d1 - d0)
+    if v.dj != d.dj:
+        r0 = end_face_radius(d)
+        out["journal core"] = v.dj / d.dj
+        out["journal end-face ring"] = (r0 - v.dj / 2 - v.rf) / (r0 - d.dj / 2 - v.rf)
+    if (v.seat_inner, v.seat_outer) != (d.seat_inner, d.seat_outer):
+        old = np.diff([d.d2, d.seat_inner, d.seat_outer, d.b1]) / 2
+        new = np.diff([d.d2, v.seat_inner, v.seat_outer, d.b1]) / 2
+        out.update(zip(("bore-to-seat ring", "seat", "seat-to-side ring"), (new / old).tolist()))
+    return out
+
+
+def remesh_reason(d: Dimensions, v: Dimensions) -> str | None:
+    """Why part ``v`` should be meshed anew rather than reached by moving a mesh of part
+    ``d`` (the map cannot be made, or it squeezes or stretches a ring of elements beyond
+    what was measured to read the peaks as a fresh mesh does: RING_MIN, RING_MAX,
+    BORE_RING_MIN), or None."""
+    try:
+        part_map(d, v)
+    except MorphError as exc:
+        return str(exc)
+    for name, ratio in rings(d, v).items():
+        low = BORE_RING_MIN if name == "bore-to-seat ring" else RING_MIN
+        if not low - 1e-9 <= ratio <= RING_MAX + 1e-9:
+            return (f"the {name} would be {'squeezed' if ratio < 1 else 'stretched'} to {ratio:.3g} of its width "
+                    f"(moves are measured to hold the peaks within {low:g}..{RING_MAX:g})")
+    return None
 
 
 # The 10-node tet's edges as DOLFINx (basix) numbers its nodes: node 4 + k sits on edge k.
@@ -318,9 +365,14 @@ class Mover:
         cells = tet10_cells(mesh)
         return cls(mesh=mesh, nominal=nominal, x0=x0, cells=cells, mids=mid_edges(x0, cells), at=nominal)
 
-    def move_to(self, v: Dimensions) -> Quality:
+    def move_to(self, v: Dimensions, strict: bool = True) -> Quality:
         """Put the nodes onto part ``v``; the mesh's quality after it. Raises MorphError
-        (nodes left at the nominal part) if the map cannot be made or a tet turns inside out."""
+        (nodes left at the nominal part) if the map cannot be made, a tet turns inside out,
+        or (``strict``) part v should be meshed anew (:func:`remesh_reason`)."""
+        why = remesh_reason(self.nominal, v) if strict else None
+        if why is not None:
+            self.reset()
+            raise MorphError(why)
         y = moved_nodes(self.x0, self.mids, part_map(self.nominal, v))
         q = quality(self.x0, y, self.cells)
         comm = self.mesh.comm
