@@ -14,25 +14,29 @@ places its dimensions name, on one process.
 
 ``--accuracy``: per factor, each variant meshed anew (sensitivity.analyse_variant, today's
 way) and the nominal mesh moved onto it (the same solve, level.solve_level; every variant,
-also those pipeline.fe.morph.remesh_reason sends to a fresh mesh); per variant
-the global and critical peaks (MPa), variant / nominal of each way and their difference
-(%), beside the section's own noise (the nominal case on the run's pilot places instead,
-as the run states it; with ``--noise``). ``--timing``: the nine jobs of the section on one
-process, each way in a process of its own and the ways interleaved (rotated each repeat):
-meshed anew ("fresh"), moved and solved by solve_level ("moved"), moved and solved on the
-first job's forms, matrices and DOFs from the last solution (pipeline.fe.resolve, a new
-preconditioner set-up each: "resolved"), the same on the first job's preconditioner with
-the second end of a range started from the line through the nominal and the first end
-("reused"), and that stopped at a relative residual of LOOSE_RTOL instead of the case's
-("reused-loose"); a variant that morph.remesh_reason refuses is meshed anew in every way;
-per way the median wall and CPU time (s) of the nine jobs and per variant, and how far the
-readings are from the moved way's. ``--stages``: one fresh job
-and one resolved and one reused job taken apart (geometry, gmsh, import, loads, assembly,
-the preconditioner's set-up, the iterations, reactions, peaks, sections). ``--runs``: `make run`'s command
-(2 ranks, cache off) whole, with --no-sensitivity and with --no-fields, interleaved: wall
-and CPU time (every process), results.json's timings_s; then each drawing process
-(pipeline.output.picture, plots, closeup) alone on the last full run's folder: its wall
-and CPU time.
+also those pipeline.fe.morph.remesh_reason sends to a fresh mesh); per variant the global
+and critical peaks (MPa), variant / nominal of each way and their difference (%), beside
+the section's own noise (the nominal case on the run's pilot places instead, as the run
+states it; with ``--noise``) and, with ``--reference``, beside variant / nominal of meshes
+made anew at finer factors (their mean: the reference each way is held to).
+
+``--timing``: the nine jobs of the section on one process, each way in a process of its
+own and the ways interleaved (rotated each repeat): meshed anew ("fresh"), moved and
+solved by solve_level ("moved"), moved and solved on the first job's forms, matrices and
+DOFs from the last solution (pipeline.fe.resolve, a new preconditioner set-up each:
+"resolved"), the same on the first job's preconditioner with the second end of a range
+started from the line through the nominal and the first end ("reused"), and that stopped
+at a relative residual of LOOSE_RTOL instead of the case's ("reused-loose"); a variant
+that morph.remesh_reason refuses is meshed anew in every way. Per way the median wall and
+CPU time (s) of the nine jobs and per moved variant, and how far the readings are from
+the moved way's.
+
+``--stages``: one fresh, one resolved and one reused job taken apart (geometry, gmsh,
+import, loads, assembly, the preconditioner's set-up, the iterations, reactions, peaks,
+sections). ``--runs``: `make run`'s command (2 ranks, cache off) whole, with
+--no-sensitivity and with --no-fields, interleaved: wall and CPU time (every process),
+results.json's timings_s; then each drawing process (pipeline.output.picture, plots,
+closeup) alone on the last full run's folder: its wall and CPU time.
 
 Lengths in mm, stresses in MPa, times in s. Results go to stdout, progress to stderr.
 """
@@ -176,11 +180,19 @@ class Moved:
                 "section_MPa": sec["critical_section"]["nominal_MPa"]}, sol.iterations
 
 
-def accuracy(size: str, factors: list[float], noise: bool) -> list[dict]:
-    """Per factor and job: the fresh and the moved readings and their ratios to the nominal's."""
+def accuracy(size: str, factors: list[float], noise: bool, reference: list[float] = ()) -> list[dict]:
+    """Per factor and job: the fresh and the moved readings; with ``reference`` (mesh
+    factors / the run's) each job also meshed anew at those finer factors (rows with
+    "reference" set)."""
     from pipeline.analysis.sensitivity import MESH_RATIO, analyse_variant
     cases = variant_cases(size)
     rows = []
+    for fac in reference:
+        f = cases[0][1].mesh_factor * fac
+        for label, c in cases:
+            rows.append({"factor": fac, "job": label, "reference": _values(analyse_variant(c, f))})
+            _say(f"reference ×{fac:g} {label}: {rows[-1]['reference']['peak_MPa']:.3f} / "
+                 f"{rows[-1]['reference']['critical_MPa']:.3f} MPa")
     for fac in factors:
         f = cases[0][1].mesh_factor * fac
         moved = Moved(cases[0][1], f, strict=False)
@@ -213,10 +225,10 @@ def _noise(case, f: float) -> dict:
 def ratios(rows: list[dict]) -> list[dict]:
     """Per factor and variant: variant / nominal of the fresh and of the moved readings, and
     moved − fresh (% points), for the global and the critical peak."""
-    base = {r["factor"]: r for r in rows if r["job"] == "nominal"}
+    base = {r["factor"]: r for r in rows if r["job"] == "nominal" and "fresh" in r}
     out = []
     for r in rows:
-        if r["job"] in ("nominal", "noise"):
+        if r["job"] in ("nominal", "noise") or "fresh" not in r:
             continue
         b = base[r["factor"]]
         row = {"factor": r["factor"], "job": r["job"], "jacobian_ratio": r.get("jacobian_ratio")}
@@ -227,12 +239,34 @@ def ratios(rows: list[dict]) -> list[dict]:
     return out
 
 
+def reference_ratios(rows: list[dict]) -> dict:
+    """Per variant and peak: variant / nominal meshed anew at each reference factor, and
+    their mean (empty without reference rows)."""
+    ref = [r for r in rows if "reference" in r]
+    if not ref:
+        return {}
+    factors = sorted({r["factor"] for r in ref})
+    nominal = {r["factor"]: r["reference"] for r in ref if r["job"] == "nominal"}
+    out: dict = {"factors": factors}
+    for r in ref:
+        if r["job"] == "nominal":
+            continue
+        for k in ("peak_MPa", "critical_MPa"):
+            out.setdefault(r["job"], {}).setdefault(k, {"all": []})["all"].append(
+                r["reference"][k] / nominal[r["factor"]][k])
+    for j, ks in out.items():
+        if j != "factors":
+            for k in ks.values():
+                k["mean"] = statistics.mean(k["all"])
+    return out
+
+
 def accuracy_table(rows: list[dict]) -> str:
     """The ratios as text, with the noise when measured and each variant's mean and largest
     difference over the factors."""
     lines = [f"{'factor':>6s} {'variant':18s} {'global fresh':>12s} {'moved':>7s} {'diff %':>7s}   "
              f"{'critical fresh':>14s} {'moved':>7s} {'diff %':>7s} {'MPa':>6s}  det J ratio", "-" * 104]
-    crit_nom = {r["factor"]: r["fresh"]["critical_MPa"] for r in rows if r["job"] == "nominal"}
+    crit_nom = {r["factor"]: r["fresh"]["critical_MPa"] for r in rows if r["job"] == "nominal" and "fresh" in r}
     rs = ratios(rows)
     for r in rs:
         g, c = r["peak_MPa"], r["critical_MPa"]
@@ -245,15 +279,33 @@ def accuracy_table(rows: list[dict]) -> str:
                          f"{r['global_pct']:.2f} %, critical {r['critical_MPa']:.3f} MPa")
     jobs = sorted({r["job"] for r in rs}, key=[r["job"] for r in rs].index)
     if len({r["factor"] for r in rs}) > 1:
-        lines.append("over the factors: mean and largest |moved − fresh| (% points); SD of the fresh and the moved ratio")
+        lines.append("over the factors (variant / nominal, medians; SD of each way's ratio, % points):")
+        lines.append(f"  {'variant':18s} {'global fresh':>12s} {'moved':>7s} {'diff %':>7s} {'SD':>11s}   "
+                     f"{'critical fresh':>14s} {'moved':>7s} {'diff %':>7s} {'SD':>11s}")
         for j in jobs:
             sel = [r for r in rs if r["job"] == j]
             parts = []
             for k in ("peak_MPa", "critical_MPa"):
-                d = [r[k]["diff_pct"] for r in sel]
+                fr, mv = (statistics.median(r[k][w] for r in sel) for w in ("fresh", "moved"))
                 sd = [statistics.stdev([100 * r[k][w] for r in sel]) for w in ("fresh", "moved")]
-                parts.append(f"{k[:-4]:8s} {statistics.mean(d):+6.3f} {max(map(abs, d)):6.3f} SD {sd[0]:.3f} {sd[1]:.3f}")
+                parts.append(f"{fr:{12 if k == 'peak_MPa' else 14}.4f} {mv:7.4f} {100 * (mv - fr):+7.3f} "
+                             f"{sd[0]:5.2f} {sd[1]:5.2f}")
             lines.append(f"  {j:18s} " + "   ".join(parts))
+    refs = reference_ratios(rows)
+    if refs:
+        at = sorted({r["factor"] for r in rs})
+        lines.append(f"against the reference (variant / nominal meshed anew at ×{', ×'.join(f'{f:g}' for f in refs['factors'])}"
+                     "; its mean and range), each way's deviation (% points) at every factor:")
+        for j in jobs:
+            parts = []
+            for k in ("peak_MPa", "critical_MPa"):
+                ref = refs[j][k]
+                dev = {w: [100 * (r[k][w] - ref["mean"]) for f in at for r in rs if r["job"] == j and r["factor"] == f]
+                       for w in ("fresh", "moved")}
+                parts.append(f"{k[:-4]} {ref['mean']:.4f} ({min(ref['all']):.4f}-{max(ref['all']):.4f}) fresh "
+                             + " ".join(f"{x:+.2f}" for x in dev["fresh"]) + " moved "
+                             + " ".join(f"{x:+.2f}" for x in dev["moved"]))
+            lines.append(f"  {j:18s} " + " | ".join(parts))
     return "\n".join(lines)
 
 
@@ -318,38 +370,40 @@ def timing(size: str, repeats: int, ways: list[str], factor_ratio: float) -> dic
 
 
 def timing_table(runs: dict[str, list[dict]]) -> str:
-    """Per way: the median per job and of the nine jobs' sum (wall, CPU), against fresh; the
-    iterations; the largest difference of a reading from the fresh way's ratios."""
-    def med(w: str, key: str, job: str | None = None) -> float:
-        return statistics.median(sum(j[key] for j in r["jobs"] if job in (None, j["job"])) for r in runs[w])
+    """Per way: the medians of the nine jobs' wall and CPU time, of the mean per moved
+    variant (a variant meshed anew in a moving way counted apart), of the nominal job, the
+    median of the pairwise CPU ratios to the fresh way's nine jobs, the iterations; and how
+    far each way's readings are from the moved way's (the same mesh, solve_level)."""
+    def med(xs) -> float:
+        return statistics.median(list(xs))
 
-    ways = list(runs)
-    labels = [j["job"] for j in runs[ways[0]][0]["jobs"]]
-    lines = [f"{'way':16s} {'9 jobs wall':>11s} {'CPU':>6s} {'per variant (8) wall':>21s} {'CPU':>6s} "
-             f"{'nominal job':>11s}  vs fresh (CPU)  iterations", "-" * 110]
-    for w in ways:
-        tot_w, tot_c = med(w, "wall_s"), med(w, "cpu_s")
-        var_w = statistics.median(sum(j["wall_s"] for j in r["jobs"][1:]) / (len(labels) - 1) for r in runs[w])
-        var_c = statistics.median(sum(j["cpu_s"] for j in r["jobs"][1:]) / (len(labels) - 1) for r in runs[w])
+    def moved_jobs(r: dict, w: str) -> list[dict]:
+        return [j for j in r["jobs"][1:] if w == "fresh" or j["iterations"] is not None]
+
+    lines = [f"{'way':14s} {'9 jobs wall':>11s} {'CPU':>6s} {'per moved variant wall':>22s} {'CPU':>6s} "
+             f"{'nominal job CPU':>15s} {'9 jobs CPU / fresh':>18s}  iterations", "-" * 118]
+    for w, rs in runs.items():
         rel = ""
         if "fresh" in runs and w != "fresh":
-            pairs = [sum(j["cpu_s"] for j in a["jobs"]) / sum(j["cpu_s"] for j in b["jobs"])
-                     for a, b in zip(runs[w], runs["fresh"])]
-            rel = f"{statistics.median(pairs):.2f}"
-        its = [j["iterations"] for j in runs[w][0]["jobs"]]
-        lines.append(f"{w:16s} {tot_w:11.2f} {tot_c:6.2f} {var_w:21.3f} {var_c:6.3f} {med(w, 'cpu_s', 'nominal'):11.3f}  "
-                     f"{rel:>14s}  {'' if its[0] is None else ' '.join(map(str, its))}")
-    if "fresh" in runs:
-        base = runs["fresh"][0]["jobs"]
-        for w in ways:
+            pairs = zip(rs, runs["fresh"])
+            rel = f"{med(sum(j['cpu_s'] for j in a['jobs']) / sum(j['cpu_s'] for j in b['jobs']) for a, b in pairs):.2f}"
+        its = " ".join("-" if j["iterations"] is None else str(j["iterations"]) for j in rs[0]["jobs"])
+        lines.append(f"{w:14s} {med(sum(j['wall_s'] for j in r['jobs']) for r in rs):11.2f} "
+                     f"{med(sum(j['cpu_s'] for j in r['jobs']) for r in rs):6.2f} "
+                     f"{med(statistics.mean(j['wall_s'] for j in moved_jobs(r, w)) for r in rs):22.3f} "
+                     f"{med(statistics.mean(j['cpu_s'] for j in moved_jobs(r, w)) for r in rs):6.3f} "
+                     f"{med(r['jobs'][0]['cpu_s'] for r in rs):15.3f} {rel:>18s}  {its}")
+    fresh_in = [j["cpu_s"] for w, rs in runs.items() if w != "fresh" for r in rs for j in r["jobs"][1:]
+                if j["iterations"] is None]
+    if fresh_in:
+        lines.append(f"a variant meshed anew in a moving way (morph.remesh_reason): {med(fresh_in):.3f} s CPU")
+    if "moved" in runs:
+        ref = runs["moved"][0]["jobs"]
+        for w, rs in runs.items():
             if w in ("fresh", "moved"):
                 continue
-            ref = runs["moved"][0]["jobs"] if "moved" in runs else None
-            if ref is None:
-                continue
-            worst = max(abs(a[k] - b[k]) for a, b in zip(runs[w][0]["jobs"], ref) for k in ("peak_MPa", "critical_MPa"))
+            worst = max(abs(a[k] - b[k]) for a, b in zip(rs[0]["jobs"], ref) for k in ("peak_MPa", "critical_MPa"))
             lines.append(f"{w}: readings within {worst:.4f} MPa of the moved way's (solve_level on the moved mesh)")
-        del base
     return "\n".join(lines)
 
 
@@ -522,9 +576,12 @@ def main(argv: list[str] | None = None) -> int:
     what.add_argument("--stages", action="store_true", help="one fresh and one resolved job taken apart")
     what.add_argument("--runs", action="store_true", help="make run whole, without the section, without fields")
     what.add_argument("--job", choices=WAYS, help=argparse.SUPPRESS)  # --timing's child process
+    what.add_argument("--table", type=Path, help="print the table of an earlier --out JSON again")
     ap.add_argument("--size", default="05", help="hook number (default 05)")
     ap.add_argument("--factors", default="2.2", help="--accuracy: mesh factors / the run's (default 2.2, the section's)")
     ap.add_argument("--noise", action="store_true", help="--accuracy: also the section's noise at 2.2 (a pilot solve)")
+    ap.add_argument("--reference", help="--accuracy: also every job meshed anew at these finer factors / the run's, "
+                                        "e.g. 0.8,1,1.3 (minutes)")
     ap.add_argument("--ways", default=",".join(WAYS), help=f"--timing: which ways (default {','.join(WAYS)})")
     ap.add_argument("--factor-ratio", type=float, default=2.2, help="--timing: the mesh factor / the run's")
     ap.add_argument("--repeats", type=int, default=3, help="--timing, --runs: rounds after the warm-up (default 3)")
@@ -537,7 +594,8 @@ def main(argv: list[str] | None = None) -> int:
         print(json.dumps(job(args.job, args.size, args.factor_ratio)))
         return 0
     if args.accuracy:
-        rows = accuracy(args.size, [float(f) for f in args.factors.split(",")], args.noise)
+        rows = accuracy(args.size, [float(f) for f in args.factors.split(",")], args.noise,
+                        [float(f) for f in args.reference.split(",")] if args.reference else [])
         print(accuracy_table(rows))
     elif args.timing:
         ways = [w.strip() for w in args.ways.split(",") if w.strip()]
@@ -546,6 +604,11 @@ def main(argv: list[str] | None = None) -> int:
             return 2
         rows = timing(args.size, args.repeats, ways, args.factor_ratio)
         print(timing_table(rows))
+    elif args.table:
+        rows = json.loads(args.table.read_text())
+        print(timing_table(rows) if isinstance(rows, dict) and "fresh" in rows else
+              runs_table(rows) if isinstance(rows, dict) else accuracy_table(rows))
+        return 0
     elif args.stages:
         rows = stages(args.size)
         print(stages_table(rows))
