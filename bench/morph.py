@@ -2,10 +2,12 @@
 meshing each variant anew: the peaks' variant / nominal ratios, the time per variant, where
 one variant's time goes, and where a whole `make run`'s goes.
 
-    CROSSHEAD_NO_CACHE=1 .venv/bin/python -m bench.morph --accuracy --factors 2.2 --out /tmp/morph-acc.json
-    CROSSHEAD_NO_CACHE=1 .venv/bin/python -m bench.morph --timing --repeats 5
-    CROSSHEAD_NO_CACHE=1 .venv/bin/python -m bench.morph --stages
+    CROSSHEAD_NO_CACHE=1 .venv/bin/python -m bench.morph --accuracy --factors 1.9,2.0,2.1,2.2,2.3,2.4,2.5 \
+        --noise --reference 0.8,1,1.3 --out /tmp/morph-accuracy.json
+    CROSSHEAD_NO_CACHE=1 .venv/bin/python -m bench.morph --timing --repeats 5 --out /tmp/morph-timing.json
+    CROSSHEAD_NO_CACHE=1 .venv/bin/python -m bench.morph --stages --repeats 3
     CROSSHEAD_NO_CACHE=1 .venv/bin/python -m bench.morph --runs --repeats 3 --out /tmp/morph-runs
+    .venv/bin/python -m bench.morph --table /tmp/morph-accuracy.json
 
 The variants are the sensitivity section's (pipeline.analysis.sensitivity): the nominal
 case and both ends of each assumed dimension's default range, each on one mesh at the
@@ -407,9 +409,22 @@ def timing_table(runs: dict[str, list[dict]]) -> str:
     return "\n".join(lines)
 
 
-def stages(size: str) -> dict:
-    """One fresh job (dj at its low end) and one resolved job taken apart, each after a
-    warm-up job: per stage [wall, CPU] time (s)."""
+def stages(size: str, repeats: int = 1) -> dict:
+    """One fresh job (dj at its low end), one resolved and one reused job taken apart, each
+    after a warm-up job, ``repeats`` times: per stage the median [wall, CPU] time (s)."""
+    runs = [_stages_once(size) for _ in range(repeats)]
+    out: dict[str, dict] = {}
+    for way in runs[0]:
+        out[way] = {}
+        for k, v in runs[0][way].items():
+            vals = [r[way][k] for r in runs]
+            out[way][k] = (statistics.median(vals) if k == "iterations" else
+                           [round(statistics.median(x[i] for x in vals), 4) for i in (0, 1)])
+    return out
+
+
+def _stages_once(size: str) -> dict:
+    """:func:`stages` once."""
     import pipeline.analysis.analyse as analyse_mod
     import pipeline.analysis.level as level
     import pipeline.fe.meshing as meshing
@@ -496,7 +511,7 @@ def stages_table(rows: dict) -> str:
         lines += [f"{way} job, dj at its low end:", f"  {'stage':42s} {'wall':>7s} {'CPU':>7s}"]
         for k, v in parts.items():
             if k == "iterations":
-                lines.append(f"  {'CG iterations (count)':42s} {v:7d}")
+                lines.append(f"  {'CG iterations (count)':42s} {v:7g}")
             else:
                 lines.append(f"  {k:42s} {v[0]:7.3f} {v[1]:7.3f}")
     return "\n".join(lines)
@@ -584,7 +599,8 @@ def main(argv: list[str] | None = None) -> int:
                                         "e.g. 0.8,1,1.3 (minutes)")
     ap.add_argument("--ways", default=",".join(WAYS), help=f"--timing: which ways (default {','.join(WAYS)})")
     ap.add_argument("--factor-ratio", type=float, default=2.2, help="--timing: the mesh factor / the run's")
-    ap.add_argument("--repeats", type=int, default=3, help="--timing, --runs: rounds after the warm-up (default 3)")
+    ap.add_argument("--repeats", type=int, default=3,
+                    help="--timing, --runs, --stages: rounds after the warm-up (default 3)")
     ap.add_argument("--out", type=Path, help="write the rows as JSON here (--runs: a folder for the runs)")
     args = ap.parse_args(argv)
     if args.repeats < 1:
@@ -610,7 +626,7 @@ def main(argv: list[str] | None = None) -> int:
               runs_table(rows) if isinstance(rows, dict) else accuracy_table(rows))
         return 0
     elif args.stages:
-        rows = stages(args.size)
+        rows = stages(args.size, args.repeats)
         print(stages_table(rows))
     else:
         if args.out is None:
