@@ -50,7 +50,9 @@ class ResolveOptions:
 class Resolver:
     """The P2 elasticity problem on one mesh, set up once and solved for each geometry of
     that mesh (its nodes moved in place, pipeline.fe.morph.Mover) and each set of
-    tractions, by CG with pipeline.fe.pmultigrid's two-level p-multigrid (mm, N, MPa).
+    tractions, by CG with pipeline.fe.pmultigrid's two-level p-multigrid (mm, N, MPa). A
+    solve on the nodes of the last one (another load: a load-model variant) assembles only
+    its load vector.
 
     The constraints are located once (by facet tag, or at points that the moves leave in
     place) and hold for every solve. ``with Resolver(...) as r:``, or :meth:`close`, frees
@@ -93,6 +95,7 @@ class Resolver:
         free.destroy()
         self.ksp: PETSc.KSP | None = None
         self.last: np.ndarray | None = None
+        self.assembled_at: np.ndarray | None = None  # the node positions the matrices were assembled at (mm)
         self.set_ups = 0  # preconditioner set-ups so far
         self.last_timings: dict[str, float] = {}  # the last solve's steps, wall time (s)
         self.last_cpu_timings: dict[str, float] = {}  # and CPU time (s)
@@ -179,12 +182,16 @@ class Resolver:
         with warm_start). ``last_timings`` and ``last_cpu_timings`` then hold each step's wall
         and CPU time (s)."""
         clock = _Clock()
-        self._matrix(self.A_baij, self.a, self.bcs, "sbaij", self.A)
+        x = self.V.mesh.geometry.x
+        moved = self.assembled_at is None or not np.array_equal(x, self.assembled_at)
+        if moved:  # same nodes: the matrices and the preconditioner stand (another load)
+            self._matrix(self.A_baij, self.a, self.bcs, "sbaij", self.A)
+            self.assembled_at = x.copy()
         clock.lap("fine matrix")
         L_form = _load_form(self.V, self.v, tractions, self.ds)
         b = _load_vector(L_form, self.a, self.bcs, self.diagonal)
         clock.lap("load vector")
-        reused = self.ksp is not None and self.options.reuse_preconditioner
+        reused = self.ksp is not None and (self.options.reuse_preconditioner or not moved)
         if not reused:
             self._set_up()
         clock.lap("coarse matrix, preconditioner set-up")

@@ -251,6 +251,8 @@ def test_resolver_solves_a_moved_mesh_as_solve_does(nominal_mesh, monkeypatch):
         with resolve_mod.Resolver(m.mesh, m.facet_tags, 2, mat, lc0.constraints, 1e-10,
                                   resolve_mod.ResolveOptions(reuse_preconditioner=True)) as r:
             u0 = r.solve(lc0.tractions).u.x.array.copy()
+            again = r.solve(lc0.tractions)  # the same nodes: nothing set up again, from the last solution
+            assert r.set_ups == 1 and again.iterations == 0
             v_low, v_high = replace(D, rf=1.2), replace(D, rf=1.8)
             mover.move_to(v_low)
             u1 = r.solve(_loads(m, v_low).tractions).u.x.array.copy()
