@@ -38,6 +38,7 @@ WHERE = {
     "Level": "pipeline.analysis.level", "LevelTask": "pipeline.analysis.level", "Problem": "pipeline.analysis.level",
     "peaks_of": "pipeline.analysis.level", "set_up": "pipeline.analysis.level", "solve_level": "pipeline.analysis.level",
     "MeshPlan": "pipeline.analysis.meshes", "solve_meshes": "pipeline.analysis.meshes",
+    "analyse_sensitivity": "pipeline.analysis.sensitivity", "analyse_variant": "pipeline.analysis.sensitivity",
     "Pilot": "pipeline.analysis.pilot", "known_places": "pipeline.analysis.pilot", "pilot": "pipeline.analysis.pilot",
     "refinement_places": "pipeline.analysis.pilot",
     "dirichlet_bc": "pipeline.fe.assembly", "Material": "pipeline.fe.elasticity", "strain": "pipeline.fe.elasticity",

@@ -16,7 +16,8 @@ from pipeline.analysis.level import Level
 from pipeline.analysis.meshes import MeshPlan
 from pipeline.analysis.pilot import Pilot
 from pipeline.analysis.result import PeakAnswer, RunResult
-from pipeline.analysis.sensitivity import LOAD_MESH_RATIO, analyse_sensitivity, load_variant_cases
+from pipeline.analysis.ranges import load_variant_cases
+from pipeline.analysis.sensitivity import LOAD_MESH_RATIO, analyse_sensitivity
 from pipeline.analysis.tolerance import solve_to_tolerance
 from pipeline.analysis.verdicts import (SAFETY_KEYS, checked_stresses, load_rows, safety_factor, sensitivity_answer,
                                         verdicts)
