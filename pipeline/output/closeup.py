@@ -11,6 +11,7 @@ each peak.
 """
 from __future__ import annotations
 
+import json
 import sys
 from dataclasses import dataclass
 from pathlib import Path
@@ -131,6 +132,5 @@ def render_closeup(folder: Path, res: dict) -> Path:
     return out
 
 
-if __name__ == "__main__":
-    from pipeline.output.drawing import read_input
-    render_closeup(Path(sys.argv[1]), read_input(sys.argv[2:], Path(sys.argv[1])))
+if __name__ == "__main__":  # a finished run's folder, drawn again from its results.json
+    render_closeup(Path(sys.argv[1]), json.loads((Path(sys.argv[1]) / "results.json").read_text(encoding="utf-8")))

@@ -11,6 +11,7 @@ solves on the same cores (docs/decisions/0007-drawing-and-field-files.md).
 """
 from __future__ import annotations
 
+import json
 import sys
 from dataclasses import dataclass
 from pathlib import Path
@@ -513,6 +514,5 @@ def render_folder(folder: Path, res: dict, out_name: str = "von_mises.png") -> P
     return out
 
 
-if __name__ == "__main__":
-    from pipeline.output.drawing import read_input
-    render_folder(Path(sys.argv[1]), read_input(sys.argv[2:], Path(sys.argv[1])))
+if __name__ == "__main__":  # a finished run's folder, drawn again from its results.json
+    render_folder(Path(sys.argv[1]), json.loads((Path(sys.argv[1]) / "results.json").read_text(encoding="utf-8")))

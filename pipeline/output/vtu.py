@@ -19,7 +19,7 @@ VTK_CELL_TYPES = {"tetra": (10, 4), "tetra10": (24, 10)}  # name -> (VTK type id
 _VTK_DTYPES = {np.dtype(np.float64): "Float64", np.dtype(np.float32): "Float32", np.dtype(np.int64): "Int64",
                np.dtype(np.int32): "Int32", np.dtype(np.uint8): "UInt8"}
 CHUNK_BYTES = 1 << 20  # uncompressed bytes per zlib chunk
-ZLIB_LEVEL = 6
+ZLIB_LEVEL = 1  # the fastest: Float32 data compress little at any level (docs/decisions/0007-drawing-and-field-files.md)
 
 
 def _index_dtype(largest: int) -> np.dtype:
