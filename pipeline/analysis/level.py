@@ -143,6 +143,17 @@ def formula_load_cases(case: Case, prob: Problem) -> dict[str, tuple[BearingBand
 # A further right-hand side on a problem's operator: its journal load model (shape and band,
 # mm: the cache key's) and its load case on the problem's mesh.
 MoreLoad = tuple[dict, LoadCase]
+# The further right-hand sides' relative tolerance (a hand formula's load position, a load
+# model's variant): what they give are section integrals and the sensitivity section's
+# ratios, which move by a few 1e-4 MPa from 1e-8's, in two thirds of the iterations
+# (docs/decisions/0036-sensitivity-variants-by-morphing.md).
+MORE_RTOL = 1e-5
+
+
+def more_rtol(case: Case) -> float:
+    """The tolerance of the case's further right-hand sides: MORE_RTOL, or the case's own
+    when that is looser."""
+    return max(case.rtol, MORE_RTOL)
 
 
 def journal_load(shape: str, band: BearingBand) -> dict:
@@ -183,7 +194,8 @@ def new_solution(case: Case, prob: Problem, more: Sequence[LoadCase] = (), V=Non
     m = prob.mesh
     try:
         loads = Loads(prob.loads.tractions, prob.loads.constraints, [lc_k.tractions for lc_k in more])
-        return solve(m.mesh, m.facet_tags, prob.material, loads, Method(case.order, case.solver, case.rtol), V)
+        method = Method(case.order, case.solver, case.rtol, more_rtol=more_rtol(case))
+        return solve(m.mesh, m.facet_tags, prob.material, loads, method, V)
     except NumericalError as exc:  # the one line says what to try, from what this case makes hard
         raise NumericalError(f"{exc}; {failure_advice(case.solver, case.nu, small_features(case.dims))}") from None
 

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import contextlib
 import time
+from dataclasses import replace
 from typing import Callable, Sequence
 
 from dolfinx import fem
@@ -25,8 +26,8 @@ from mpi4py import MPI
 
 from geometry.table import Dimensions
 from pipeline.analysis.context import RunContext
-from pipeline.analysis.level import (Level, LevelTask, MoreLoad, Problem, more_loads, new_solution, read_level,
-                                     say_mesh, set_up)
+from pipeline.analysis.level import (Level, LevelTask, MoreLoad, Problem, more_loads, more_rtol, new_solution,
+                                     read_level, say_mesh, set_up)
 from pipeline.analysis.pilot import Pilot, pilot, pilot_factor, refinement_places
 from pipeline.cache import levels as levelcache
 from pipeline.cache import meshes as meshcache
@@ -112,13 +113,17 @@ def solve_or_scale(case: Case, prob: Problem, reuse: bool = True, more: Sequence
         return new_solution(case, prob, [lc_k for _, lc_k in more], V)
     target = solvecache.Target(m, V, ids)
 
-    def earlier(name: str, lc_k) -> Solution | None:
-        entry = solvecache.earlier(name, m.mesh.comm)
-        return None if entry is None else solvecache.scaled(entry, target, lc_k, case, prob.material, name)
+    # The further right-hand sides are solved (and kept, and checked on reuse) at their own
+    # tolerance (level.more_rtol).
+    cases = [case] + [replace(case, rtol=more_rtol(case))] * len(more)
 
-    names = [solvecache.key(case, m, V)] + [solvecache.key(case, m, V, model) for model, _ in more]
+    def earlier(name: str, lc_k, case_k: Case) -> Solution | None:
+        entry = solvecache.earlier(name, m.mesh.comm)
+        return None if entry is None else solvecache.scaled(entry, target, lc_k, case_k, prob.material, name)
+
+    names = [solvecache.key(case, m, V)] + [solvecache.key(cases[1], m, V, model) for model, _ in more]
     loads = [lc] + [lc_k for _, lc_k in more]
-    found = [earlier(n, lc_k) for n, lc_k in zip(names, loads)]
+    found = [earlier(n, lc_k, c) for n, lc_k, c in zip(names, loads, cases)]
     t_key = time.perf_counter() - t0
     missing = [k for k, s in enumerate(found) if s is None]
     timings = {"assemble": 0.0, "solve": 0.0}
@@ -128,7 +133,7 @@ def solve_or_scale(case: Case, prob: Problem, reuse: bool = True, more: Sequence
         t0 = time.perf_counter()
         for k, s in zip(missing, [new, *new.more]):
             s.more = []
-            solvecache.store(names[k], s, ids, case)
+            solvecache.store(names[k], s, ids, cases[k])
             found[k] = s
         timings["solve"] += time.perf_counter() - t0
     sol = found[0]
