@@ -31,7 +31,7 @@ FILE_NAME = re.compile(r"\.(?:csv|png|jsonl?|md|py|msh|vtu|toml|html|txt|sh|inp)
 # A module's short name and one of its names: errorbar.verdict_against, meshing.Mesher.
 SHORT_NAME = re.compile(r"^([a-z_][a-z0-9_]*)\.([A-Za-z_]\w*)")
 # Dotted names of other libraries, objects and results.json keys, not of this repository.
-FOREIGN = frozenset({"dolfinx", "fem", "gmsh", "gmshio", "ksp", "mesh", "w", "fe", "np", "ufl",
+FOREIGN = frozenset({"dolfinx", "fem", "gmsh", "gmshio", "ksp", "mesh", "w", "fe", "np", "ufl", "importlib",
                      "pipeline", "geometry", "bench"})
 MODULES_BY_STEM: dict[str, list[Path]] = {}
 for _source in sorted(p for top in ("pipeline", "geometry", "bench") for p in (ROOT / top).rglob("*.py")):
