@@ -23,7 +23,8 @@ runs every one) so that a drift of the machine's speed touches all alike; the fi
 medians over ``--repeats``. A screened study is compared with its full study of the same
 repeat: its decisions (each row's verdict per peak, the crossings of the allowable) must
 be identical, and each variant's cheap band must hold the full study's value with its
-band, at every step it took. The targets: 19 sizes <= 60 s, 24 variants <= 90 s, 2 ranks
+band, at every step it took; and from the full study's three readings of each variant, the
+smallest band each step short of the full error bar would need (needed_margins). The targets: 19 sizes <= 60 s, 24 variants <= 90 s, 2 ranks
 >= 1.8x the throughput of 1, a screened study >= 3x faster than its full one (medians). Writes sweeps.json and
 prints a table.
 """
@@ -137,8 +138,49 @@ def outcome(res: dict, out: Path) -> dict:
                              "critical": [r.get("critical_peak_MPa"), r.get("critical_band_MPa")],
                              "decided_by": r.get("decided_by") or "", "time_s": r.get("time_s"),
                              "steps": [] if s is None else [_step(t) for t in s.get("steps") or
-                                                            ([s] if s.get("peaks") else [])]}
+                                                            ([s] if s.get("peaks") else [])],
+                             "meshes": readings(out / "variants" / r["variant"])}
     return {"rows": rows, "crossings": res["crossings"], "allowable_MPa": res["allowable_MPa"]}
+
+
+LEVEL_KEYS = {"peak": ("peak_MPa", "peak_unaveraged_MPa", "peak_averaged_MPa"),
+              "critical": ("critical_peak_MPa", "critical_unaveraged_MPa", "critical_averaged_MPa")}
+
+
+def readings(folder: Path) -> dict | None:
+    """A variant's reading per peak on each of its meshes, finest first: [value, half the
+    gap between its unaveraged and averaged readings] (MPa); None unless it has the three
+    meshes of the full error bar."""
+    f = folder / "results.json"
+    if not f.is_file():
+        return None
+    levels = json.loads(f.read_text(encoding="utf-8"))["fe"].get("levels") or []
+    if len(levels) != 3 or any(lv.get(k) is None for lv in levels for keys in LEVEL_KEYS.values() for k in keys):
+        return None
+    return {peak: [[lv[v], 0.5 * abs(lv[u] - lv[a])] for lv in levels] for peak, (v, u, a) in LEVEL_KEYS.items()}
+
+
+def needed_margins(full: dict) -> dict:
+    """Per screening step short of the full error bar and per peak, the smallest fraction
+    of the value its band needs so that, on every variant of the full study ``full``, it
+    holds the full value with its error bar: one mesh (the x1.69 reading, band the larger
+    of the fraction and its half bracket) and two meshes (the x1.3 reading, band the larger
+    of the fraction and its half bracket plus TWO_MESH_FACTOR x the two readings'
+    difference; pipeline/study/screening.py)."""
+    from pipeline.api import TWO_MESH_FACTOR
+    need = {"one mesh": {"peak": 0.0, "critical": 0.0}, "two meshes": {"peak": 0.0, "critical": 0.0}}
+    for r in full["rows"].values():
+        if r["status"] != "done" or not r.get("meshes"):
+            continue
+        for peak in ("peak", "critical"):
+            (v, b), ((r1, g1), (r2, g2)) = r[peak], r["meshes"][peak][1:]
+            if v is None:
+                continue
+            for step, (x, own) in (("one mesh", (r2, g2)), ("two meshes", (r1, g1 + TWO_MESH_FACTOR * abs(r1 - r2)))):
+                want = abs(x - v) + (b or 0.0)
+                if own < want:
+                    need[step][peak] = max(need[step][peak], want / abs(x))
+    return need
 
 
 def _step(s: dict) -> dict:
@@ -229,7 +271,7 @@ def summarise(runs: dict[str, list[dict]]) -> dict:
                 "median_ratio": ratio, "target": TARGET_SCREEN_SPEEDUP, "met": ratio >= TARGET_SCREEN_SPEEDUP,
                 "paired_ratios": [a["wall_s"] / b["wall_s"] for a, b in zip(runs[full], runs[screen])],
                 "decided_cheaply": len(cheap), "rows": len(runs[screen][0]["rows"]), "decided_at": by_step,
-                "near_allowable": near(runs[full][0]),
+                "near_allowable": near(runs[full][0]), "needed_margins": needed_margins(runs[full][0]),
                 "identical_decisions": not diffs, "differences": diffs,
                 "cheap_bands": len(cover), "cover_values": sum(c["covers_value"] for c in cover),
                 "cover_bands": sum(c["covers_band"] for c in cover), "coverage": cover}
@@ -258,6 +300,8 @@ def table(summary: dict) -> str:
                          f"{'yes' if c['identical_decisions'] else 'NO'}; step bands holding the full value "
                          f"{c['cover_values']}/{c['cheap_bands']}, with its band {c['cover_bands']}/{c['cheap_bands']}")
             lines += [f"  differs: {d}" for d in c["differences"][:10]]
+            lines.append("  margins the full study needs: " + "; ".join(
+                f"{step} {100 * m['peak']:.2f} % / {100 * m['critical']:.2f} %" for step, m in c["needed_margins"].items()))
     sp = summary.get("speedup_2_over_1")
     if sp:
         lines.append(f"2 ranks / 1 rank throughput: {sp['median']:.2f}x (median of {sp['pairs']} pairs; "

@@ -48,6 +48,8 @@ WHERE = {
     "estimate_levels": "pipeline.post.errorbar", "critical_region": "pipeline.post.features",
     "MIDPOINT": "pipeline.post.peaks", "averaged_von_mises": "pipeline.post.peaks", "nodal_peak": "pipeline.post.peaks",
     "peak": "pipeline.post.peaks", "von_mises": "pipeline.post.peaks", "von_mises_of": "pipeline.post.peaks",
+    # Design studies: the screening steps and their bands.
+    "STEPS": "pipeline.study.screening", "TWO_MESH_FACTOR": "pipeline.study.screening",
     # Files and the process.
     "write_fields": "pipeline.output.fields", "json_safe": "pipeline.output.jsonio",
     "code_key": "pipeline.cache.codekey", "source_files": "pipeline.cache.codekey",

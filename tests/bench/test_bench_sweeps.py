@@ -110,3 +110,18 @@ def test_a_screened_study_is_compared_with_its_full_one_decision_by_decision():
                    "grid-screen": [dict(cheap, wall_s=30.0, variants=2, ok=2)]})["grid-screen_against_full"]
     assert s["median_ratio"] == 4.0 and s["met"] is True and s["identical_decisions"] is True
     assert (s["cover_values"], s["cover_bands"], s["cheap_bands"]) == (4, 3, 4)
+
+
+def test_the_margins_a_full_study_needs_follow_from_its_coarser_readings():
+    """One variant, global peak 100 ± 1 MPa on the full error bar; x1.3 reads 102 (half
+    bracket 0.5), x1.69 reads 104 (half bracket 0.5). One mesh must hold 100 ± 1 from 104:
+    |104 - 100| + 1 = 5, 5/104 of the value. Two meshes: |102 - 100| + 1 = 3 against the
+    rule's own 0.5 + 3 × 2 = 6.5: no fraction needed. The critical peak reads 60 ± 0.1 on
+    every mesh with a 0.2 half bracket: never needs one."""
+    from bench.sweeps import needed_margins
+    row = dict(_r("pass", [100.0, 1.0]), critical=[60.0, 0.1],
+               meshes={"peak": [[100.0, 0.5], [102.0, 0.5], [104.0, 0.5]],
+                       "critical": [[60.0, 0.2], [60.0, 0.2], [60.0, 0.2]]})
+    need = needed_margins(_outcome({"a": row}, []))
+    assert need["one mesh"]["peak"] == pytest.approx(5.0 / 104.0)
+    assert need["two meshes"] == {"peak": 0.0, "critical": 0.0} and need["one mesh"]["critical"] == 0.0
