@@ -218,6 +218,9 @@ MUTANTS = [
       FIELDS, "the written tensor × 1.02"),
     m("Fi4", "pipeline/output/fields.py", "VTK_TET10 = [0, 1, 2, 3, 9, 6, 8, 7, 5, 4]",
       "VTK_TET10 = [0, 1, 2, 3, 9, 8, 6, 7, 5, 4]", FIELDS, "two mid-edge nodes of the 10-node tet swapped"),
+    m("Fi5", "pipeline/output/fields.py", "REPORTED: readings.as_function(readings.reported, \"reported\")}",
+      "REPORTED: readings.as_function(readings.unaveraged, \"reported\")}", FIELDS,
+      "the unaveraged reading written as the reported one"),
     # pipeline/cache: the checks of what is reused
     m("C1", "pipeline/cache/runs.py", "if hashlib.sha256(body).hexdigest() != digest:",
       "if hashlib.sha256(body[:n_header]).hexdigest() != digest:", CACHE, "the checksum read over the header only"),

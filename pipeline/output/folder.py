@@ -97,6 +97,7 @@ class EarlyOutput:
     files: dict[str, str] = field(default_factory=dict)
     drawing: drawing.Drawing | None = None
     t_output: float = 0.0
+    whole_part: bool = False   # the field file holds a quarter model mirrored to the whole part
 
     def requested(self, fine: Level, places: Pilot) -> None:
         """The run's ``on_requested``: write the field file of the requested mesh's level and
@@ -108,8 +109,9 @@ class EarlyOutput:
             self.drawing = None
         t0 = time.perf_counter()
         case = replace(self.case, mesh_factor=fine.factor)
-        whole = case.model == "quarter" and not self.options.outputs.quarter_fields
-        self.files.update(write_fields(self.stage, *fine.fields, Material(E=case.E_MPa, nu=case.nu), whole_part=whole))
+        self.whole_part = case.model == "quarter" and not self.options.outputs.quarter_fields
+        self.files.update(write_fields(self.stage, fine.fields[0], fine.readings, Material(E=case.E_MPa, nu=case.nu),
+                                       whole_part=self.whole_part))
         self.t_output += time.perf_counter() - t0
         if self.comm.rank == 0:
             self.drawing = drawing.start(self.stage, scene(case, fine))
