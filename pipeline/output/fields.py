@@ -18,12 +18,15 @@ reported array's value at a reported place is the reported value to 1e-7).
 """
 from __future__ import annotations
 
+import base64
+import math
+import sys
 from pathlib import Path
 
 import numpy as np
 
 from pipeline.fe.elasticity import Material
-from pipeline.output.mirror import mirror_quarter
+from pipeline.output.mirror import COPIES, mirror_quarter
 from pipeline.output.vtu import write_vtu
 from pipeline.post.peaks import NodeReadings, averaged_stress, von_mises_of
 
@@ -114,3 +117,70 @@ def _gather_p2_grid(u, stress, scalars: dict):
             data[name][idx] = v
     return points, np.vstack([c[-1] for c in parts]), {"displacement_mm": d, "stress_MPa": t, **data}
 
+
+PEAKS_FILE = "peaks.vtp"
+PEAK_NAMES = (("peak", "global peak"), ("critical", "critical peak"))   # results.json's fe key, name
+
+
+def write_peaks(folder: Path, fe: dict, whole_part: bool = False) -> dict[str, str]:
+    """Write peaks.vtp into ``folder``: the reported places of results.json's ``fe`` block
+    (the global and the critical peak; with ``whole_part``, a quarter model drawn whole,
+    their mirror images in x = 0 and y = 0 too) as VTK PolyData points (mm) with point data
+    ``name``, ``label`` (name, value and band in words, for ParaView's point labels),
+    ``feature``, ``value_MPa``, ``band_MPa`` (NaN: no band) and ``mirror_image`` (0 the
+    place itself, 1 an image). VTK XML, a few lines: the numbers inline in base64 (VTK's
+    ASCII reader cannot read NaN), the rest as text. Returns the file name by key."""
+    rows = []
+    for key, name in PEAK_NAMES:
+        p = fe[key]
+        est = p.get("error_estimate") or {}
+        band = est.get("band")
+        band = float("nan") if band is None else float(band)
+        label = f"{name} {p['value_MPa']:.2f}" + ("" if band != band else f" ± {band:.2f}") + " MPa"
+        for k, at in enumerate(_images(p["location_mm"], whole_part)):
+            rows.append((at, name, label, p["feature"], float(p["value_MPa"]), band, int(k > 0)))
+    points = "\n".join(" ".join(repr(float(c)) for c in r[0]) for r in rows)
+    n = len(rows)
+
+    def text(i: int) -> str:
+        return " ".join(str(b) for r in rows for b in (*r[i].encode("utf-8"), 0))
+
+    def numbers(i: int) -> str:   # VTK's inline binary: base64 of the byte count (UInt64) and the bytes
+        raw = np.array([r[i] for r in rows], dtype=np.float64).tobytes()
+        return base64.b64encode(np.array([len(raw)], dtype=np.uint64).tobytes() + raw).decode("ascii")
+    doc = "\n".join([
+        '<?xml version="1.0"?>',
+        f'<VTKFile type="PolyData" version="1.0" byte_order="{sys.byteorder.capitalize()}Endian" '
+        'header_type="UInt64">',
+        "<PolyData>",
+        f'<Piece NumberOfPoints="{n}" NumberOfVerts="{n}" NumberOfLines="0" NumberOfStrips="0" NumberOfPolys="0">',
+        '<PointData Scalars="value_MPa">',
+        f'<Array type="String" Name="name" format="ascii">{text(1)}</Array>',
+        f'<Array type="String" Name="label" format="ascii">{text(2)}</Array>',
+        f'<Array type="String" Name="feature" format="ascii">{text(3)}</Array>',
+        f'<DataArray type="Float64" Name="value_MPa" format="binary">{numbers(4)}</DataArray>',
+        f'<DataArray type="Float64" Name="band_MPa" format="binary">{numbers(5)}</DataArray>',
+        f'<DataArray type="UInt8" Name="mirror_image" format="ascii">{" ".join(str(r[6]) for r in rows)}</DataArray>',
+        "</PointData>",
+        f'<Points><DataArray type="Float64" NumberOfComponents="3" format="ascii">{points}</DataArray></Points>',
+        "<Verts>",
+        f'<DataArray type="Int64" Name="connectivity" format="ascii">{" ".join(map(str, range(n)))}</DataArray>',
+        f'<DataArray type="Int64" Name="offsets" format="ascii">{" ".join(map(str, range(1, n + 1)))}</DataArray>',
+        "</Verts>",
+        "</Piece>", "</PolyData>", "</VTKFile>", ""])
+    (Path(folder) / PEAKS_FILE).write_text(doc, encoding="utf-8")
+    return {"peaks": PEAKS_FILE}
+
+
+def _images(location_mm, whole_part: bool) -> list[tuple[float, float, float]]:
+    """The place (mm) and, with ``whole_part``, its distinct mirror images in x = 0 and y = 0
+    (a place on a symmetry plane is its own image there; pipeline.output.mirror's COPIES order)."""
+    x, y, z = (float(c) for c in location_mm)
+    if not whole_part:
+        return [(x, y, z)]
+    out: list[tuple[float, float, float]] = []
+    for sx, sy in COPIES:
+        q = (sx * x + 0.0, sy * y + 0.0, z)
+        if all(math.dist(q, o) > 1e-9 * max(1.0, abs(x), abs(y), abs(z)) for o in out):
+            out.append(q)
+    return out

@@ -1,7 +1,8 @@
-"""The field file a run writes (fields.vtu), read with VTK alone as ParaView would: one
-connected whole part whose outer surface is the CAD's; a reported array whose value at
-each reported place is the reported value and whose largest value is the global peak
-(docs/design.md §7). ParaView's own reader is VTK's; pvpython is not needed."""
+"""The ParaView files a run writes (fields.vtu, peaks.vtp), read with VTK alone as ParaView
+would: one connected whole part whose outer surface is the CAD's; a reported array whose
+value at each reported place is the reported value and whose largest value is the global
+peak; the reported places with their values and bands (docs/design.md §7). ParaView's own
+reader is VTK's; pvpython is not needed."""
 from __future__ import annotations
 
 import json
@@ -176,6 +177,59 @@ def test_no_von_mises_array_has_more_than_one_component(whole):
     assert grid.GetCellData().GetNumberOfArrays() == 0
 
 
+def _polydata(path: Path):
+    from vtkmodules.vtkIOXML import vtkXMLPolyDataReader
+    reader = vtkXMLPolyDataReader()
+    reader.SetFileName(str(path))
+    reader.Update()
+    assert reader.GetErrorCode() == 0
+    return reader.GetOutput()
+
+
+def _strings(pd, name: str) -> list[str]:
+    a = pd.GetAbstractArray(name)
+    return [a.GetValue(i) for i in range(a.GetNumberOfValues())]
+
+
+def _peak_places(folder: Path) -> tuple[np.ndarray, dict]:
+    """peaks.vtp's points (mm) and point data by name (numbers as arrays, names as strings)."""
+    from vtkmodules.util.numpy_support import vtk_to_numpy
+    poly = _polydata(folder / "peaks.vtp")
+    pd = poly.GetPointData()
+    data = {n: _strings(pd, n) for n in ("name", "label", "feature")}
+    data.update({n: vtk_to_numpy(pd.GetArray(n)) for n in ("value_MPa", "band_MPa", "mirror_image")})
+    assert poly.GetNumberOfVerts() == poly.GetNumberOfPoints()   # drawn as points
+    return vtk_to_numpy(poly.GetPoints().GetData()).astype(float), data
+
+
+@pytest.mark.slow
+def test_peaks_vtp_holds_the_reported_places_with_names_values_and_bands(whole):
+    """peaks.vtp: each reported place and its distinct mirror images (the critical peak lies
+    in x = 0: two images), named, with results.json's value and band (MPa); its label says
+    them; listed in results.json's files; a probe of fields.vtu at each of its points reads
+    its value."""
+    res = json.loads((whole / "results.json").read_text())
+    assert res["files"]["peaks"] == "peaks.vtp"
+    points, data = _peak_places(whole)
+    grid = _grid(whole / "fields.vtu")
+    from vtkmodules.util.numpy_support import vtk_to_numpy
+    reported = vtk_to_numpy(grid.GetPointData().GetArray(REPORTED)).astype(float)
+    for key, name, images in (("peak", "global peak", 4), ("critical", "critical peak", 2)):
+        p = res["fe"][key]
+        mine = np.array([n == name for n in data["name"]])
+        assert mine.sum() == images
+        expected = np.unique(np.round(_images(p["location_mm"], True), 9) + 0.0, axis=0)
+        np.testing.assert_allclose(np.unique(np.round(points[mine], 9) + 0.0, axis=0), expected, atol=1e-9)
+        np.testing.assert_allclose(data["value_MPa"][mine], p["value_MPa"], rtol=1e-15)
+        np.testing.assert_allclose(data["band_MPa"][mine], p["error_estimate"]["band"], rtol=1e-15)
+        assert sorted(data["mirror_image"][mine]) == [0] + [1] * (images - 1)
+        assert {data["feature"][i] for i in np.flatnonzero(mine)} == {p["feature"]}
+        label = f"{name} {p['value_MPa']:.2f} ± {p['error_estimate']['band']:.2f} MPa"
+        assert {data["label"][i] for i in np.flatnonzero(mine)} == {label}
+        for place in points[mine]:
+            assert reported[_node(grid, place)] == pytest.approx(p["value_MPa"], rel=1e-6)
+
+
 @pytest.mark.slow
 def test_the_stress_tensor_s_invariants_are_consistent(whole):
     """von Mises and principal stresses written beside the tensor are the tensor's (checked
@@ -198,3 +252,8 @@ def test_the_quarter_fields_hold_the_quarter(tmp_path):
     from vtkmodules.util.numpy_support import vtk_to_numpy
     xyz = vtk_to_numpy(x.GetData())
     assert xyz[:, 0].min() > -1e-6 and xyz[:, 1].min() > -1e-6
+    # peaks.vtp: the places alone, no mirror images.
+    points, data = _peak_places(out)
+    assert data["name"] == ["global peak", "critical peak"] and list(data["mirror_image"]) == [0, 0]
+    fe = json.loads((out / "results.json").read_text())["fe"]
+    np.testing.assert_allclose(points, [fe["peak"]["location_mm"], fe["critical"]["location_mm"]], atol=1e-12)

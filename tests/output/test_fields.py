@@ -206,3 +206,41 @@ def test_the_reported_array_is_the_reading_rule_at_every_node(tmp_path):
                                    atol=1e-6 * right)
     assert reported.max() == pytest.approx(peak.value_MPa, rel=1e-6) and peak.value_MPa == pytest.approx(right)
 
+
+def test_peaks_vtp_reads_back_in_vtk(tmp_path):
+    """write_peaks: each place with its distinct mirror images (a place in x = 0 is its own
+    image there), names, labels, values and bands as given (NaN where there is no band),
+    read back by VTK's own reader (ParaView's)."""
+    from vtkmodules.util.numpy_support import vtk_to_numpy
+    from vtkmodules.vtkIOXML import vtkXMLPolyDataReader
+
+    from pipeline.output.fields import write_peaks
+    fe = {"peak": {"value_MPa": 113.642, "location_mm": [23.16, 6.86, 4.87], "feature": "journal shoulder fillet",
+                   "error_estimate": {"band": 0.6}},
+          "critical": {"value_MPa": 66.224, "location_mm": [0.0, 10.5, 0.0], "feature": "bore edge (bottom face)",
+                       "error_estimate": None}}
+    assert write_peaks(tmp_path, fe, whole_part=True) == {"peaks": "peaks.vtp"}
+    reader = vtkXMLPolyDataReader()
+    reader.SetFileName(str(tmp_path / "peaks.vtp"))
+    reader.Update()
+    poly = reader.GetOutput()
+    pd = poly.GetPointData()
+
+    def strings(name):
+        a = pd.GetAbstractArray(name)
+        return [a.GetValue(i) for i in range(a.GetNumberOfValues())]
+    xyz = vtk_to_numpy(poly.GetPoints().GetData())
+    np.testing.assert_array_equal(xyz, [[23.16, 6.86, 4.87], [-23.16, 6.86, 4.87], [23.16, -6.86, 4.87],
+                                        [-23.16, -6.86, 4.87], [0.0, 10.5, 0.0], [0.0, -10.5, 0.0]])
+    assert strings("name") == ["global peak"] * 4 + ["critical peak"] * 2
+    assert strings("label") == ["global peak 113.64 ± 0.60 MPa"] * 4 + ["critical peak 66.22 MPa"] * 2
+    assert strings("feature") == ["journal shoulder fillet"] * 4 + ["bore edge (bottom face)"] * 2
+    np.testing.assert_array_equal(vtk_to_numpy(pd.GetArray("value_MPa")), [113.642] * 4 + [66.224] * 2)
+    band = vtk_to_numpy(pd.GetArray("band_MPa"))
+    assert list(band[:4]) == [0.6] * 4 and np.isnan(band[4:]).all()
+    assert list(vtk_to_numpy(pd.GetArray("mirror_image"))) == [0, 1, 1, 1, 0, 1]
+    assert poly.GetNumberOfVerts() == 6
+    write_peaks(tmp_path, fe, whole_part=False)
+    reader.Modified()
+    reader.Update()
+    assert reader.GetOutput().GetNumberOfPoints() == 2
