@@ -46,7 +46,10 @@ WHERE = {
     "Mesher": "pipeline.fe.meshing", "make_mesh": "pipeline.fe.meshing", "meshing_scale": "pipeline.fe.meshing",
     "normalised": "pipeline.fe.meshing", "owners": "pipeline.fe.meshing",
     "estimate_levels": "pipeline.post.errorbar", "critical_region": "pipeline.post.features",
-    "MIDPOINT": "pipeline.post.peaks", "averaged_von_mises": "pipeline.post.peaks", "nodal_peak": "pipeline.post.peaks",
+    "fillet_region": "pipeline.post.features",
+    "MIDPOINT": "pipeline.post.peaks", "UNAVERAGED": "pipeline.post.peaks", "NodalPeak": "pipeline.post.peaks",
+    "Peak": "pipeline.post.peaks", "NodeReadings": "pipeline.post.peaks", "node_readings": "pipeline.post.peaks",
+    "node_peak": "pipeline.post.peaks",
     "peak": "pipeline.post.peaks", "von_mises": "pipeline.post.peaks", "von_mises_of": "pipeline.post.peaks",
     # Design studies: the screening steps and their bands.
     "STEPS": "pipeline.study.screening", "TWO_MESH_FACTOR": "pipeline.study.screening",

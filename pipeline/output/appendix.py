@@ -56,13 +56,14 @@ def _load_model(case: dict) -> list[str]:
 def _error_bar() -> list[str]:
     """A.2: how a peak is read and how its error bar is made (errorbar.py's texts)."""
     return ["### A.2 Peaks and their error bar\n",
-            "Each peak is read two ways at the nodes: the largest element-node value of von Mises "
-            "interpolated into a discontinuous space (*unaveraged*), and the largest von Mises of the "
-            "stress averaged over the elements meeting at each node (*averaged*). At the shoulder fillet, a "
+            "Von Mises is read two ways at each node: the largest of the element-node values of von Mises "
+            "interpolated into a discontinuous space (*unaveraged*), and the von Mises of the stress "
+            "averaged over the elements meeting at the node (*averaged*). At the shoulder fillet, a "
             "steep surface maximum resolved by a few elements, the unaveraged value lies above an "
             "independent reference and the averaged one below it (measured on 30 of 33 meshes), so the "
-            "reported value there is their midpoint; everywhere else it is the unaveraged value (at the "
-            "bore edge both lie within 0.2 % of the reference). Each peak's definition and error-bar rule "
+            "reported value at a fillet node is the midpoint of its two readings; everywhere else it is the "
+            "unaveraged value (at the bore edge both lie within 0.2 % of the reference). A peak is the node "
+            "of the largest reported value. Each peak's definition and error-bar rule "
             "for this run are under *How the peaks are read*.\n",
             TREND_TEXT + "\n",
             f"Statuses: {STATUS_TEXT}\n"]

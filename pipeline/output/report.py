@@ -437,12 +437,12 @@ def _summary_lines(res: dict) -> list[str]:
         f"global peak {cmp_['peak_vs_exact']:+.1f} % vs exact, {cmp_['peak_vs_approximate']:+.1f} % vs approximate.\n")
     add(why_sentence(res) + "\n")
     add("![von Mises on the deformed part](von_mises.png)\n")
-    add("Colours: the element-node von Mises values without averaging, so the colour scale's top is the "
-        "unaveraged reading; the global peak reported at the fillet is the midpoint of the unaveraged and "
-        "averaged readings and lies below it.\n")
+    add("Colours: the reported von Mises at each node (the midpoint of the node's unaveraged and averaged "
+        "readings on the shoulder fillet, the unaveraged one elsewhere), so the colour scale's top is the "
+        "global peak.\n")
     if (res.get("files") or {}).get("mesh_closeup"):
         add(f"![the mesh at the two peaks, element edges drawn]({res['files']['mesh_closeup']})\n")
-        add("The mesh at each peak, seen along the surface's normal there (undeformed, element-node von Mises, "
+        add("The mesh at each peak, seen along the surface's normal there (undeformed, the reported von Mises, "
             "the surface triangles' edges drawn: the curved elements' straight chords), the peak's node marked: "
             "how many elements resolve each peak.\n")
     return L
