@@ -32,7 +32,6 @@ from geometry.part import GeometryError
 from pipeline.analysis.context import RunContext
 from pipeline.study.screening import FILE, screen_case, screening_of
 from pipeline.errors import InputError, NumericalError
-from pipeline.inputs.options import Outputs, RunOptions
 from pipeline.output.folder import write_run
 from pipeline.runtime.interrupts import on_stop, stop_outcome
 # pipeline.fe.meshing loads DOLFINx, whose import starts PETSc collectively over COMM_WORLD:
@@ -42,7 +41,7 @@ from pipeline.fe.meshing import heartbeat
 from pipeline.runtime.atomicfile import write_text
 from pipeline.runtime.idle import wait_for_ranks
 from pipeline.study.manifest import MANIFEST, failure_fault, folder_fault, write_failure, write_manifest
-from pipeline.study.plan import Study, Task, earlier_variants, failure_file, plan, variant_folder
+from pipeline.study.plan import Study, Task, earlier_variants, failure_file, plan, variant_folder, variant_options
 from pipeline.study.table import inputs_text, write_outputs
 
 Progress = Callable[[str], None]
@@ -160,12 +159,7 @@ def run_task(task: Task, out: Path, study: Study, screen: bool = False, why_full
     cheap = screening(folder) if why_full is not None and folder_fault(folder) is None else None
     _remove(folder)
     _remove(failed)
-    # No variant solves the journal load at the hand formulas' positions (the study's table
-    # does not read them) nor writes fields or a mesh: its question is its peaks.
-    options = RunOptions(levels=study.levels, ratio=study.ratio, to_tolerance=False, sensitivity=study.sensitivity,
-                         formula_loads=False,
-                         loads=tuple(task.loads) if len(task.loads) > 1 else (),
-                         outputs=Outputs(fields=False, mesh=False))
+    options = variant_options(study, tuple(task.loads))
     alone = RunContext(comm=MPI.COMM_SELF)
     if screen:
         try:
