@@ -210,16 +210,21 @@ def markdown(rows: list[dict], skipped: list[str], png_name: str | None) -> str:
 
 def _rests_on_lines(rows: list[dict]) -> list[str]:
     """Which sizes' verdicts depend on an assumed input (from each run's sensitivity
-    sentence; the study ran with --sensitivity); nothing when no row has one."""
+    sentence; the study ran with --sensitivity), and which were not checked over every
+    range (an end not analysed); nothing when no row has one."""
+    from pipeline.analysis.words import FLIPS, HOLDS, rests_on
     told = [r for r in rows if r.get("verdict_rests_on")]
     if not told:
         return []
-    flips = [r for r in told if not r["verdict_rests_on"].startswith("The verdict holds")]
-    lines = [f"**What the verdicts rest on:** {len(told) - len(flips)} of {len(told)} sizes keep their verdict over "
+    others = [r for r in told if rests_on(r["verdict_rests_on"]) != HOLDS]
+    flips = [r for r in others if rests_on(r["verdict_rests_on"]) == FLIPS]
+    lines = [f"**What the verdicts rest on:** {len(told) - len(others)} of {len(told)} sizes keep their verdict over "
              "every assumed input's range (dj, rf, seat, the bearing load model; each run's report gives the "
-             "ranges)" + (". These depend on an assumption:" if flips else "."), ""]
-    lines += [f"- No. {r['size']}: {r['verdict_rests_on']}" for r in flips]
-    return lines + ([""] if flips else [])
+             "ranges)" + (". These depend on an assumption:" if flips and flips == others else
+                          ". These depend on an assumption or were not checked over every range:" if others else "."),
+             ""]
+    lines += [f"- No. {r['size']}: {r['verdict_rests_on']}" for r in others]
+    return lines + ([""] if others else [])
 
 
 def _table_lines(rows: list[dict]) -> list[str]:
