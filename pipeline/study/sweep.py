@@ -110,38 +110,71 @@ def fault_of(out: Path, key: str) -> str | None:
 def discard_damaged(out: Path, tasks: list[Task], say: Progress) -> list[str]:
     """Remove what each task of ``tasks`` left in ``out`` that does not match its
     checksums, saying so in one line per task, so that the study analyses it again; its
-    keys. Its claim goes too: a study that has run it once takes it again."""
+    keys. Its claim goes too: a study that has run it once takes it again. A user's file in
+    a variant's folder stays, named in the line (the new run carries it over)."""
     keys = []
     for t in tasks:
         why = None if t.case is None else fault_of(out, t.key)
         if why is None:
             continue
+        kept = []
         for p in (variant_folder(out, t.key), failure_file(out, t.key), out / ".claims" / t.key,
                   out / ".claims" / f"{t.key}.full"):
-            _remove(p)
-        say(f"sweep: variant {t.key} ({inputs_text(t.params)}): {why}; analysed again")
+            kept += _remove(p)
+        said = f"; kept {', '.join(kept)} (not the study's)" if kept else ""
+        say(f"sweep: variant {t.key} ({inputs_text(t.params)}): {why}; analysed again{said}")
         keys.append(t.key)
     return keys
 
 
-def _remove(path: Path) -> None:
+def study_files(folder: Path) -> set[str]:
+    """The entries of a variant's folder that its run and its study wrote: those the run's
+    results marker lists (pipeline.runtime.folders.tool_names; a run's files when it lists
+    none), the marker, the checksums and a screened study's reading. Anything else is the
+    user's."""
+    from pipeline.runtime.folders import MARKER, tool_names
+    names = {p.name for p in folder.iterdir()}
+    return tool_names(folder, names) | (names & {MARKER, MANIFEST, FILE})
+
+
+def _remove(path: Path, keep_marked: bool = True) -> list[str]:
     """Remove what a task left at ``path``: a file, a link (not what it points to), an
-    empty folder or a variant's folder (it holds the results marker or the checksums). A
-    folder the tool did not write stays: the run into it is then refused and written as
-    the task's failure."""
+    empty folder, or of a variant's folder (it holds the results marker or the checksums)
+    the files its run and its study wrote (:func:`study_files`). Returns the user's entries
+    of that folder, which stay: the folder stays too, marked as the tool's with no files of
+    its own so that the task's next run replaces it and carries them over (with
+    ``keep_marked`` False, unmarked: only the user's entries are left). A folder the tool
+    did not write stays whole: the run into it is then refused and written as the task's
+    failure."""
     from pipeline.runtime.folders import MARKER
     if path.is_dir() and not path.is_symlink():
         if (path / MARKER).is_file() or (path / MANIFEST).is_file():
-            # Renamed first (one step), so a stop during the removal leaves no half a
-            # variant under its key; the study removes the renamed rest when it ends
-            # (earlier_variants: a marked folder of no key of the study).
-            gone = path.with_name(f".removing-{path.name}-{os.getpid()}")
-            os.replace(path, gone)
-            shutil.rmtree(gone)
-        elif not any(path.iterdir()):
+            own = study_files(path)
+            user = sorted({p.name for p in path.iterdir()} - own)
+            if not user:
+                # Renamed first (one step), so a stop during the removal leaves no half a
+                # variant under its key; the study removes the renamed rest when it ends
+                # (earlier_variants: a marked folder of no key of the study).
+                gone = path.with_name(f".removing-{path.name}-{os.getpid()}")
+                os.replace(path, gone)
+                shutil.rmtree(gone)
+                return []
+            for name in sorted(own - {MARKER}, key=lambda n: n != "results.json"):  # results first: never read again
+                entry = path / name
+                if entry.is_dir() and not entry.is_symlink():
+                    shutil.rmtree(entry)
+                else:
+                    entry.unlink(missing_ok=True)
+            if keep_marked:  # the marker last: a stop half-way leaves a folder still the tool's
+                write_text(path / MARKER, json.dumps({"tool": "crosshead", "files": []}) + "\n")
+            else:
+                (path / MARKER).unlink(missing_ok=True)
+            return [f"{path.name}/{n}" for n in user]
+        if not any(path.iterdir()):
             path.rmdir()
-    else:
-        path.unlink(missing_ok=True)
+        return []
+    path.unlink(missing_ok=True)
+    return []
 
 
 def run_task(task: Task, out: Path, study: Study, screen: bool = False, why_full: str | None = None) -> None:
@@ -255,16 +288,14 @@ def remove_earlier_variants(out: Path, tasks: list[Task], say: Progress) -> None
     """Remove the results of variants that this study does not have, once it has finished:
     left by a run of it with other inputs or older code, they would be read beside its own
     (a summary of ``variants/`` would list a size twice) and only take room. Until the
-    study finishes they stay, so an interrupted re-run loses nothing."""
+    study finishes they stay, so an interrupted re-run loses nothing. A user's file in such
+    a folder stays, named, in a folder that is no longer marked as a variant's."""
     gone = earlier_variants(out, {t.key for t in tasks})
-    for p in gone:
-        if p.is_dir():
-            shutil.rmtree(p)
-        else:
-            p.unlink()
+    kept = [k for p in gone for k in _remove(p, keep_marked=False)]
     if gone:
+        said = f"; kept {', '.join(kept)} (not the study's)" if kept else ""
         say(f"sweep: removed the results of {_count(len(gone), 'variant')} that this study does not have "
-            f"(earlier inputs or code)")
+            f"(earlier inputs or code){said}")
 
 
 def axes_of(study: Study) -> dict[str, list[float]]:
