@@ -275,9 +275,12 @@ def check_variants_fit(tasks: list[Task], limit_gb: float | None, copies: int, s
     (pipeline.analysis.memory) when ``copies`` variants run at once on this machine (one per
     rank that shares its memory). A variant's meshes are solved one after another on its
     own rank, so its requested (finest) mesh sets what it needs. Only variants that could
-    be large are probed (a finer mesh factor, sizes by hand, a small fillet)."""
+    be large are probed (a finer mesh factor, sizes by hand, a small fillet), and under an
+    address-space limit (``ulimit -v``) every variant."""
     from pipeline.analysis.memory import check_fits, needs_probe
-    large = [t for t in tasks if t.case is not None and needs_probe(t.case, [t.case.mesh_factor])]
+    from pipeline.runtime.environment import address_space_limit
+    limited = address_space_limit() is not None  # ulimit -v: every variant is held to it
+    large = [t for t in tasks if t.case is not None and (limited or needs_probe(t.case, [t.case.mesh_factor]))]
     if large:
         say(f"sweep: estimating the memory of {_count(len(large), 'variant')} that could be large (a mesh each)")
     for t in large:
