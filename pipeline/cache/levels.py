@@ -26,7 +26,8 @@ scaled and whose checksum was written again passed those checks (its error bars 
 16.8 / 0.72 to 41.8 / 13.0 MPa). So a result is stored only with what it derives from, the
 names and sha256 of the mesh entry and the solution entry (pipeline/cache/meshes.py,
 pipeline/cache/solutions.py) of the same mesh and problem, and before reuse both must still
-be there, unchanged, of one mesh (the solution's nodes at the mesh's node positions to 1e-6
+be there (a result whose entries were evicted is dropped without a line: stale, not
+damaged), unchanged, of one mesh (the solution's nodes at the mesh's node positions to 1e-6
 mm, its DOFs and iterations the result's), and both peaks' readings are read again from
 them at the places the result names (pipeline/post/reread.py: the cells around each place,
 about 0.1 s) and must equal the stored ones, scaled to the stored load, to DERIVED_REL.
@@ -36,6 +37,7 @@ P3 result is not either.
 """
 from __future__ import annotations
 
+import contextlib
 import time
 from dataclasses import dataclass, replace
 
@@ -46,6 +48,10 @@ from pipeline.inputs.case import Case
 from pipeline.post.peaks import MIDPOINT, UNAVERAGED, NodalPeak, Peak
 
 REDO = "solved again"
+# Why a result cannot be checked because the mesh or solution entry it derives from is no
+# longer kept (the cache drops the least recently used): it is dropped without a line, as
+# a result never kept would be; one whose entries changed is refused with one.
+GONE = "the mesh or solution it derives from is no longer kept"
 # A stored reading and the one read again from its solution agree to this (relative):
 # far above the round-off of two ways of reading one field (~1e-13) and the solver's
 # tolerance between a solve and a later one of the same problem (rtol 1e-8 on the
@@ -108,6 +114,10 @@ def earlier(name: str, case: Case, factor: float) -> StoredLevel | None:
     if entry is None:
         return None
     why = problem(entry.meta, case, factor) or derivation_problem(entry.meta, case)
+    if why == GONE:  # what it derives from was evicted (least recently used): stale, not damaged
+        with contextlib.suppress(OSError):
+            runcache.path_of(name).unlink()
+        return None
     if why is not None:
         runcache.reject(name, why, REDO)
         return None
@@ -182,11 +192,16 @@ def derivation_problem(m: dict, case: Case) -> str | None:
     if not isinstance(d, dict) or not all(isinstance(d.get(k), str) for k in
                                           ("mesh", "mesh_sha256", "solution", "solution_sha256")):
         return "it names no mesh and solution it derives from"
-    if runcache.digest(d["mesh"]) != d["mesh_sha256"]:
-        return "the mesh it derives from is gone or changed since"
+    mesh_sum = runcache.digest(d["mesh"])
+    if mesh_sum is None:
+        return GONE
+    if mesh_sum != d["mesh_sha256"]:
+        return "the mesh it derives from has changed since"
     loaded = runcache.load(d["solution"], REDO)
-    if loaded is None or loaded.sha256 != d["solution_sha256"]:
-        return "the solution it derives from is gone or changed since"
+    if loaded is None:
+        return GONE
+    if loaded.sha256 != d["solution_sha256"]:
+        return "the solution it derives from has changed since"
     sol = solvecache.as_stored(loaded)
     mesh = meshcache.earlier(d["mesh"])
     if sol is None or mesh is None:

@@ -69,16 +69,17 @@ def node_at(mesh: MeshArrays, point_mm: tuple[float, float, float], tol_mm: floa
 def readings_at(mesh: MeshArrays, u_mm: np.ndarray, E_MPa: float, nu: float, unaveraged_mm, averaged_mm,
                 tol_mm: float) -> tuple[float, float] | None:
     """(unaveraged, averaged) von Mises (MPa) of displacement ``u_mm`` read as the pipeline
-    reads a peak: the unaveraged reading at ``unaveraged_mm`` (a vertex for P2, a cell's
-    centroid for P1) and the averaged one at the vertex ``averaged_mm``; None when a place
-    is no node of the mesh (within ``tol_mm``)."""
+    reads a peak: the unaveraged reading at ``unaveraged_mm``, the largest element-node
+    value of the cells at that vertex (for P1 their constant values; a P1 reading at a
+    cell's centroid is that cell's value), and the averaged one at the vertex
+    ``averaged_mm``; None when a place is no node of the mesh (within ``tol_mm``)."""
     at = node_at(mesh, averaged_mm, tol_mm)
     if at is None:
         return None
     around, corner = np.nonzero(mesh.cells[:, :4] == at)
     s = stresses(mesh, around, u_mm, REFERENCE_VERTICES[corner], E_MPa, nu)
     averaged = float(von_mises_of(s.mean(axis=0)[None])[0])
-    if mesh.degree == 1:  # DG0: one value per cell, at its centroid
+    if mesh.degree == 1 and node_at(mesh, unaveraged_mm, tol_mm) is None:  # DG0 read at a cell's centroid
         centroids = mesh.x_mm[mesh.cells].mean(axis=1)
         dist = np.linalg.norm(centroids - np.asarray(unaveraged_mm), axis=1)
         c = int(np.argmin(dist))
@@ -90,5 +91,7 @@ def readings_at(mesh: MeshArrays, u_mm: np.ndarray, E_MPa: float, nu: float, una
     if at is None:
         return None
     around, corner = np.nonzero(mesh.cells[:, :4] == at)
-    s = stresses(mesh, around, u_mm, REFERENCE_VERTICES[corner], E_MPa, nu)
+    # P1: each cell's constant stress (read anywhere in it); P2: each cell's at the node.
+    points = np.full((len(around), 3), 0.25) if mesh.degree == 1 else REFERENCE_VERTICES[corner]
+    s = stresses(mesh, around, u_mm, points, E_MPa, nu)
     return float(von_mises_of(s).max()), averaged

@@ -238,8 +238,11 @@ def _no_derivation(e: rc.Entry) -> None:
     del e.meta["derives_from"]
 
 
-def _solution_gone(e: rc.Entry) -> None:
-    rc.path_of(e.meta["derives_from"]["solution"]).unlink()
+def _solution_changed(e: rc.Entry) -> None:
+    """The solution entry it derives from written again with another content (a key it does
+    not read: the same displacement, another sha256)."""
+    path = rc.path_of(e.meta["derives_from"]["solution"])
+    rewritten(path, lambda sol: sol.meta.__setitem__("rewritten", True))
 
 
 @pytest.mark.slow
@@ -247,7 +250,7 @@ def _solution_gone(e: rc.Entry) -> None:
     (_scaled_peaks, "are not what its solution gives there"),
     (_moved_peak, "places are not nodes of its mesh"),
     (_no_derivation, "it names no mesh and solution it derives from"),
-    (_solution_gone, "the solution it derives from is gone or changed since"),
+    (_solution_changed, "the solution it derives from has changed since"),
 ])
 def test_a_level_is_checked_against_the_mesh_and_solution_it_derives_from(cache, reference, tmp_path, capfd,
                                                                             change, why):
@@ -261,6 +264,17 @@ def test_a_level_is_checked_against_the_mesh_and_solution_it_derives_from(cache,
     res = run(tmp_path / "out")
     assert numbers(res) == numbers(reference)
     check_one_line(capfd.readouterr().err, path, why)
+
+
+@pytest.mark.slow
+def test_a_level_whose_solution_was_evicted_is_dropped_without_a_line(cache, reference, tmp_path, capfd):
+    """The solution entries gone (the cache drops the least recently used): each error-bar
+    level that derives from one is stale, not damaged: dropped without a line, its mesh
+    solved again, the answer the reference's to the last bit."""
+    for p in cache.glob("solution-*.entry"):
+        p.unlink()
+    assert numbers(run(tmp_path / "out")) == numbers(reference)
+    assert cache_lines(capfd.readouterr().err) == []
 
 
 @pytest.mark.slow
@@ -554,3 +568,19 @@ def test_a_file_above_the_bound_is_not_read(tmp_path, size, limit, kept):
     else:
         with pytest.raises(rc.Corrupt, match="above the bound"):
             rc.read_regular(path, limit)
+
+
+@pytest.mark.slow
+def test_a_p1_level_is_read_again_to_its_stored_readings(tmp_path, monkeypatch):
+    """P1 (its unaveraged reading a cell's constant value, DG0): both error-bar levels of a
+    run read back from their mesh and solution entries to their stored readings."""
+    import pipeline.cache.levels as cl
+    monkeypatch.setenv("CROSSHEAD_NO_CACHE", "0")
+    monkeypatch.setattr(rc, "ROOT", tmp_path / "runs")
+    case = resolve("05", None, {"mesh_factor": 3.0, "order": 1})
+    write_run(case, RunOptions(levels=LEVELS, to_tolerance=False, sensitivity=False, outputs=Outputs(fields=False)),
+              tmp_path / "out")
+    levels = list((tmp_path / "runs").glob("level-*.entry"))
+    assert len(levels) == 2
+    for path in levels:
+        assert cl.derivation_problem(decoded(path).meta, case) is None, path
