@@ -20,6 +20,7 @@ from typing import Sequence
 from pipeline.errors import InputError
 from pipeline.fe.meshing import Mesher
 from pipeline.inputs.case import Case
+from pipeline.runtime.environment import ADDRESS_FLOOR, GIB, address_space_limit
 
 PROBE_FACTOR = 2.0
 EXPONENT = 2.5
@@ -29,6 +30,9 @@ DOFS_PER_TET = {1: 0.6, 2: 4.7, 3: 15.3}  # vector DOFs per tet (No. 05 meshes)
 BYTES_PER_DOF = {"pmg": 1.2e3, "gamg": 2.1e3, "hypre": 6.0e3, "mumps": 7.6e3}
 MARGIN = 1.5
 BASE_BYTES = 250e6  # one process with DOLFINx, PETSc and gmsh loaded, no mesh
+# The address space a drawing process needs (the picture's, with VTK and Mesa's OpenGL):
+# 1.15 GiB measured for No. 05's default mesh, and a margin. A run with fields starts them.
+DRAWING_ADDRESS = 1.3 * GIB
 
 
 @dataclass(frozen=True)
@@ -154,15 +158,37 @@ def probe(case: Case) -> tuple[int, float]:
     return len(part.cells), f
 
 
+def address_space_need(est: Estimate) -> float:
+    """The address space (bytes) the run's own process needs: ADDRESS_FLOOR for what is
+    loaded, and the estimate's bytes beyond a process without a mesh, without the
+    estimate's margin (the floor has its own). No. 05's default run: 1.43 GiB, against
+    1.03 GiB measured (VmPeak, sensitivity section included)."""
+    return ADDRESS_FLOOR + (est.bytes - BASE_BYTES) / MARGIN
+
+
 def check_fits(case: Case, factors: Sequence[float], limit_gb: float | None, copies: int = 1,
-               what: str = "") -> Estimate | None:
+               what: str = "", drawing: bool = False) -> Estimate | None:
     """Refuse (InputError, exit 2) a run whose estimate exceeds ``limit_gb`` (default: the
-    memory available now); None when the run is plainly small (no probe needed).
-    ``copies``: how many such runs this machine holds at once (a study's variants on the
-    ranks that share its memory); ``what`` names the run in the line (a study's variant)."""
-    if not needs_probe(case, factors):
+    memory available now), or whose process would need more address space than its limit
+    (``ulimit -v``: :func:`address_space_need`, ``drawing``: the run starts drawing
+    processes); None when the run is plainly small and has no such limit (no probe
+    needed). ``copies``: how many such runs this machine holds at once (a study's variants
+    on the ranks that share its memory); ``what`` names the run in the line (a study's
+    variant)."""
+    room = address_space_limit()
+    if not needs_probe(case, factors) and room is None:
         return None
     est = estimate(case, factors, *probe(case))
+    if room is not None and address_space_need(est) > room:
+        raise InputError(
+            f"memory: {what}the address space is limited to {room / GIB:.2f} GiB (ulimit -v), and this run needs "
+            f"about {address_space_need(est) / GIB:.1f} GiB of it (the finest mesh, factor {min(factors):g}: about "
+            f"{est.dofs:.1e} DOFs); raise the limit, or use a coarser --mesh-factor")
+    if room is not None and drawing and DRAWING_ADDRESS > room:
+        raise InputError(
+            f"memory: the address space is limited to {room / GIB:.2f} GiB (ulimit -v), and each drawing process (the "
+            f"picture, the close-ups) needs about {DRAWING_ADDRESS / GIB:.1f} GiB of it; raise the limit, or give "
+            "--no-fields")
     limit = available_bytes() if limit_gb is None else limit_gb * 1024 ** 3
     if est.bytes * copies > limit:
         finest = min(factors)

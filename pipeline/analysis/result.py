@@ -74,8 +74,9 @@ class Verdict:
 
 @dataclass(frozen=True)
 class LoadRow:
-    """A hook load of the run's list (N) with every stress scaled to it (MPa) and the
-    safety factors there."""
+    """A hook load of the run's list (N) with every stress scaled to it (MPa), the safety
+    factors there, each checked stress's verdict there (pass, fail, undecided, none) and
+    the sensitivity sentence at that load (None without the sensitivity section)."""
 
     load_N: float
     peak_MPa: float | None
@@ -86,6 +87,8 @@ class LoadRow:
     critical_band_MPa: float | None
     safety_factor: float | None
     critical_safety_factor: float | None
+    verdicts: dict[str, str]
+    sensitivity_sentence: str | None
 
     def as_dict(self) -> dict:
         return asdict(self)
@@ -155,8 +158,9 @@ class RunResult:
     finest mesh's factor when the tolerance refined it); ``levels`` the error bar's meshes,
     finest (the requested one) first; ``solved`` every mesh solved, in order; ``places``
     where they were refined; ``peaks`` by results.json's block ("peak" the global,
-    "critical"); ``notes``: what a reader must know beside the numbers (a coarse mesh, ...).
-    ``timings`` (s) are the analysis stages'."""
+    "critical"); ``load_rows`` each load of a multi-load run, ``loads_verdict`` the one
+    sentence of the verdicts over them; ``notes``: what a reader must know beside the
+    numbers (a coarse mesh, ...). ``timings`` (s) are the analysis stages'."""
 
     case: Case
     options: RunOptions
@@ -175,6 +179,7 @@ class RunResult:
     timings: dict[str, float]
     mpi_ranks: int
     convergence: dict | None = None
+    loads_verdict: str | None = None
 
     @property
     def requested(self) -> Level:

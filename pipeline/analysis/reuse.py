@@ -11,7 +11,8 @@ displacements with (Q/Q0)·(E0/E), and nothing moves where it sits):
 - each mesh (:class:`CachedMesher`): gmsh's output for the same part and spec;
 - each mesh's solution (:func:`level`): scaled, and checked against this mesh's system;
 - an error-bar mesh's numbers (:func:`error_bar_level`): its peaks and forces scaled by
-  Q/Q0, without importing the mesh.
+  Q/Q0, without importing the mesh, once its readings are read again from the mesh and
+  solution entries they derive from (pipeline/cache/levels.py).
 
 Every entry is checked before it is used (pipeline/cache/*: checksums and what the numbers
 must be); one that fails is dropped with one line and the work is done again.
@@ -47,7 +48,7 @@ class CachedMesher(Mesher):
 
     def generate(self, spec, keep_msh: bool = False) -> MeshedPart:
         t0 = time.perf_counter()
-        name = runcache.key("mesh", dims=self.d, model=self.model, spec=spec)
+        name = mesh_key(self.d, self.model, spec)
         hit = meshcache.earlier(name)
         if hit is not None and (not keep_msh or hit.msh is not None):
             return MeshedPart(**hit.fields, timings={"geometry": 0.0, "mesh": time.perf_counter() - t0},
@@ -57,6 +58,11 @@ class CachedMesher(Mesher):
             fields = {k: v for k, v in vars(part).items() if k not in ("timings", "msh")}
             meshcache.store(name, fields, part.msh)
         return part
+
+
+def mesh_key(d: Dimensions, model: str, spec) -> str:
+    """The run-cache name of the mesh of part ``d`` (mm) and ``model`` for ``spec`` (a MeshSpec)."""
+    return runcache.key("mesh", dims=d, model=model, spec=spec)
 
 
 def mesher(d: Dimensions, model: str, ctx: RunContext) -> contextlib.AbstractContextManager[Mesher]:
@@ -202,11 +208,23 @@ def level(case: Case, task: LevelTask, ctx: RunContext, load_mesh: Callable[[], 
     lv = remembered(case, task, ctx)
     if lv is not None:
         return lv
+    return _level(case, task, ctx, load_mesh, named=False)[0]
+
+
+def _level(case: Case, task: LevelTask, ctx: RunContext, load_mesh: Callable[[], ImportedMesh] | None,
+           named: bool = True) -> tuple[Level, str | None]:
+    """:func:`level` solved here (kept in the memo) and, when ``named``, the run-cache name
+    of its solution (None when none is kept: the cache is off, or a P3 solution).
+    Collective over ctx.comm when named."""
     prob = set_up(case, task, ctx, load_mesh)
     say_mesh(prob, task.factor, ctx.say)
     more = more_loads(case, task, prob)
     sol = solve_or_scale(case, prob, task.reuse, more.loads)
-    return _remember(case, task, ctx, read_level(case, task, prob, sol, more, ctx.say))
+    lv = _remember(case, task, ctx, read_level(case, task, prob, sol, more, ctx.say))
+    if not named or not (task.reuse and runcache.enabled()):
+        return lv, None
+    V = sol.u.function_space
+    return lv, solvecache.key(case, prob.mesh, V) if solvecache.node_ids(V, prob.mesh) is not None else None
 
 
 def error_bar_level(case: Case, task: LevelTask, ctx: RunContext, load_mesh: Callable[[], ImportedMesh]) -> Level:
@@ -226,7 +244,8 @@ def error_bar_level(case: Case, task: LevelTask, ctx: RunContext, load_mesh: Cal
                 f"critical {stored.critical.value_MPa:.2f} MPa")
         return Level(**stored.numbers, peak=stored.peak, critical=stored.critical, timings=dict(stored.timings),
                      scaled_from=stored.scaled_from)
-    lv = level(case, task, ctx, load_mesh)
+    lv, solution = _level(case, task, ctx, load_mesh)
     numbers = {k: getattr(lv, k) for k in levelcache.NUMBERS}
-    levelcache.store(name, levelcache.StoredLevel(numbers, lv.peak, lv.critical, lv.timings, lv.scaled_from), case)
+    levelcache.store(name, levelcache.StoredLevel(numbers, lv.peak, lv.critical, lv.timings, lv.scaled_from), case,
+                     levelcache.derives_from(mesh_key(case.dims, case.model, spec), solution))
     return lv

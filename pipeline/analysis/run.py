@@ -19,8 +19,8 @@ from pipeline.analysis.result import PeakAnswer, RunResult
 from pipeline.analysis.ranges import load_variant_cases
 from pipeline.analysis.sensitivity import LOAD_MESH_RATIO, analyse_sensitivity
 from pipeline.analysis.tolerance import solve_to_tolerance
-from pipeline.analysis.verdicts import (SAFETY_KEYS, checked_stresses, load_rows, safety_factor, sensitivity_answer,
-                                        verdicts)
+from pipeline.analysis.verdicts import (SAFETY_KEYS, checked_stresses, load_rows, loads_verdict, safety_factor,
+                                        sensitivity_answer, sentence_over_loads, verdicts)
 from pipeline.inputs.case import Case
 from pipeline.inputs.options import RunOptions
 from pipeline.post import formulas
@@ -54,15 +54,20 @@ def run(case: Case, options: RunOptions, ctx: RunContext = RunContext()) -> RunR
         peaks = {key: peak_answer(case, meshes.levels, key) for key in PEAKS.values()}
         # 4. The verdicts against the allowable, beside the paper's hand formulas.
         hand = formulas.hand_results(case.dims, case.load_N, case.approximate_span_mm, case.exact_span_mm)
-        judged = verdicts(case.allowable_MPa, case.load_N, checked_stresses(peaks, meshes.levels[0].sections))
+        checks = checked_stresses(peaks, meshes.levels[0].sections)
+        judged = verdicts(case.allowable_MPa, case.load_N, checks)
         # 5. What the verdict rests on: each assumed input varied over its plausible range.
         sens = (sensitivity_answer(analyse_sensitivity(case, ctx, meshes.solved, meshes.places), judged, case)
                 if vary else None)
+        # 6. Every load of a load list: the verdicts and what they rest on at each, scaled.
+        rows = load_rows(case, options.loads, peaks, hand, checks, sens and sens.analysis) if options.loads else None
+        if rows and sens is not None:  # the sentence speaks for every load, each named
+            sens = replace(sens, sentence=sentence_over_loads(rows))
     return RunResult(
         case=case, options=options, places=meshes.places, levels=meshes.levels, solved=meshes.solved, peaks=peaks,
         hand=hand, safety={SAFETY_KEYS[k]: safety_factor(case.allowable_MPa, p) for k, p in peaks.items()},
         verdicts=judged, comparison_pct=comparison_pct(meshes.levels[0], hand), accuracy=meshes.accuracy,
-        load_rows=load_rows(case, options.loads, peaks, hand) if options.loads else None, sensitivity=sens,
+        load_rows=rows, sensitivity=sens, loads_verdict=loads_verdict(rows) if rows else None,
         notes=[], timings=stage_timings(meshes.levels, meshes.places, sens and sens.analysis.time_s, t0),
         mpi_ranks=ctx.comm.size, convergence=convergence(case, meshes.levels, peaks) if options.convergence else None)
 

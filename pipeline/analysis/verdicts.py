@@ -4,11 +4,13 @@ allowable with its error bar, the safety factors, the rows at every hook load as
 §5, §10). Output code formats what these return."""
 from __future__ import annotations
 
+from dataclasses import replace
+
 from pipeline.analysis.result import (Flip, LoadRow, PeakAnswer, SafetyFactor, SensitivityAnswer, SensitivityEntry,
                                       Verdict)
 from pipeline.analysis.ranges import CONTACT_STUDY
 from pipeline.analysis.sensitivity import Sensitivity, journal_root
-from pipeline.analysis.words import STRESS_NAMES, range_text, value_text
+from pipeline.analysis.words import FLIPS_OPENING, HOLDS_OPENING, STRESS_NAMES, loads_text, range_text, value_text
 from pipeline.fe.linearity import stress_factor
 from pipeline.inputs.case import Case
 from pipeline.post.errorbar import verdict_against
@@ -45,21 +47,24 @@ def checked_stresses(peaks: dict[str, PeakAnswer], sections: dict | None
     return checks
 
 
-def verdicts(allowable_MPa: float, load_N: float, checks: dict[str, tuple[float, PeakAnswer | None]]
-             ) -> dict[str, Verdict]:
+def verdicts(allowable_MPa: float, load_N: float, checks: dict[str, tuple[float, PeakAnswer | None]],
+             k: float = 1.0) -> dict[str, Verdict]:
     """Pass or fail of each checked stress against the allowable (MPa), with its margin and
     error bar, and the hook load (N) that would bring it to the allowable (linear scaling:
     the part's capacity at that allowable). A peak at a singular feature, or not asked for,
-    gets no verdict; a band that straddles the allowable gives "undecided"."""
+    gets no verdict; a band that straddles the allowable gives "undecided". ``k``: the
+    checked stresses and their bands are those of the case's load × k, ``load_N`` (a load
+    of the run's list: every stress scales with the load, the capacity does not)."""
     out = {}
     for name, (value, peak) in checks.items():
+        value = k * value
         if peak is not None and not peak.has_verdict:
             why = (peak.not_wanted if peak.not_wanted else
                    f"the peak sits at a singular feature ({peak.singular}): no finite value")
             out[name] = Verdict(value, None, "none", None, None, None, why)
             continue
         # No band (a nominal stress, or a peak read on one mesh): null, not a band of zero.
-        band = None if peak is None else peak.band_MPa
+        band = None if peak is None or peak.band_MPa is None else k * peak.band_MPa
         lo, hi = value - (band or 0.0), value + (band or 0.0)
         out[name] = Verdict(value, band, verdict_against(value, band, allowable_MPa),
                             100 * (allowable_MPa / value - 1), load_N * allowable_MPa / value,
@@ -68,20 +73,66 @@ def verdicts(allowable_MPa: float, load_N: float, checks: dict[str, tuple[float,
     return out
 
 
-def load_rows(case: Case, loads: tuple[float, ...], peaks: dict[str, PeakAnswer], hand: HandResults
-              ) -> list[LoadRow]:
-    """Peaks, formula stresses and safety factors (MPa) at each hook load (N), every stress
-    scaled from the case's load (pipeline/fe/linearity.py). A peak the run was not asked for
-    has no value or band at any load; a singular one no safety factor."""
+def load_rows(case: Case, loads: tuple[float, ...], peaks: dict[str, PeakAnswer], hand: HandResults,
+              checks: dict[str, tuple[float, PeakAnswer | None]], sens: Sensitivity | None = None) -> list[LoadRow]:
+    """Peaks, formula stresses, safety factors (MPa), the verdict of each checked stress
+    (``checks``, at the case's load) and, with ``sens``, the sensitivity sentence at each
+    hook load (N), every stress scaled from the case's load (pipeline/fe/linearity.py). A
+    peak the run was not asked for has no value or band at any load; a singular one no
+    safety factor."""
     rows = []
     for q in loads:
         k = stress_factor(q, case.load_N)
         values = {key: k * p.value_MPa if not p.not_wanted else None for key, p in peaks.items()}
         bands = {key: None if p.band_MPa is None or p.not_wanted else k * p.band_MPa for key, p in peaks.items()}
         sf = {key: None if not p.has_verdict else case.allowable_MPa / values[key] for key, p in peaks.items()}
+        judged = verdicts(case.allowable_MPa, q, checks, k)
+        said = None if sens is None else sensitivity_answer(sens, judged, replace(case, load_N=q)).sentence
         rows.append(LoadRow(q, values["peak"], values["critical"], k * hand.approximate.sigma_MPa,
-                            k * hand.exact.sigma_MPa, bands["peak"], bands["critical"], sf["peak"], sf["critical"]))
+                            k * hand.exact.sigma_MPa, bands["peak"], bands["critical"], sf["peak"], sf["critical"],
+                            {name: v.verdict for name, v in judged.items()}, said))
     return rows
+
+
+def loads_verdict(rows: list[LoadRow]) -> str:
+    """One sentence: each checked stress's verdict over the run's loads (N), the loads
+    grouped by verdict in rising order (every stress scales with the load, so a verdict
+    changes once at most: pass, undecided, fail). The largest load governs: a stress that
+    passes there passes at every load."""
+    order = sorted(rows, key=lambda r: r.load_N)
+    parts = []
+    for name in order[0].verdicts:
+        if order[0].verdicts[name] == "none":
+            continue
+        groups: list[tuple[str, list[float]]] = []
+        for r in order:
+            v = r.verdicts[name]
+            if groups and groups[-1][0] == v:
+                groups[-1][1].append(r.load_N)
+            else:
+                groups.append((v, [r.load_N]))
+        said = (f"{groups[0][0]} at every load" if len(groups) == 1 else
+                ", ".join(f"{v} at {loads_text(qs)}" for v, qs in groups))
+        parts.append(f"{STRESS_NAMES[name]} {said}")
+    top = order[-1]
+    if not parts:
+        return f"At the loads asked ({loads_text([r.load_N for r in order])}) no stress has a verdict."
+    return (f"At the loads asked ({loads_text([r.load_N for r in order])}): " + "; ".join(parts)
+            + f". The largest, {top.load_N:g} N, governs.")
+
+
+def sentence_over_loads(rows: list[LoadRow]) -> str:
+    """The sensitivity sentence of a multi-load run: each load's (LoadRow.sensitivity_sentence),
+    the loads that share one said together ("At 5000 and 7500 N: ... At 10000 N: ..."), in
+    rising load; one sentence for every load when all share it ("At every load asked, 5000
+    and 10000 N: ...")."""
+    groups: dict[str, list[float]] = {}
+    for r in sorted(rows, key=lambda r: r.load_N):
+        groups.setdefault(r.sensitivity_sentence or "", []).append(r.load_N)
+    if len(groups) == 1:
+        (said, qs), = groups.items()
+        return f"At every load asked, {loads_text(qs)}: {said}"
+    return " ".join(f"At {loads_text(qs)}: {said}" for said, qs in groups.items())
 
 
 def scaled(run_value: float | None, variant: float | None, baseline: float | None) -> float | None:
@@ -160,24 +211,43 @@ def flips(entries: list[SensitivityEntry], run: dict[str, Verdict]) -> list[Flip
 
 def sentence(entries: list[SensitivityEntry], flipped: list[Flip], invalid: list[tuple], run: dict[str, Verdict]
              ) -> str:
-    """One sentence: the verdict holds over every range, or flips, on which input."""
+    """One sentence, true of what was analysed: the verdict holds over every range (only
+    when both ends of every range were analysed), or flips, on which input; the ranges an
+    end of which could not be analysed are named as such, never counted among those it
+    holds over."""
     decided = {k: v.verdict for k, v in run.items() if v.verdict != "none"}
     if not entries:
         return "Nothing was varied: every assumed input was set by the user without a range."
     if not decided:
         return "No stress has a verdict (singular or unwanted peaks), so there is no verdict to hold or flip."
-    tail = ("" if not invalid else " (not checked at " + ", ".join(f"{n} = {value_text(v, u)}" for n, v, u, _ in invalid)
-            + ": invalid or failed variants)")
-    if not flipped:
-        ranges = ", ".join(f"{e.input} {range_text(e.range, e.unit)}" for e in entries)
-        return (f"The verdict holds over every range ({ranges}): "
-                + ", ".join(f"{STRESS_NAMES[k]} {v}" for k, v in decided.items()) + f" at both ends{tail}.")
-    by_input: dict[str, list[str]] = {}
-    for f in flipped:
-        by_input.setdefault(f.input, []).append(
-            f"{STRESS_NAMES[f.stress]} {f.was} → {f.becomes} at {f.input} = {value_text(f.value, f.unit)}")
-    return (f"The verdict flips on {', '.join(by_input)}: "
-            + "; ".join(s for v in by_input.values() for s in v) + f"{tail}.")
+    missing = ", ".join(f"{n} = {value_text(v, u)}" for n, v, u, _ in invalid)
+    tail = "" if not invalid else f" (not checked at {missing}: invalid or failed variants)"
+    verdict_list = ", ".join(f"{STRESS_NAMES[k]} {v}" for k, v in decided.items())
+    if flipped:
+        by_input: dict[str, list[str]] = {}
+        for f in flipped:
+            by_input.setdefault(f.input, []).append(
+                f"{STRESS_NAMES[f.stress]} {f.was} → {f.becomes} at {f.input} = {value_text(f.value, f.unit)}")
+        return (f"{FLIPS_OPENING} {', '.join(by_input)}: "
+                + "; ".join(s for v in by_input.values() for s in v) + f"{tail}.")
+    whole = [e for e in entries if not any(e.invalid)]
+    if len(whole) == len(entries):
+        ranges = ", ".join(f"{e.input} {range_text(e.range, e.unit)}" for e in whole)
+        return f"{HOLDS_OPENING} ({ranges}): {verdict_list} at both ends."
+    # Some end was not analysed: say where the verdict was seen to hold, and name the rest.
+    said = []
+    if whole:
+        said.append("over the ranges analysed at both ends ("
+                    + ", ".join(f"{e.input} {range_text(e.range, e.unit)}" for e in whole) + ")")
+    one = [e for e in entries if any(e.invalid) and not all(e.invalid)]
+    if one:
+        said.append("at the one end analysed of " + ", ".join(
+            f"{e.input} ({value_text(e.range[0] if e.invalid[1] else e.range[1], e.unit)})" for e in one))
+    if not said:
+        return (f"Not checked: no end of any range could be analysed{tail}, so what the verdict rests on is "
+                "not known.")
+    return (f"The verdict holds {' and '.join(said)}: {verdict_list}; not checked at {missing} (invalid or "
+            "failed variants), where no verdict is claimed.")
 
 
 def contact_study_effect(case: Case, run: dict[str, Verdict]) -> dict | None:

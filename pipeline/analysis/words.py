@@ -3,15 +3,49 @@ plots, a study's table and results.json take them from here (or from results.jso
 holds what these made), so that one status is named alike everywhere."""
 from __future__ import annotations
 
+import re
+
 # The stresses a verdict is given for, by results.json's verdict names.
 STRESS_NAMES = {"global_peak": "global peak", "critical_peak": "critical peak",
                 "critical_section_nominal": "critical-section nominal stress",
                 "journal_root_nominal": "journal-root nominal stress"}
 
 
+# How a sensitivity sentence opens (pipeline.analysis.verdicts.sentence), by what it says:
+# the verdict holds at both ends of every range, it flips at an end, or neither can be
+# said of every range (an end not analysed, nothing varied, no verdict to hold). The
+# study's tables sort the variants by these (:func:`rests_on`).
+HOLDS, FLIPS, NOT_CHECKED = "holds", "flips", "not checked"  # what rests_on returns
+HOLDS_OPENING, FLIPS_OPENING = "The verdict holds over every range", "The verdict flips on"
+
+
+def rests_on(sentence: str) -> str:
+    """What a sensitivity sentence says of the verdict: HOLDS at both ends of every range,
+    FLIPS at an end, or NOT_CHECKED (an end not analysed, nothing varied, no verdict);
+    '' for no sentence (no sensitivity section). A multi-load run's sentence, one sentence
+    per group of loads ("At 5000 N: The verdict ... At 10000 N: The verdict ..."), is read
+    sentence by sentence: it flips if one flips, and holds only if every one holds."""
+    if not sentence:
+        return ""
+    clauses = [c for c in re.split(r"(?:^|(?<=\.) )At [0-9][^:]*: ", sentence) if c]
+    kinds = {FLIPS if c.startswith(FLIPS_OPENING) else HOLDS if c.startswith(HOLDS_OPENING) else NOT_CHECKED
+             for c in clauses}
+    return FLIPS if FLIPS in kinds else NOT_CHECKED if NOT_CHECKED in kinds else HOLDS
+
+
 def value_text(value: float | str, unit: str) -> str:
     """An input's value with its unit: '1.2 mm', or a choice as it is ('uniform')."""
     return value if isinstance(value, str) else f"{value:.4g} {unit}".rstrip()
+
+
+def loads_text(loads: list[float]) -> str:
+    """Hook loads (N), sorted, as a person reads them: '5000 N', '5000 and 10000 N',
+    '5000, 7500 and 10000 N', or for more than four the ends and the count ('5000–20000 N,
+    7 loads')."""
+    q = sorted(loads)
+    if len(q) > 4:
+        return f"{q[0]:g}–{q[-1]:g} N, {len(q)} loads"
+    return (", ".join(f"{v:g}" for v in q[:-1]) + " and " if len(q) > 1 else "") + f"{q[-1]:g} N"
 
 
 def range_text(rng: list, unit: str) -> str:

@@ -20,9 +20,24 @@ numbers: every one finite, the mesh factor the spec's, the seat force equal to t
 model's share of the stored load (−Q/4 or −Q, N, to 1e-9), the equilibrium error and the
 constraint reaction within the 1e-6·Q (N) a solve must meet, the residual within the
 solver's limit, DOFs a multiple of three, no peak below zero.
+
+A checksum proves that a file is whole, not that it is true: a result whose peaks were
+scaled and whose checksum was written again passed those checks (its error bars grew from
+16.8 / 0.72 to 41.8 / 13.0 MPa). So a result is stored only with what it derives from, the
+names and sha256 of the mesh entry and the solution entry (pipeline/cache/meshes.py,
+pipeline/cache/solutions.py) of the same mesh and problem, and before reuse both must still
+be there (a result whose entries were evicted is dropped without a line: stale, not
+damaged), unchanged, of one mesh (the solution's nodes at the mesh's node positions to 1e-6
+mm, its DOFs and iterations the result's), and both peaks' readings are read again from
+them at the places the result names (pipeline/post/reread.py: the cells around each place,
+about 0.1 s) and must equal the stored ones, scaled to the stored load, to DERIVED_REL.
+Forging a result that passes means computing the stress field's readings at another
+place of the mesh: the work the cache saves, not an edit. A P3 solution is not kept, so a
+P3 result is not either.
 """
 from __future__ import annotations
 
+import contextlib
 import time
 from dataclasses import dataclass, replace
 
@@ -33,6 +48,15 @@ from pipeline.inputs.case import Case
 from pipeline.post.peaks import MIDPOINT, UNAVERAGED, NodalPeak, Peak
 
 REDO = "solved again"
+# Why a result cannot be checked because the mesh or solution entry it derives from is no
+# longer kept (the cache drops the least recently used): it is dropped without a line, as
+# a result never kept would be; one whose entries changed is refused with one.
+GONE = "the mesh or solution it derives from is no longer kept"
+# A stored reading and the one read again from its solution agree to this (relative):
+# far above the round-off of two ways of reading one field (~1e-13) and the solver's
+# tolerance between a solve and a later one of the same problem (rtol 1e-8 on the
+# residual), far below a change of an error bar worth the name.
+DERIVED_REL = 1e-6
 NUMBERS = ("factor", "dofs", "cells", "iterations", "residual_rel", "seat_force_N", "support_force_N",
            "equilibrium_error_N", "constraint_reaction_N", "jacobian_ratio")
 FORCES = ("seat_force_N", "support_force_N", "equilibrium_error_N", "constraint_reaction_N")  # scale with Q
@@ -57,13 +81,27 @@ def key(case: Case, spec) -> str:
                         nu=case.nu, order=case.order, solver=case.solver, rtol=case.rtol)
 
 
-def store(name: str, level: StoredLevel, case: Case) -> None:
-    """Keep ``level``, solved at the case's load and E."""
+def derives_from(mesh: str, solution: str | None) -> dict | None:
+    """What a result of the mesh entry ``mesh`` solved as the solution entry ``solution``
+    derives from: both names and the sha256 their files hold now; None when one of them is
+    not kept (the cache is off, the solution is P3's, an entry above the bound)."""
+    if solution is None:
+        return None
+    sums = {k: runcache.digest(n) for k, n in (("mesh", mesh), ("solution", solution))}
+    if None in sums.values():
+        return None
+    return {"mesh": mesh, "mesh_sha256": sums["mesh"], "solution": solution, "solution_sha256": sums["solution"]}
+
+
+def store(name: str, level: StoredLevel, case: Case, derived: dict | None) -> None:
+    """Keep ``level``, solved at the case's load and E, with what it ``derived`` from
+    (:func:`derives_from`); a result that names no such entries is not kept: it could not be
+    checked against them."""
     meta = {k: level.numbers[k] for k in NUMBERS}
-    if not runcache.finite(*meta.values()):
+    if derived is None or not runcache.finite(*meta.values()):
         return  # not a result to reuse (the checks below would refuse it)
     meta.update(load_N=case.load_N, E_MPa=case.E_MPa, peak=_plain(level.peak), critical=_plain(level.critical),
-                timings=dict(level.timings), scaled_from=level.scaled_from)
+                timings=dict(level.timings), scaled_from=level.scaled_from, derives_from=derived)
     runcache.store(name, runcache.Entry(meta))
 
 
@@ -75,7 +113,11 @@ def earlier(name: str, case: Case, factor: float) -> StoredLevel | None:
     entry = runcache.load(name, REDO)
     if entry is None:
         return None
-    why = problem(entry.meta, case, factor)
+    why = problem(entry.meta, case, factor) or derivation_problem(entry.meta, case)
+    if why == GONE:  # what it derives from was evicted (least recently used): stale, not damaged
+        with contextlib.suppress(OSError):
+            runcache.path_of(name).unlink()
+        return None
     if why is not None:
         runcache.reject(name, why, REDO)
         return None
@@ -135,3 +177,62 @@ def _scaled(p: NodalPeak, k: float) -> NodalPeak:
     """A peak read two ways, both readings × k (MPa), in the same places."""
     return replace(p, unaveraged=Peak(k * p.unaveraged.value_MPa, p.unaveraged.location_mm),
                    averaged=Peak(k * p.averaged.value_MPa, p.averaged.location_mm))
+
+
+def derivation_problem(m: dict, case: Case) -> str | None:
+    """What of a stored result (its meta ``m``, checked by :func:`problem`) its mesh and
+    solution entries do not bear out, in a few words, or None (see the module: both there
+    and unchanged, of one mesh, and both peaks' readings read again from them)."""
+    import numpy as np
+
+    from pipeline.cache import meshes as meshcache
+    from pipeline.cache import solutions as solvecache
+    from pipeline.post.reread import MeshArrays, readings_at
+    d = m.get("derives_from")
+    if not isinstance(d, dict) or not all(isinstance(d.get(k), str) for k in
+                                          ("mesh", "mesh_sha256", "solution", "solution_sha256")):
+        return "it names no mesh and solution it derives from"
+    mesh_sum = runcache.digest(d["mesh"])
+    if mesh_sum is None:
+        return GONE
+    if mesh_sum != d["mesh_sha256"]:
+        return "the mesh it derives from has changed since"
+    loaded = runcache.load(d["solution"], REDO)
+    if loaded is None:
+        return GONE
+    if loaded.sha256 != d["solution_sha256"]:
+        return "the solution it derives from has changed since"
+    sol = solvecache.as_stored(loaded)
+    mesh = meshcache.earlier(d["mesh"])
+    if sol is None or mesh is None:
+        return "the mesh or solution it derives from is not one"
+    x = np.asarray(mesh.fields["x"], dtype=np.float64)
+    cells = np.asarray(mesh.fields["cells"])
+    if cells.ndim != 2 or cells.shape[1] not in (4, 10) or len(x) == 0 or sol.node_ids.max(initial=-1) >= len(x):
+        return "its mesh is not one of tetrahedra of degree 1 or 2"
+    if np.abs(x[sol.node_ids] - sol.nodes_mm).max(initial=0.0) > 1e-6:
+        return "its solution is not of its mesh"
+    if (sol.dofs, sol.iterations) != (m["dofs"], m["iterations"]):
+        return f"its DOFs and iterations ({m['dofs']}, {m['iterations']}) are not its solution's"
+    u = np.full((len(x), 3), np.nan)
+    u[sol.node_ids] = sol.u_mm
+    arrays = MeshArrays(x, cells[:, _gmsh_to_dolfinx(cells.shape[1])])
+    k = m["load_N"] / sol.load_N  # stresses scale with the load; E does not change them
+    for which in ("peak", "critical"):
+        p = _peak(m[which])
+        read = readings_at(arrays, u, sol.E_MPa, case.nu, p.unaveraged.location_mm, p.averaged.location_mm,
+                           1e-6 * max(1.0, float(np.abs(x).max())))
+        stored = (p.unaveraged.value_MPa, p.averaged.value_MPa)
+        if read is None or not all(np.isfinite(read)):
+            return f"its {which} peak's places are not nodes of its mesh"
+        if any(abs(k * r - v) > DERIVED_REL * max(abs(v), 1e-300) for r, v in zip(read, stored)):
+            return (f"its {which} peak's readings {stored[0]:.6g} / {stored[1]:.6g} MPa are not what its solution "
+                    f"gives there, {k * read[0]:.6g} / {k * read[1]:.6g} MPa")
+    return None
+
+
+def _gmsh_to_dolfinx(nodes: int):
+    """The column order that turns a gmsh tetrahedron of ``nodes`` nodes into DOLFINx's."""
+    from dolfinx.io import gmshio
+    from dolfinx.mesh import CellType
+    return gmshio.cell_perm_array(CellType.tetrahedron, nodes)

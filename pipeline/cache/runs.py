@@ -67,10 +67,13 @@ FOLDER_ERRORS = (errno.EACCES, errno.EPERM, errno.ENOTDIR, errno.EIO)
 
 @dataclass
 class Entry:
-    """What an entry holds: plain JSON numbers and strings (``meta``) and numeric arrays."""
+    """What an entry holds: plain JSON numbers and strings (``meta``) and numeric arrays;
+    read back, the sha256 its file was checked against (what an entry derived from it
+    records, pipeline/cache/levels.py)."""
 
     meta: dict[str, Any]
     arrays: dict[str, np.ndarray] = field(default_factory=dict)
+    sha256: str = ""
 
 
 class Corrupt(Exception):
@@ -162,7 +165,22 @@ def decode(name: str, data: bytes | bytearray) -> Entry:
             raise Corrupt("bytes left over after the arrays")
     except (ValueError, KeyError, TypeError, IndexError, RecursionError) as exc:
         raise Corrupt(f"header unreadable: {type(exc).__name__}") from None
-    return Entry(meta=meta, arrays=arrays)
+    return Entry(meta=meta, arrays=arrays, sha256=digest)
+
+
+def digest(name: str) -> str | None:
+    """The sha256 entry ``name``'s first line gives (its file's content is checked against
+    it when the entry is read, :func:`load`), or None when there is no such entry to read."""
+    if not enabled():
+        return None
+    try:
+        data = read_regular(path_of(name), MAX_ENTRY_BYTES)
+    except (Corrupt, OSError):
+        return None
+    if data is None:
+        return None
+    fields = bytes(data[:FIRST_LINE_MAX]).split(b"\n", 1)[0].decode("ascii", "replace").split(" ")
+    return fields[2] if len(fields) == 5 and fields[0] == MAGIC else None
 
 
 def read_regular(path: Path, limit: int) -> bytearray | None:

@@ -137,13 +137,13 @@ def earlier(name: str, comm: MPI.Comm) -> Stored | None:
     entry = None
     if comm.rank == 0:
         loaded = runcache.load(name, REDO)
-        entry = None if loaded is None else _stored(loaded)
+        entry = None if loaded is None else as_stored(loaded)
         if loaded is not None and entry is None:
             runcache.reject(name, "arrays or numbers not those of a solution", REDO)
     return comm.bcast(entry, root=0)
 
 
-def _stored(e: runcache.Entry) -> Stored | None:
+def as_stored(e: runcache.Entry) -> Stored | None:
     """The Stored of an entry, or None if its arrays and numbers are not a solution's."""
     m, a = e.meta, e.arrays
     try:

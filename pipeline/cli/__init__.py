@@ -25,9 +25,12 @@ from pipeline import __version__  # noqa: E402
 from pipeline.cli import converge, run, sweep  # noqa: E402
 from pipeline.cli.sweep import SWEEP_DEFAULTS  # noqa: E402,F401  (the help's defaults, tests/cli/test_help.py)
 from pipeline.cli.terminal import StdoutError  # noqa: E402
-from pipeline.errors import InputError, NumericalError, OneLineParser, OutputError  # noqa: E402
+from pipeline.errors import (InputError, NumericalError, OneLineParser, OutOfMemory, OutputError,  # noqa: E402
+                             out_of_memory)
+from pipeline.runtime.environment import address_space_refusal  # noqa: E402
 from pipeline.runtime.interrupts import (  # noqa: E402
-    declared_outcome, first_rank_by_environment, install as install_interrupts, new_command, stop_line, yield_to_stop)
+    NOTHING_WRITTEN, declared_outcome, first_rank_by_environment, install as install_interrupts, new_command, stop_line,
+    yield_to_stop)
 from pipeline.runtime.streams import silence_stdout  # noqa: E402
 
 COMMANDS = {"run": run, "converge": converge, "sweep": sweep}
@@ -79,8 +82,17 @@ def main(argv: list[str] | None = None, handle_signals: bool = False) -> int:
             make_parser().print_help()
         sys.stderr.write(NO_COMMAND + "\n")
         return 2
+    refused = address_space_refusal()  # before a thread, a library or MPI is started
+    if refused is not None:
+        if first_rank_by_environment():  # under mpirun every rank meets it: one line
+            sys.stderr.write(f"error: {refused}\n")
+        return 2
     if handle_signals:
-        install_interrupts(speak=first_rank_by_environment())
+        try:
+            install_interrupts(speak=first_rank_by_environment())
+        except RuntimeError as exc:  # no thread can start: the memory this process may have is used up
+            sys.stderr.write(f"out of memory: {one_line(exc)}; {NOTHING_WRITTEN}\n")
+            return 3
     try:
         code = dispatch(args)
     except KeyboardInterrupt:  # without handle_signals: a test calling in
@@ -111,21 +123,38 @@ def dispatch(args: argparse.Namespace) -> int:
             code, line = 2, f"error: {one_line(exc)}; {declared_outcome()}"
         except InputError as exc:
             code, line = 2, f"error: {one_line(exc)}"
+        except OutOfMemory as exc:
+            code, line = 3, f"out of memory: {memory_failure(exc)}; {declared_outcome()}"
         except (NumericalError, GeometryError) as exc:
             code, line = 3, f"numerical failure: {one_line(exc)}; {declared_outcome()}"
         except OSError as exc:  # disk full, permission, ... outside the output folder (the cache, say)
-            code, line = 2, f"error: {os_failure(exc)}; {declared_outcome()}"
+            if out_of_memory(exc):
+                code, line = 3, f"out of memory: {memory_failure(exc)}; {declared_outcome()}"
+            else:
+                code, line = 2, f"error: {os_failure(exc)}; {declared_outcome()}"
         except Exception as exc:  # a failure no check foresaw: still one line, and what became of the output
             if os.environ.get("CROSSHEAD_TRACEBACK"):
                 raise
-            code, line = 3, (f"failure: {type(exc).__name__}: {one_line(exc)}; {declared_outcome()} "
-                             "(set CROSSHEAD_TRACEBACK=1 for the traceback)")
+            if out_of_memory(exc):  # memory ran out while computing (the estimate let the run start)
+                code, line = 3, f"out of memory: {memory_failure(exc)}; {declared_outcome()}"
+            else:
+                code, line = 3, (f"failure: {type(exc).__name__}: {one_line(exc)}; {declared_outcome()} "
+                                 "(set CROSSHEAD_TRACEBACK=1 for the traceback)")
         return failures.fail(code, line)
 
 
 def one_line(exc: Exception) -> str:
     """An exception's message on one line."""
     return " ".join(str(exc).split())
+
+
+def memory_failure(exc: BaseException) -> str:
+    """What ran out of memory, for the failure line: the exception's words (a MemoryError has
+    none: its kind then), and the address-space limit when one is set (``ulimit -v``)."""
+    from pipeline.runtime.environment import GIB, address_space_limit
+    words = one_line(exc) or type(exc).__name__
+    limit = address_space_limit()
+    return words + (f" (the address space is limited to {limit / GIB:.2f} GiB: ulimit -v)" if limit else "")
 
 
 def os_failure(exc: OSError) -> str:

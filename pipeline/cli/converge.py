@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 
-from pipeline.cli.options import add_case_options, number, request_of
+from pipeline.cli.options import add_case_options, integer, number, request_of
 
 
 def add_parser(sub, description: str, epilog: str) -> None:
@@ -13,7 +13,7 @@ def add_parser(sub, description: str, epilog: str) -> None:
     conv = sub.add_parser("converge", help="mesh convergence study: >= 4 meshes, extrapolation, GCI, plot",
                           description=description, epilog=epilog, formatter_class=argparse.RawDescriptionHelpFormatter)
     add_case_options(conv, command="converge")
-    conv.add_argument("--levels", type=int, default=5,
+    conv.add_argument("--levels", type=integer, default=5,
                       help="number of meshes (default 5, at least 4); the finest is the case's mesh / ratio^(levels-3)")
     conv.add_argument("--ratio", type=number, default=1.3, help="mesh-size ratio between meshes, >= 1.3 (default 1.3)")
 

@@ -26,7 +26,7 @@ def prepare(args: argparse.Namespace, case: Case, options: RunOptions, rank0: bo
     or converge command; clean-ups that last the command go on ``stack``."""
     if rank0:  # before any form is compiled; the other ranks wait for rank 0's compiles
         guard_form_cache(stack)
-    est = check_fits(case, options.factors(case), options.memory_limit_gb)
+    est = check_fits(case, options.factors(case), options.memory_limit_gb, drawing=options.outputs.fields)
     say = quiet if (args.quiet or not rank0) else progress
     if est is not None and est.tets > 3e5:
         say(f"a large run: the finest mesh has about {est.tets:.1e} tets, {est.dofs:.1e} DOFs, "

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 
-from pipeline.cli.options import add_case_options, document, number, request_of, vary
+from pipeline.cli.options import add_case_options, document, integer, number, request_of, vary
 
 
 def add_parser(sub, description: str, epilog: str) -> None:
@@ -13,7 +13,7 @@ def add_parser(sub, description: str, epilog: str) -> None:
     run = sub.add_parser("run", help="analyse one case and write results, report, fields, picture",
                          description=description, epilog=epilog, formatter_class=argparse.RawDescriptionHelpFormatter)
     add_case_options(run)
-    run.add_argument("--levels", type=int, default=3,
+    run.add_argument("--levels", type=integer, default=3,
                      help="meshes solved for the error bar: the requested one and coarser ones "
                           "(default 3, up to 8; 1 = no error bar; 2 is refused)")
     run.add_argument("--ratio", type=number, default=1.3, help="mesh-size ratio between those meshes (default 1.3)")

@@ -37,6 +37,8 @@ def run_summary(out: Path) -> None:
             texts = texts[:LOADS_SHOWN] + [f"… {len(rows) - 2 * LOADS_SHOWN} more in results.json …"] + texts[-LOADS_SHOWN:]
         show(f"the lines above are at Q = {res['case']['load_N']:g} N; {f'{len(rows)} loads' if long else 'every load'} "
              "(global / critical peak, MPa): " + "; ".join(texts))
+        if res.get("load_sweep_verdict"):
+            show(res["load_sweep_verdict"])
     summ = res.get("sensitivity_summary")
     if summ:
         show(f"sensitivity: {summ['sentence']}")

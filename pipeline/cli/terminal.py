@@ -8,7 +8,7 @@ import sys
 import threading
 import time
 
-from pipeline.runtime.streams import silence_stdout
+from pipeline.runtime.streams import closed_at_start, silence_stdout
 
 T_START = time.perf_counter()
 
@@ -30,10 +30,24 @@ def quiet(msg: str) -> None:
     """A progress sink for --quiet (and ranks other than 0)."""
 
 
+CLOSED_STDOUT = ("stdout: closed when crosshead started, so its closing lines are not shown; the results are "
+                 "in the output folder")
+_said_closed: list[bool] = []  # whether CLOSED_STDOUT was said (once per process)
+
+
 def show(line: str) -> None:
-    """Print a line. A closed pipe (``| head``) silences the rest and the run goes on: the
-    reader wanted no more. Any other failure (a full disk, /dev/full) is the command's:
-    StdoutError, and the rest silenced so that the exit does not try again."""
+    """Print a line. A stdout closed when the program started (``>&-``) takes none: that is
+    said once on stderr (CLOSED_STDOUT). A closed pipe (``| head``) silences the rest and
+    the run goes on: the reader wanted no more. Any other failure (a full disk, /dev/full)
+    is the command's: StdoutError, and the rest silenced so that the exit does not try
+    again."""
+    if closed_at_start(1):
+        if not _said_closed:
+            _said_closed.append(True)
+            with contextlib.suppress(OSError, ValueError):
+                sys.stderr.write(CLOSED_STDOUT + "\n")
+                sys.stderr.flush()
+        return
     try:
         print(line, flush=True)
     except (BrokenPipeError, ValueError):  # ValueError: a stream closed in this process

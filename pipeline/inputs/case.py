@@ -23,6 +23,17 @@ SENSITIVITY_KEYS = ("dj", "rf", "seat_inner", "seat_outer", "bearing_centre_mm",
 # The report's title block ([document] in a case file): what the part is, its drawing or
 # document number, revision, who made and who checked the calculation.
 DOCUMENT_KEYS = ("part", "number", "revision", "author", "checker")
+# The sensitivity ranges of the journal load model's choices (support "bearing" only).
+LOAD_MODEL_KEYS = ("bearing_centre_mm", "bearing_length_mm")
+
+
+def user_text(name: str, text: str) -> str:
+    """``text`` (a title-block field, whatever its source: case file or command line) if it
+    is printable text on one line, else InputError naming ``name``: a control character (a
+    newline, a tab, NUL, an escape) has no place in a report's field."""
+    if not text.isprintable():
+        raise InputError(f"{name}: a control character in {text!r}; give printable text on one line")
+    return text
 
 
 @dataclass(frozen=True)
@@ -292,7 +303,7 @@ def resolve(size: str | None = None, case_file: Path | None = None,
             del values[k]
     dims = replace(row.dims, **dim_over)
     ranges = sensitivity_ranges({k: values.pop(k) for k in list(values) if k.startswith("sensitivity.")})
-    document = Document(**{k.split(".", 1)[1]: values.pop(k).strip() or None
+    document = Document(**{k.split(".", 1)[1]: user_text(k, values.pop(k)).strip() or None
                            for k in list(values) if k.startswith("document.")})
     name = values.pop("name", None) or row.size
     load = values.pop("load_N", row.load_N)
@@ -301,7 +312,17 @@ def resolve(size: str | None = None, case_file: Path | None = None,
     at = values.pop("bearing_at", None)
     case = Case(name=str(name), size=row.size, source=row.source, dims=dims, load_N=load,
                 assumed=assumed, sensitivity_ranges=ranges, document=document, **values)
+    if at is not None and case.support != "bearing":
+        raise InputError(f"bearing_at: applies to support = bearing only, got support = {case.support}")
     return check(case if at is None else at_formula_position(check(case), at))
+
+
+def given_keys(case_file: Path | None = None, overrides: dict[str, Any] | None = None) -> frozenset[str]:
+    """The case file's keys (Case fields, "dims.<name>", "sensitivity.<input>",
+    "document.<field>") that a case file and the overrides give: what a run must be able to
+    use (pipeline.inputs.options.check_options refuses what it cannot)."""
+    keys = set(read_case_file(case_file)) if case_file is not None else set()
+    return frozenset(keys | {k for k, v in (overrides or {}).items() if v is not None})
 
 
 def _one_position(values: dict[str, Any]) -> None:
@@ -369,10 +390,15 @@ def _in_range(name: str, v: float) -> None:
 
 
 def check_spans(case: Case) -> None:
-    """The formulas' spans must give them a positive lever arm (docs/design.md §4).
+    """The formulas' spans must give them a positive lever arm and put their journal load on
+    the journal (docs/design.md §4).
 
     Approximate method: the reaction's lever l/2 must exceed the bearing load's Dm/pi.
     Exact method: the curved bar needs the reaction outside the ring, l/2 > R = (b1 + di)/4.
+    Both: the load's position l/2 lies on the journal's bearing surface, from the fillet's
+    end b1/2 + rf to the tip b6/2 (the loaded length the FE model's journal load is put on;
+    the paper's spans put it at (b1 + b2)/2 and at the tip). A span beyond it puts the load
+    off the part (a 1000 mm span on No. 05's 70 mm part gave 980 MPa).
     """
     d = case.dims
     approx, exact = paper_spans(d)
@@ -385,6 +411,16 @@ def check_spans(case: Case) -> None:
     if l_e / 2 <= ring:
         raise InputError(f"exact_span_mm: l/2 = {l_e / 2:g} mm must exceed the ring radius "
                          f"R = (b1 + di)/4 = {ring:.4g} mm (the reactions act outside the ring)")
+    start, end = journal_bearing_surface(d)
+    tol = 1e-9 * d.b6
+    for key, span, given, paper in (("approximate_span_mm", l_a, case.approximate_span_mm, "b1 + b2"),
+                                    ("exact_span_mm", l_e, case.exact_span_mm, "b6")):
+        half = span / 2
+        if not start - tol <= half <= end + tol:
+            given = f"{span:g} mm" if given is not None else f"the paper's {paper} = {span:g} mm"
+            raise InputError(f"{key}: the span {given} puts the journal load at l/2 = {half:g} mm, off the "
+                             f"journal's bearing surface, which runs from the fillet's end b1/2 + rf = {start:g} mm "
+                             f"to the tip b6/2 = {end:g} mm; give a span from {2 * start:g} to {2 * end:g} mm")
 
 
 def check_bearing(case: Case) -> None:
@@ -420,6 +456,28 @@ def check_bearing(case: Case) -> None:
     if not lo - tol <= centre <= hi + tol:
         raise InputError(f"bearing_centre_mm: must lie in [{lo:g}, {hi:g}] mm for a loaded length of {length:g} mm "
                          f"({where}), got {centre:g}")
+
+
+def check_sensitivity(case: Case) -> None:
+    """Each sensitivity range the case gives (``[sensitivity]``, ``--vary``) must be one the
+    part allows at both ends: a dimension's end passes the geometry rules
+    (geometry.table.validate), a load-model end lies on the journal (:func:`check_bearing`),
+    and a load-model range needs the bearing pressure (support "bearing"). An end outside
+    them would be analysed as nothing: refused with the rule it breaks."""
+    for name, lo, hi in case.sensitivity_ranges:
+        model = name in LOAD_MODEL_KEYS
+        if model and case.support != "bearing":
+            raise InputError(f"sensitivity.{name}: a load-model range applies to support = bearing only, "
+                             f"got support = {case.support}")
+        for end, v in (("low", lo), ("high", hi)):
+            try:
+                if model:
+                    check_bearing(replace(case, **{name: v}))
+                else:
+                    validate(replace(case.dims, **{name: v}))
+            except InputError as exc:
+                raise InputError(f"sensitivity.{name}: the {end} end, {v:g} mm, is outside what the part allows: "
+                                 f"{' '.join(str(exc).split())}") from None
 
 
 # Poisson's ratios from which a nearly incompressible material defeats the element or the
@@ -523,28 +581,19 @@ def check(case: Case) -> Case:
             _finite_positive(k, v)
     check_spans(case)
     check_bearing(case)
+    check_sensitivity(case)
     spec = case.mesh_spec()
     for k, size, least in (("size_body_mm", spec.size_body, 1e-3), ("size_feature_mm", spec.size_feature, 2e-4),
                            ("size_fillet_mm", spec.size_fillet, 2e-4)):
         if size * spec.factor < least * case.dims.b6:
             raise InputError(f"{k}: {size:g} mm x mesh_factor {spec.factor:g} is below {least:g} * b6 = "
                              f"{least * case.dims.b6:g} mm; a mesh this fine would need more elements than this tool allows")
-    if spec.size_body * spec.factor > case.dims.b6:
-        raise InputError(f"size_body_mm: {spec.size_body * spec.factor:g} mm is larger than the part ({case.dims.b6:g} mm)")
+    for k, size in (("size_body_mm", spec.size_body), ("size_feature_mm", spec.size_feature),
+                    ("size_fillet_mm", spec.size_fillet)):
+        if size * spec.factor > case.dims.b6:
+            raise InputError(f"{k}: {size * spec.factor:g} mm is larger than the part ({case.dims.b6:g} mm)")
     if not case.name or case.name != case.name.strip() or any(c in case.name for c in "/\\") or \
             case.name in (".", "..") or \
             not case.name.isprintable() or len(case.name.encode("utf-8", "replace")) > 200:
         raise InputError(f"name: {case.name!r} cannot be used as a folder name")
     return case
-
-
-def check_error_bar_meshes(case: Case, levels: int, ratio: float) -> None:
-    """Raise InputError unless the coarsest mesh of the error bar (mesh factor ×
-    ratio^(levels − 1)) passes the case's checks: a run never solves a mesh it refuses."""
-    coarsest = case.mesh_factor * ratio ** (levels - 1)
-    try:
-        check(replace(case, mesh_factor=coarsest))
-    except InputError as exc:
-        raise InputError(f"levels: the coarsest error-bar mesh (mesh factor {case.mesh_factor:g} x "
-                         f"{ratio:g}^{levels - 1} = {coarsest:.3g}) is not allowed: {exc}; "
-                         "use fewer levels or a smaller ratio") from None

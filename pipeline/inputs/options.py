@@ -67,11 +67,15 @@ def converge_options(levels: int, ratio: float, memory_limit_gb: float | None = 
                       memory_limit_gb=memory_limit_gb, convergence=True)
 
 
-def check_options(case: Case, options: RunOptions, command: str = "run") -> RunOptions:
+def check_options(case: Case, options: RunOptions, command: str = "run",
+                  given: frozenset[str] = frozenset()) -> RunOptions:
     """``options`` if the case can be run with them, else InputError naming the first rule
     broken: levels in 1..8 and not 2, ratio in [1.1, 3]; a convergence study needs at least
     4 meshes at a ratio >= 1.3 and one load; every mesh it would solve passes the case's
-    mesh checks; a sensitivity range needs the sensitivity section and both peaks."""
+    mesh checks; and every input ``given`` (the case file's keys, "levels" and "ratio",
+    from a file or an option) takes effect (:func:`check_given`). The one check of run,
+    converge and a study's variants (``command``: "run", "converge", "sweep")."""
+    check_given(case, options, command, given)
     o = options
     if not 1 <= o.levels <= MAX_LEVELS:
         raise InputError(f"levels: must lie in 1..{MAX_LEVELS}, got {o.levels}")
@@ -101,3 +105,40 @@ def _check_factor(case: Case, factor: float, head: str, tail: str) -> None:
         check(replace(case, mesh_factor=factor))
     except InputError as exc:
         raise InputError(f"{head}{exc}{tail}") from None
+
+
+def check_given(case: Case, options: RunOptions, command: str, given: frozenset[str]) -> None:
+    """InputError naming the first input given (a case file's key, an option) that the run
+    could not use, and why: an option accepted is an option used, and nothing is recorded
+    that was not. A sensitivity range needs the sensitivity section (a run with both peaks,
+    without --no-sensitivity; a study with --sensitivity; not converge); a tolerance needs
+    the tolerance loop (a run with an error bar); a ratio needs a second mesh; the quarter
+    model's field files need the fields and the quarter model."""
+    vary = options.sensitivity and case.want == "both"
+    ranges = sorted(k for k in given if k.startswith("sensitivity."))
+    if ranges and not vary:
+        why = ("a convergence study has no sensitivity section" if command == "converge" else
+               "a study's variants vary their inputs only with --sensitivity" if command == "sweep"
+               and not options.sensitivity else
+               "--no-sensitivity skips the sensitivity section" if not options.sensitivity else
+               f"want = {case.want} skips the sensitivity section (a run for one peak varies nothing)")
+        raise InputError(f"{ranges[0]}: a sensitivity range (--vary, or the case file's [sensitivity]) takes "
+                         f"effect in the sensitivity section only, and {why}")
+    if command == "sweep" and options.sensitivity and case.want != "both":
+        raise InputError(f"sensitivity: --sensitivity varies the assumed inputs of a case that wants both peaks; "
+                         f"want = {case.want} varies nothing")
+    if "tolerance_pct" in given and not (options.to_tolerance and options.levels >= 3):
+        why = ("a convergence study solves its meshes without a tolerance" if command == "converge" else
+               "a study's variants solve their meshes without a tolerance" if command == "sweep" else
+               f"--levels {options.levels} gives no error bar to hold to it")
+        raise InputError(f"tolerance_pct: the accuracy asked (--tolerance, or the case file's [mesh] tolerance_pct) "
+                         f"cannot take effect: {why}")
+    if "ratio" in given and options.levels == 1:
+        raise InputError("ratio: --ratio sets the step between the error bar's meshes, and --levels 1 solves one "
+                         "mesh; leave --ratio out")
+    if options.outputs.quarter_fields and not options.outputs.fields:
+        raise InputError("quarter_fields: --quarter-fields chooses the field files and the picture, which "
+                         "--no-fields skips; give one of them")
+    if options.outputs.quarter_fields and case.model != "quarter":
+        raise InputError(f"quarter_fields: --quarter-fields keeps the quarter model's fields, and model = "
+                         f"{case.model} has no quarter; leave it out")

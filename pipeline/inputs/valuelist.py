@@ -3,10 +3,16 @@ dimensions (mm). One value, a comma list ``a,b,c``, or a range ``START:STOP:COUN
 values, both ends included). Every value is finite and given once: a repeated value would
 be analysed once and listed twice. The command line and study files both read lists here,
 so a list means the same wherever it is written.
+
+A number is read as an engineer writes it (:func:`as_number`): digits 0-9 with an optional
+sign, decimal point and exponent ("12.5", "-3", "1e4", ".5"), or the words nan and inf (so
+that their line says "must be finite", as a case file's nan does). Python's own readers
+accept more ("1_0" is 10, "١٢" is 12): those are refused.
 """
 from __future__ import annotations
 
 import math
+import re
 
 from pipeline.errors import InputError
 
@@ -18,6 +24,28 @@ SAME_ABS = 1e-12
 MOST_LOADS = 1000  # loads are cheap: one solve, scaled to each
 MOST_DIM_VALUES = 200  # each swept value of a dimension is a full analysis
 
+NUMBER = re.compile(r"[+-]?(?:(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)(?:[eE][+-]?[0-9]+)?|nan|inf|infinity)",
+                    re.IGNORECASE | re.ASCII)
+INTEGER = re.compile(r"[+-]?[0-9]+", re.ASCII)
+
+
+def as_number(text: str) -> float:
+    """The number ``text`` is (surrounding spaces aside), as an engineer writes it (see the
+    module); ValueError when it is not one."""
+    t = text.strip()
+    if not NUMBER.fullmatch(t):
+        raise ValueError(f"{text!r} is not a number")
+    return float(t)
+
+
+def as_integer(text: str) -> int:
+    """The whole number ``text`` is (digits 0-9 with an optional sign, surrounding spaces
+    aside); ValueError when it is not one."""
+    t = text.strip()
+    if not INTEGER.fullmatch(t):
+        raise ValueError(f"{text!r} is not an integer")
+    return int(t)
+
 
 def parse_values(text: str, name: str, most: int) -> list[float]:
     """The numbers of ``text`` (at most ``most`` of them); ``name`` starts every error line.
@@ -26,7 +54,7 @@ def parse_values(text: str, name: str, most: int) -> list[float]:
     if len(parts) == 3:
         a, b = (_number(p, name) for p in parts[:2])
         try:
-            n = int(parts[2])
+            n = as_integer(parts[2])
         except ValueError:
             raise InputError(f"{name}: range count {parts[2].strip()!r} is not an integer") from None
         if not 2 <= n <= most:
@@ -76,6 +104,6 @@ def parse_loads(text: str) -> list[float]:
 
 def _number(text: str, name: str) -> float:
     try:
-        return float(text)
+        return as_number(text)
     except ValueError:
         raise InputError(f"{name}: {text.strip()!r} is not a number") from None

@@ -49,11 +49,26 @@ class Drawing:
         err = self.proc.stderr.read()  # to its end: the process's only pipe left open
         self.proc.wait()
         if self.proc.returncode != 0:
-            tail = (err.strip().splitlines() or ["no message"])[-1]
-            raise RuntimeError(f"drawing failed: {tail}")
+            raise failure(err, self.proc.returncode)
         if not (folder / "von_mises.png").exists():
             raise RuntimeError("picture rendering failed: no von_mises.png")
         return time.perf_counter() - self.started
+
+
+def failure(err: str, status: int) -> Exception:
+    """Why the drawing process failed, from its stderr ``err`` and exit ``status``, as one
+    line: the last line that names an error (VTK's warnings and colour escapes left out),
+    else the last line; OutOfMemory when it ran out of memory (the drawing process has the
+    run's address-space limit to itself)."""
+    import re
+    from pipeline.errors import OutOfMemory, out_of_memory
+    lines = [" ".join(re.sub(r"\x1b\[[0-9;]*[A-Za-z]", "", ln).split()) for ln in err.splitlines()]
+    lines = [ln for ln in lines if ln]
+    errors = [ln for ln in lines if re.search(r"\b\w*(Error|Exception)\b|bad_alloc|[Ss]egmentation|Killed", ln)]
+    tail = (errors or lines or [f"exit status {status}"])[-1]
+    if out_of_memory(RuntimeError(err)) or status in (-9, 137):
+        return OutOfMemory(f"drawing: {tail}")
+    return RuntimeError(f"drawing failed: {tail}")
 
 
 def start(folder: Path, scene: dict) -> Drawing:

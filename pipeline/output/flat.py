@@ -83,8 +83,8 @@ COLUMNS: dict[str, str] = {
     "source": "where the size's dimensions come from (text)",
     "changed_dims": "the dimensions that differ from the size's table row, as 'rf = 2 mm (table 1.5)' (mm)",
     "verdict_rests_on": "whether the run's verdict holds over its assumed inputs' ranges, the sentence of its "
-                        "sensitivity section (text); empty when it was not analysed (--no-sensitivity, a study "
-                        "without --sensitivity)",
+                        "sensitivity section at the row's load (text); empty when it was not analysed "
+                        "(--no-sensitivity, a study without --sensitivity)",
 }
 TEXT_COLUMNS = frozenset({"size", "source", "changed_dims", "verdict_rests_on",
                           *(c for p in PEAKS.values() for c in (p.status, p.feature, p.note))})
@@ -109,6 +109,8 @@ def rows(res: dict) -> list[dict]:
         k = entry["load_N"] / q0  # linear elasticity: every stress scales with the load
         row = dict(own, **{c: None if own[c] is None else k * own[c] for c in _LINEAR})
         row.update({c: entry.get(c) for c in _PER_LOAD})
+        if "sensitivity_sentence" in entry:  # what that load's verdict rests on, said at that load
+            row["verdict_rests_on"] = entry["sensitivity_sentence"] or ""
         out.append(_decided(row))
     return out
 
@@ -135,7 +137,9 @@ def _peak(fe: dict, p: PeakColumns) -> dict:
     """One peak's columns as its fe block gives them (MPa); :func:`_decided` then applies
     what a peak with no value shows."""
     block = fe[p.block]
-    reading = fe["peak_MPa" if p.block == "peak" else "critical_peak_MPa"]
+    key = "peak_MPa" if p.block == "peak" else "critical_peak_MPa"
+    # A peak not asked for has no value (null); its reading is kept under *_unresolved_MPa.
+    reading = fe[key] if fe.get(key) is not None else fe.get(key.replace("_MPa", "_unresolved_MPa"))
     out = {p.value: reading, p.reading: reading, p.band: None, p.extrapolated: None, p.last_change: None,
            p.feature: block.get("feature", ""), p.note: "", p.safety_factor: fe.get(p.safety_factor)}
     est = block.get("error_estimate")

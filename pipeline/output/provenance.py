@@ -14,9 +14,9 @@ import sys
 from pipeline import __version__
 
 SCHEMA_VERSION = 1
-# Top-level keys a run may not fill (null then): a load sweep, the sensitivity section, a
-# convergence study's block.
-OPTIONAL_KEYS = ("load_sweep", "sensitivity", "sensitivity_summary", "convergence")
+# Top-level keys a run may not fill (null then): a load sweep and its verdict sentence, the
+# sensitivity section, a convergence study's block.
+OPTIONAL_KEYS = ("load_sweep", "load_sweep_verdict", "sensitivity", "sensitivity_summary", "convergence")
 # The order of the top-level keys in every results.json.
 KEY_ORDER = ("about", "units", "case", "analytic", "fe", "comparison_pct", "timings_s", "files", *OPTIONAL_KEYS,
              "summary")

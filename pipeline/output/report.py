@@ -260,6 +260,9 @@ def verdict_section(res: dict) -> str:
                  "values at a stress raiser (concentration included), the nominal rows the section's average "
                  "stress as the hand formulas define it; which one the design must satisfy is the engineer's "
                  "rule (static strength, fatigue), not this tool's.")
+    if res.get("load_sweep_verdict"):
+        L.append(f"\nThe table is at Q = {_f(c['load_N'], 0)} N. **{res['load_sweep_verdict']}** (each load's "
+                 "row: *Load sweep*.)")
     L.append("\nCapacity scales the hook load linearly (linear elasticity, loads only): the load at which "
              "that stress reaches the allowable; the range follows the error bar. \"undecided\": the "
              "error bar straddles the allowable.\n")
@@ -363,11 +366,39 @@ TITLE_FIELDS = (("Part", "part"), ("Document number", "number"), ("Revision", "r
                 ("Author", "author"), ("Checked by", "checker"))
 
 
-def _cell(text: str | None) -> str:
-    """A case file's text as a Markdown table cell: HTML and the cell separator escaped, a
-    missing value blank (to fill by hand)."""
+# The characters from which Markdown (Python-Markdown, and its tables extension's "|") makes
+# markup inside a line, each of which a backslash escapes: code, emphasis, links and images
+# ("[", "]"), a table cell's end. (#, +, - and "1." are markup at a line's start only, and a
+# user's text never starts one: it sits in a table cell or after words.)
+MARKDOWN_PUNCTUATION = "\\`*_[]|"
+
+
+def md_text(text: str) -> str:
+    """A user's text (a title-block field, a row's source) as Markdown that renders as that
+    very text, in report.md as in report.html: HTML's &, < and > as entities, Markdown's
+    punctuation backslash-escaped, so that no link, image, emphasis, raw HTML or table cell
+    boundary comes of it (a ``[x](javascript:...)`` stays those characters), and line
+    breaks as spaces."""
     import html
-    return "" if text is None else html.escape(text).replace("|", "\\|").replace("\n", " ")
+    out = html.escape(" ".join(text.splitlines()), quote=False)
+    return "".join("\\" + ch if ch in MARKDOWN_PUNCTUATION else ch for ch in out)
+
+
+def code_span(text: str) -> str:
+    """A user's text as a Markdown code span (shown as typed, in a fixed-width font): fenced
+    by one backtick more than its longest run of them, so that none of its own ends the
+    span; Markdown HTML-escapes a code span's content itself."""
+    import re
+    text = " ".join(text.splitlines())
+    fence = "`" * (max((len(m) for m in re.findall(r"`+", text)), default=0) + 1)
+    pad = " " if text.startswith("`") or text.endswith("`") or text.startswith(" ") else ""
+    return f"{fence}{pad}{text}{pad}{fence}"
+
+
+def _cell(text: str | None) -> str:
+    """A case file's text as a Markdown table cell (:func:`md_text`), a missing value blank
+    (to fill by hand)."""
+    return "" if text is None else md_text(text)
 
 
 def title_block_lines(res: dict) -> list[str]:
@@ -394,7 +425,7 @@ def _summary_lines(res: dict) -> list[str]:
     L: list[str] = []
     add = L.append
     c, an, fe, cmp_ = res["case"], res["analytic"], res["fe"], res["comparison_pct"]
-    add(f"# Crosshead stress report: hook No. {c['size']} (case `{c['name']}`)\n")
+    add(f"# Crosshead stress report: hook No. {md_text(str(c['size']))} (case {code_span(c['name'])})\n")
     L += title_block_lines(res)
     add("Units: lengths mm, forces N, stresses MPa. Locations (x, y, z) in mm: x along the crosshead "
         "(the journal axis), y across it, z up; origin on the bore axis at the bottom face.\n")
@@ -455,7 +486,7 @@ def _inputs_lines(res: dict) -> list[str]:
     c, fe = res["case"], res["fe"]
     d = c["dims"]
     add("## Inputs\n")
-    add(f"Hook No. {c['size']}; row source: {without_docs_links(c['source'])}\n")
+    add(f"Hook No. {md_text(str(c['size']))}; row source: {md_text(without_docs_links(c['source']))}\n")
     add("| symbol | meaning | value (mm) | origin |")
     add("|---|---|---|---|")
     for k, v in d.items():
@@ -590,6 +621,8 @@ def _load_sweep_lines(res: dict) -> list[str]:
                 f"{_f(r['approximate_MPa'])} | {_f(r['exact_MPa'])} | {_sf(r['safety_factor'], fe, 'safety_factor')} / "
                 f"{_sf(r['critical_safety_factor'], fe, 'critical_safety_factor')} |")
         add("")
+        if res.get("load_sweep_verdict"):
+            add(f"{res['load_sweep_verdict']}\n")
     return L
 
 

@@ -41,6 +41,7 @@ def results_json(result: RunResult, files: dict[str, str], timings_s: dict[str, 
     }
     if r.load_rows is not None:
         res["load_sweep"] = [row.as_dict() for row in r.load_rows]
+        res["load_sweep_verdict"] = r.loads_verdict
     if r.sensitivity is not None:
         res["sensitivity"] = [e.as_dict() for e in r.sensitivity.entries]
         res["sensitivity_summary"] = sensitivity_summary(r)
@@ -63,15 +64,21 @@ def peak_block(p: PeakAnswer) -> dict:
 
 def fe_block(r: RunResult) -> dict:
     """results.json's "fe": the requested mesh's peaks, solver and equilibrium figures,
-    safety factors, sections, verdicts and every mesh's row (N, MPa, mm)."""
+    safety factors, sections, verdicts and every mesh's row (N, MPa, mm). A peak the run
+    was not asked for (want) has no value in ``peak_MPa`` / ``critical_peak_MPa``, the
+    answers a program reads: null there, its reading in ``*_unresolved_MPa``."""
     case, fine, pl = r.case, r.requested, r.places
     safety = {}
     for key, sf in r.safety.items():
         safety[key], safety[f"{key}_note"] = sf.value, sf.note
+    answer = {k: (None if p.not_wanted else p.value_MPa, p.value_MPa if p.not_wanted else None)
+              for k, p in r.peaks.items()}
     return {
-        "peak_MPa": fine.peak.value_MPa,
+        "peak_MPa": answer["peak"][0],
+        "peak_unresolved_MPa": answer["peak"][1],
         "peak_location_mm": list(fine.peak.location_mm),
-        "critical_peak_MPa": fine.critical.value_MPa,
+        "critical_peak_MPa": answer["critical"][0],
+        "critical_peak_unresolved_MPa": answer["critical"][1],
         "critical_location_mm": list(fine.critical.location_mm),
         "peak": peak_block(r.peaks["peak"]),
         "critical": peak_block(r.peaks["critical"]),

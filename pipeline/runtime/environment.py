@@ -31,6 +31,34 @@ from pathlib import Path
 REPOSITORY = Path(__file__).resolve().parents[2]
 CACHE_HOME = REPOSITORY / ".venv" / "cache"  # the form cache is CACHE_HOME/fenics
 
+GIB = 1024 ** 3
+# The address space (virtual memory) a command needs before it meshes anything: Python with
+# DOLFINx, PETSc, MPI and gmsh loaded and OpenBLAS's buffers (0.71 GiB measured on Debian
+# 12), the threads' stacks and a margin. Below it a command cannot start: a thread, a
+# library or a buffer cannot be had, and OpenBLAS then waits for memory forever.
+ADDRESS_FLOOR = 0.9 * GIB
+
+
+def address_space_limit() -> float | None:
+    """The address space this process may have (bytes): the smaller of its RLIMIT_AS and
+    RLIMIT_DATA soft limits (``ulimit -v``, ``prlimit --as``); None when neither is set.
+    Each process the run starts (an MPI daemon, a drawing process) has the same limit."""
+    import resource
+    limits = [resource.getrlimit(r)[0] for r in (resource.RLIMIT_AS, resource.RLIMIT_DATA)]
+    finite = [v for v in limits if v != resource.RLIM_INFINITY and v >= 0]
+    return float(min(finite)) if finite else None
+
+
+def address_space_refusal() -> str | None:
+    """The line (without "error: ") refusing a command whose address-space limit is below
+    ADDRESS_FLOOR, or None: said before anything is loaded or started."""
+    limit = address_space_limit()
+    if limit is None or limit >= ADDRESS_FLOOR:
+        return None
+    return (f"memory: the address space is limited to {limit / GIB:.2f} GiB (ulimit -v), and crosshead needs "
+            f"{ADDRESS_FLOOR / GIB:.1f} GiB before it meshes anything (its libraries, MPI and BLAS buffers); "
+            "raise the limit; nothing written")
+
 
 def configure() -> None:
     """Apply the settings above to this process and the processes it starts."""

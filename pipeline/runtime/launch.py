@@ -50,6 +50,10 @@ def refusal(argv: list[str]) -> tuple[int, str] | None:
             raise ValueError
     except (IndexError, ValueError):
         return 2, f"error: ranks: {USAGE}"
+    from pipeline.runtime.environment import address_space_refusal
+    refused = address_space_refusal()  # said once here, not once per rank
+    if refused is not None:
+        return 2, f"error: {refused}"
     cores = len(os.sched_getaffinity(0))
     if ranks > cores:
         return 2, (f"error: ranks: {ranks} ranks, but this machine gives {cores} cores; pipeline.runtime.launch runs "

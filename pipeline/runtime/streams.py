@@ -11,6 +11,9 @@
 - stderr never raises: when it is full or gone, the failure line is lost but the exit
   status still says what happened (docs/design.md §8). stdout's failures are the
   command's to report (pipeline/cli.py).
+- A stdout closed at the start is remembered (:func:`closed_at_start`): what the command
+  would have shown there is said to be lost, once, on stderr (pipeline/cli/terminal.py).
+  Like the signal watcher, this is the process's own state: its streams are the process's.
 """
 from __future__ import annotations
 
@@ -74,11 +77,21 @@ def _text_stream(fd: int, cls: type[io.TextIOWrapper] = io.TextIOWrapper,
                line_buffering=True)
 
 
+_CLOSED: set[int] = set()  # the standard descriptors that were closed when the process started
+
+
+def closed_at_start(fd: int) -> bool:
+    """Whether standard descriptor ``fd`` was closed when :func:`make_safe` ran (and is
+    /dev/null since)."""
+    return fd in _CLOSED
+
+
 def make_safe() -> None:
     """Apply the rules of the module doc to this process (the program's entry points call
     it first). Streams that are not the process's own (a test's capture) are left alone."""
     for fd in (0, 1, 2):
-        _reopen_closed(fd)
+        if _reopen_closed(fd):
+            _CLOSED.add(fd)
     if sys.stdout is None:
         sys.stdout = _text_stream(1)
     elif isinstance(sys.stdout, io.TextIOWrapper):

@@ -13,7 +13,8 @@ import json
 from dataclasses import dataclass
 from pathlib import Path
 
-from pipeline.inputs.case import Case, check_error_bar_meshes, resolve
+from pipeline.inputs.case import Case, resolve
+from pipeline.inputs.options import Outputs, RunOptions, check_options
 from pipeline.inputs.tomlfile import read_toml
 from pipeline.cache.codekey import code_key
 from pipeline.errors import InputError
@@ -32,7 +33,9 @@ class Study:
     case file's keys), the axes of its grid (``dims.<name>`` or case fields, values), the
     hook loads (empty: each case's own), each variant's meshes (``levels`` at ``ratio``),
     whether each also varies its assumed inputs (``sensitivity``), whether the study is
-    screened (``screen``) and the memory a variant may use (GiB; None: the memory free)."""
+    screened (``screen``), the memory a variant may use (GiB; None: the memory free) and the
+    inputs the user gave (``given``: the case file's keys, and "ratio" when given on the
+    command line; pipeline.inputs.options.check_given refuses those a variant cannot use)."""
 
     size: str | None
     case_file: Path | None
@@ -45,6 +48,17 @@ class Study:
     sensitivity: bool = False
     screen: bool = False
     memory_limit_gb: float | None = None
+    given: frozenset[str] = frozenset()
+
+
+def variant_options(study: Study, loads: tuple[float, ...] = ()) -> RunOptions:
+    """How each variant of ``study`` is run at ``loads`` (N; one load: its own alone): its
+    levels meshes at the study's ratio, no tolerance loop, the sensitivity section when the
+    study asks for it, no formula-load sections (the study's table does not read them), no
+    fields and no mesh file (its question is its peaks)."""
+    return RunOptions(levels=study.levels, ratio=study.ratio, to_tolerance=False, sensitivity=study.sensitivity,
+                      formula_loads=False, loads=tuple(loads) if len(loads) > 1 else (),
+                      memory_limit_gb=study.memory_limit_gb, outputs=Outputs(fields=False, mesh=False))
 
 
 @dataclass(frozen=True)
@@ -87,7 +101,7 @@ def plan(study: Study) -> list[Task]:
         if len({t.note for t in tasks}) == 1:  # not the variants: an input they all share is wrong
             raise InputError(tasks[0].note)
         raise InputError(f"sweep: every variant is invalid; the first: {tasks[0].note}")
-    check_error_bar_meshes(valid[0], levels, ratio)
+    check_options(valid[0], variant_options(study, tuple(study.loads)), "sweep", study.given)
     return tasks
 
 

@@ -75,7 +75,9 @@ def screening_of(res: dict, step: Step = STEPS[0]) -> dict:
     peaks = {}
     for block in flat.PEAKS:
         b = fe[block]
-        value = fe["peak_MPa" if block == "peak" else "critical_peak_MPa"]
+        key = "peak_MPa" if block == "peak" else "critical_peak_MPa"
+        # A peak not asked for (want) has no answer (null): its reading, for orientation.
+        value = fe[key] if fe.get(key) is not None else fe.get(key.replace("_MPa", "_unresolved_MPa"))
         un, av = b.get("unaveraged_MPa"), b.get("averaged_MPa")
         gap = 0.0 if un is None or av is None else 0.5 * abs(un - av)
         band = max(step.margin[block] * abs(value), gap)

@@ -118,10 +118,15 @@ def collect(results_dir: Path, take_all: bool = False) -> tuple[list[dict], list
     from pipeline.study.manifest import MANIFEST, VariantFault, folder_fault, read_failure
     sizes = None if take_all else set(flat.size_table())
     in_study = results_dir.name == "variants" and marked_kind(results_dir.parent) == "sweep"
+    listed = set(study_variants(results_dir)) if in_study else set()
     rows, skipped, unnamed = [], [], []
     for sub in sorted(p for p in results_dir.iterdir() if p.is_dir()):
         f = sub / "results.json"
         if not f.is_file():
+            # A variant's folder, or a run's results folder, without its results: named,
+            # never dropped in silence (a folder of other files is not a result).
+            if (sub / MANIFEST).exists() or marked_kind(sub) == "run" or sub.name in listed:
+                skipped.append(f"{sub.name} (results.json is missing; not summarised)")
             continue
         if sizes is not None and sub.name not in sizes:
             unnamed.append(sub.name)
@@ -144,11 +149,29 @@ def collect(results_dir: Path, take_all: bool = False) -> tuple[list[dict], list
             skipped.append(f"{f.name} (a failed variant: {exc}; not summarised)")
         except (KeyError, TypeError):
             skipped.append(f"{f.name} (a failed variant; its note cannot be read)")
+    skipped += missing_variants(results_dir) if in_study else []
     if unnamed:  # said once: a study's variants/ folder has one per variant
         skipped.append(f"{', '.join(unnamed[:3])}{f' and {len(unnamed) - 3} more' if len(unnamed) > 3 else ''} "
                        "(not named for a hook number of the size table; use --all, as for a study's variants/)")
     rows.sort(key=lambda r: (hook_value(r["size"]), r["folder"]))
     return rows, skipped
+
+
+def study_variants(variants: Path) -> dict[str, str]:
+    """The variants of the study whose ``variants`` folder this is, by key, with their
+    status, as its table (sweep.json beside it) lists them; empty when it cannot be read."""
+    try:
+        rows = json.loads((variants.parent / "sweep.json").read_text(encoding="utf-8"))["rows"]
+        return {str(r["variant"]): str(r.get("status")) for r in rows}
+    except (OSError, ValueError, KeyError, TypeError, AttributeError):
+        return {}
+
+
+def missing_variants(variants: Path) -> list[str]:
+    """The variants a study's table lists as analysed whose folder in ``variants`` is gone:
+    named, since nothing else of them is left to name."""
+    return [f"{key} (its folder is missing; not summarised)" for key, status in sorted(study_variants(variants).items())
+            if status == "done" and "/" not in key and not (variants / key).is_dir()]
 
 
 def _n(v: float | None, digits: int = 2) -> str:
@@ -210,16 +233,21 @@ def markdown(rows: list[dict], skipped: list[str], png_name: str | None) -> str:
 
 def _rests_on_lines(rows: list[dict]) -> list[str]:
     """Which sizes' verdicts depend on an assumed input (from each run's sensitivity
-    sentence; the study ran with --sensitivity); nothing when no row has one."""
+    sentence; the study ran with --sensitivity), and which were not checked over every
+    range (an end not analysed); nothing when no row has one."""
+    from pipeline.analysis.words import FLIPS, HOLDS, rests_on
     told = [r for r in rows if r.get("verdict_rests_on")]
     if not told:
         return []
-    flips = [r for r in told if not r["verdict_rests_on"].startswith("The verdict holds")]
-    lines = [f"**What the verdicts rest on:** {len(told) - len(flips)} of {len(told)} sizes keep their verdict over "
+    others = [r for r in told if rests_on(r["verdict_rests_on"]) != HOLDS]
+    flips = [r for r in others if rests_on(r["verdict_rests_on"]) == FLIPS]
+    lines = [f"**What the verdicts rest on:** {len(told) - len(others)} of {len(told)} sizes keep their verdict over "
              "every assumed input's range (dj, rf, seat, the bearing load model; each run's report gives the "
-             "ranges)" + (". These depend on an assumption:" if flips else "."), ""]
-    lines += [f"- No. {r['size']}: {r['verdict_rests_on']}" for r in flips]
-    return lines + ([""] if flips else [])
+             "ranges)" + (". These depend on an assumption:" if flips and flips == others else
+                          ". These depend on an assumption or were not checked over every range:" if others else "."),
+             ""]
+    lines += [f"- No. {r['size']}: {r['verdict_rests_on']}" for r in others]
+    return lines + ([""] if others else [])
 
 
 def _table_lines(rows: list[dict]) -> list[str]:

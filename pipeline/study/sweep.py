@@ -35,8 +35,8 @@ from pipeline.output import flat
 from pipeline.study.screening import (FILE, FULL, NEXT_STEPS, STEPS, screen_case, screened_rows, screening_of,
                                       undecided)
 from pipeline.errors import InputError, NumericalError
-from pipeline.inputs.options import Outputs, RunOptions
 from pipeline.inputs.case import Case
+from pipeline.inputs.options import RunOptions
 from pipeline.output.folder import write_run
 from pipeline.runtime.interrupts import on_stop, stop_outcome
 # pipeline.fe.meshing loads DOLFINx, whose import starts PETSc collectively over COMM_WORLD:
@@ -46,7 +46,7 @@ from pipeline.fe.meshing import heartbeat
 from pipeline.runtime.atomicfile import write_text
 from pipeline.runtime.idle import wait_for_ranks
 from pipeline.study.manifest import MANIFEST, failure_fault, folder_fault, write_failure, write_manifest
-from pipeline.study.plan import Study, Task, earlier_variants, failure_file, plan, variant_folder
+from pipeline.study.plan import Study, Task, earlier_variants, failure_file, plan, variant_folder, variant_options
 from pipeline.study.table import inputs_text, write_outputs
 
 Progress = Callable[[str], None]
@@ -115,38 +115,71 @@ def fault_of(out: Path, key: str) -> str | None:
 def discard_damaged(out: Path, tasks: list[Task], say: Progress) -> list[str]:
     """Remove what each task of ``tasks`` left in ``out`` that does not match its
     checksums, saying so in one line per task, so that the study analyses it again; its
-    keys. Its claim goes too: a study that has run it once takes it again."""
+    keys. Its claim goes too: a study that has run it once takes it again. A user's file in
+    a variant's folder stays, named in the line (the new run carries it over)."""
     keys = []
     for t in tasks:
         why = None if t.case is None else fault_of(out, t.key)
         if why is None:
             continue
+        kept = []
         for p in (variant_folder(out, t.key), failure_file(out, t.key), out / ".claims" / t.key,
                   out / ".claims" / f"{t.key}.full"):
-            _remove(p)
-        say(f"sweep: variant {t.key} ({inputs_text(t.params)}): {why}; analysed again")
+            kept += _remove(p)
+        said = f"; kept {', '.join(kept)} (not the study's)" if kept else ""
+        say(f"sweep: variant {t.key} ({inputs_text(t.params)}): {why}; analysed again{said}")
         keys.append(t.key)
     return keys
 
 
-def _remove(path: Path) -> None:
+def study_files(folder: Path) -> set[str]:
+    """The entries of a variant's folder that its run and its study wrote: those the run's
+    results marker lists (pipeline.runtime.folders.tool_names; a run's files when it lists
+    none), the marker, the checksums and a screened study's reading. Anything else is the
+    user's."""
+    from pipeline.runtime.folders import MARKER, tool_names
+    names = {p.name for p in folder.iterdir()}
+    return tool_names(folder, names) | (names & {MARKER, MANIFEST, FILE})
+
+
+def _remove(path: Path, keep_marked: bool = True) -> list[str]:
     """Remove what a task left at ``path``: a file, a link (not what it points to), an
-    empty folder or a variant's folder (it holds the results marker or the checksums). A
-    folder the tool did not write stays: the run into it is then refused and written as
-    the task's failure."""
+    empty folder, or of a variant's folder (it holds the results marker or the checksums)
+    the files its run and its study wrote (:func:`study_files`). Returns the user's entries
+    of that folder, which stay: the folder stays too, marked as the tool's with no files of
+    its own so that the task's next run replaces it and carries them over (with
+    ``keep_marked`` False, unmarked: only the user's entries are left). A folder the tool
+    did not write stays whole: the run into it is then refused and written as the task's
+    failure."""
     from pipeline.runtime.folders import MARKER
     if path.is_dir() and not path.is_symlink():
         if (path / MARKER).is_file() or (path / MANIFEST).is_file():
-            # Renamed first (one step), so a stop during the removal leaves no half a
-            # variant under its key; the study removes the renamed rest when it ends
-            # (earlier_variants: a marked folder of no key of the study).
-            gone = path.with_name(f".removing-{path.name}-{os.getpid()}")
-            os.replace(path, gone)
-            shutil.rmtree(gone)
-        elif not any(path.iterdir()):
+            own = study_files(path)
+            user = sorted({p.name for p in path.iterdir()} - own)
+            if not user:
+                # Renamed first (one step), so a stop during the removal leaves no half a
+                # variant under its key; the study removes the renamed rest when it ends
+                # (earlier_variants: a marked folder of no key of the study).
+                gone = path.with_name(f".removing-{path.name}-{os.getpid()}")
+                os.replace(path, gone)
+                shutil.rmtree(gone)
+                return []
+            for name in sorted(own - {MARKER}, key=lambda n: n != "results.json"):  # results first: never read again
+                entry = path / name
+                if entry.is_dir() and not entry.is_symlink():
+                    shutil.rmtree(entry)
+                else:
+                    entry.unlink(missing_ok=True)
+            if keep_marked:  # the marker last: a stop half-way leaves a folder still the tool's
+                write_text(path / MARKER, json.dumps({"tool": "crosshead", "files": []}) + "\n")
+            else:
+                (path / MARKER).unlink(missing_ok=True)
+            return [f"{path.name}/{n}" for n in user]
+        if not any(path.iterdir()):
             path.rmdir()
-    else:
-        path.unlink(missing_ok=True)
+        return []
+    path.unlink(missing_ok=True)
+    return []
 
 
 def run_task(task: Task, out: Path, study: Study, screen: bool = False,
@@ -165,12 +198,7 @@ def run_task(task: Task, out: Path, study: Study, screen: bool = False,
     cheap = screening(folder) if escalation is not None and folder_fault(folder) is None else None
     _remove(folder)
     _remove(failed)
-    # No variant solves the journal load at the hand formulas' positions (the study's table
-    # does not read them) nor writes fields or a mesh: its question is its peaks.
-    options = RunOptions(levels=study.levels, ratio=study.ratio, to_tolerance=False, sensitivity=study.sensitivity,
-                         formula_loads=False,
-                         loads=tuple(task.loads) if len(task.loads) > 1 else (),
-                         outputs=Outputs(fields=False, mesh=False))
+    options = variant_options(study, tuple(task.loads))
     alone = RunContext(comm=MPI.COMM_SELF, memo={})  # a variant's steps solve each mesh once
     tried = list((cheap or {}).get("steps", []))  # every step's reading so far, for the bench's coverage check
     try:
@@ -303,9 +331,12 @@ def check_variants_fit(tasks: list[Task], limit_gb: float | None, copies: int, s
     (pipeline.analysis.memory) when ``copies`` variants run at once on this machine (one per
     rank that shares its memory). A variant's meshes are solved one after another on its
     own rank, so its requested (finest) mesh sets what it needs. Only variants that could
-    be large are probed (a finer mesh factor, sizes by hand, a small fillet)."""
+    be large are probed (a finer mesh factor, sizes by hand, a small fillet), and under an
+    address-space limit (``ulimit -v``) every variant."""
     from pipeline.analysis.memory import check_fits, needs_probe
-    large = [t for t in tasks if t.case is not None and needs_probe(t.case, [t.case.mesh_factor])]
+    from pipeline.runtime.environment import address_space_limit
+    limited = address_space_limit() is not None  # ulimit -v: every variant is held to it
+    large = [t for t in tasks if t.case is not None and (limited or needs_probe(t.case, [t.case.mesh_factor]))]
     if large:
         say(f"sweep: estimating the memory of {_count(len(large), 'variant')} that could be large (a mesh each)")
     for t in large:
@@ -316,16 +347,14 @@ def remove_earlier_variants(out: Path, tasks: list[Task], say: Progress) -> None
     """Remove the results of variants that this study does not have, once it has finished:
     left by a run of it with other inputs or older code, they would be read beside its own
     (a summary of ``variants/`` would list a size twice) and only take room. Until the
-    study finishes they stay, so an interrupted re-run loses nothing."""
+    study finishes they stay, so an interrupted re-run loses nothing. A user's file in such
+    a folder stays, named, in a folder that is no longer marked as a variant's."""
     gone = earlier_variants(out, {t.key for t in tasks})
-    for p in gone:
-        if p.is_dir():
-            shutil.rmtree(p)
-        else:
-            p.unlink()
+    kept = [k for p in gone for k in _remove(p, keep_marked=False)]
     if gone:
+        said = f"; kept {', '.join(kept)} (not the study's)" if kept else ""
         say(f"sweep: removed the results of {_count(len(gone), 'variant')} that this study does not have "
-            f"(earlier inputs or code)")
+            f"(earlier inputs or code){said}")
 
 
 def axes_of(study: Study) -> dict[str, list[float]]:

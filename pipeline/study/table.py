@@ -504,18 +504,25 @@ def _report(summary: dict, swept: list[str], plots: list[str]) -> str:
 
 
 def _rests_on_lines(rows: list[dict]) -> list[str]:
-    """What each variant's verdict rests on (sweep --sensitivity): the variants whose verdict
-    flips over an assumed input's range, after how many keep theirs; nothing without it."""
+    """What each variant's verdict rests on (sweep --sensitivity): how many keep their verdict
+    over every assumed input's range, then the variants whose verdict flips, and those not
+    checked over every range (an end not analysed), each named with its sentence; nothing
+    without it."""
+    from pipeline.analysis.words import FLIPS, HOLDS, rests_on
     told = [r for r in rows if r["status"] == "done" and r.get("verdict_rests_on")]
     if not told:
         return []
-    flips = [r for r in told if not r["verdict_rests_on"].startswith("The verdict holds")]
+    kind = {id(r): rests_on(r["verdict_rests_on"]) for r in told}
+    flips = [r for r in told if kind[id(r)] == FLIPS]
+    unchecked = [r for r in told if kind[id(r)] not in (FLIPS, HOLDS)]
+    holds = len(told) - len(flips) - len(unchecked)
     L = ["## What the verdicts rest on\n",
-         f"{len(told) - len(flips)} of {len(told)} analysed variants keep their verdict over every assumed "
+         f"{holds} of {len(told)} analysed variants keep their verdict over every assumed "
          "input's range (each variant's report.md and results.json: the ranges and values)"
-         + (": the others depend on an assumption:\n" if flips else ".\n")]
-    L += [f"- {r['variant']} ({parameters_text(r)}): {r['verdict_rests_on']}" for r in flips]
-    return L + ([""] if flips else [])
+         + (": the others depend on an assumption or were not checked over every range:\n"
+            if flips or unchecked else ".\n")]
+    L += [f"- {r['variant']} ({parameters_text(r)}): {r['verdict_rests_on']}" for r in flips + unchecked]
+    return L + ([""] if flips or unchecked else [])
 
 
 def _n0(v: float | None) -> str:

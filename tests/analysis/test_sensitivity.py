@@ -138,15 +138,48 @@ def test_verdict_flips_on_the_input_that_crosses_the_allowable():
     assert "global peak pass → fail at rf = 1.2 mm" in s["sentence"]
 
 
-def test_an_invalid_end_is_reported_not_dropped():
-    # rf up to 3 mm with dj 20 on h 25: dj/2 + rf = 13 > 12.5 breaks a rule.
-    case = _seats_given(**{"sensitivity.rf": [1.0, 3.0]})
+def test_a_range_the_part_does_not_allow_is_refused():
+    """rf up to 3 mm with dj 20 on h 25: dj/2 + rf = 13 > 12.5 breaks a rule of the part, so
+    the range is refused with that rule before any work (issue 50): an end outside the part
+    would be analysed as nothing."""
+    with pytest.raises(InputError, match=r"^sensitivity\.rf: the high end, 3 mm, .*dj/2 \+ rf = 13 mm"):
+        _seats_given(**{"sensitivity.rf": [1.0, 3.0]})
+
+
+def _unchecked(case, **ranges):
+    """``case`` with ``ranges`` (input -> (low, high)) put in unchecked: what reaches the
+    analysis when an end cannot be analysed (a variant whose mesh or solve fails, or a case
+    built without the case's checks)."""
+    from dataclasses import replace
+    return replace(case, sensitivity_ranges=tuple((k, lo, hi) for k, (lo, hi) in ranges.items()))
+
+
+def test_an_end_not_analysed_is_named_and_not_claimed():
+    """One end of rf not analysed (3 mm breaks a rule): the sentence must not put rf among
+    the ranges the verdict holds over; it names the end analysed (1 mm) and the one not."""
+    case = _unchecked(_seats_given(allowable_MPa=200.0), rf=(1.0, 3.0))
     sens = analyse_sensitivity(case, ALONE, analyse_one=_closed_form)
     res = _decided(case, sens)
     rf = next(e for e in res["sensitivity"] if e["input"] == "rf")
     assert rf["invalid"][0] is None and "dj, rf" in rf["invalid"][1]
     assert rf["peak_MPa"][1] is None and rf["capacity_N"][1] is None
-    assert "not checked at rf = 3 mm" in res["sensitivity_summary"]["sentence"]
+    said = res["sensitivity_summary"]["sentence"]
+    assert not said.startswith("The verdict holds over every range"), said
+    assert said.startswith("The verdict holds over the ranges analysed at both ends (dj 18–21 mm)"), said
+    assert "at the one end analysed of rf (1 mm)" in said and "not checked at rf = 3 mm" in said
+    from pipeline.analysis.words import NOT_CHECKED, rests_on
+    assert rests_on(said) == NOT_CHECKED
+
+
+def test_a_range_with_neither_end_analysed_is_not_in_the_holds_list():
+    """Both ends of dj and of rf not analysed (each breaks a rule): nothing is claimed; the
+    sentence says that what the verdict rests on is not known (issue 50: "holds over every
+    range (... 10–40 mm ...)" when neither end could be analysed)."""
+    case = _unchecked(_seats_given(allowable_MPa=200.0), dj=(30.0, 40.0), rf=(4.0, 5.0))
+    res = _decided(case, analyse_sensitivity(case, ALONE, analyse_one=_closed_form))
+    said = res["sensitivity_summary"]["sentence"]
+    assert said.startswith("Not checked: no end of any range could be analysed"), said
+    assert "dj = 30 mm, dj = 40 mm, rf = 4 mm, rf = 5 mm" in said and "holds" not in said
 
 
 @pytest.fixture(scope="module")
@@ -261,14 +294,48 @@ def test_study_tables_name_the_verdicts_that_depend_on_an_assumption():
     from pipeline.study import summary, table
     holds = "The verdict holds over every range (rf 1.2–1.8 mm): global peak pass at both ends."
     flips = "The verdict flips on rf: global peak pass → fail at rf = 1.2 mm."
+    partly = ("The verdict holds over the ranges analysed at both ends (dj 18–21 mm): global peak pass; "
+              "not checked at rf = 3 mm (invalid or failed variants), where no verdict is claimed.")
     rows = [{"status": "done", "variant": "a", "verdict_rests_on": holds, "parameters": "{}"},
-            {"status": "done", "variant": "b", "verdict_rests_on": flips, "parameters": "{}", "dims.rf": 1.0}]
+            {"status": "done", "variant": "b", "verdict_rests_on": flips, "parameters": "{}", "dims.rf": 1.0},
+            {"status": "done", "variant": "c", "verdict_rests_on": partly, "parameters": "{}"}]
     text = "\n".join(table._rests_on_lines(rows))
-    assert "1 of 2 analysed variants keep their verdict" in text and flips in text and holds not in text
+    assert "1 of 3 analysed variants keep their verdict" in text and flips in text and holds not in text
+    assert partly in text  # not counted among those that keep it over every range: named
     lines = "\n".join(summary._rests_on_lines([{"size": "05", "verdict_rests_on": holds},
-                                                {"size": "1", "verdict_rests_on": flips}]))
-    assert "1 of 2 sizes keep their verdict" in lines and f"No. 1: {flips}" in lines
+                                                {"size": "1", "verdict_rests_on": flips},
+                                                {"size": "2", "verdict_rests_on": partly}]))
+    assert "1 of 3 sizes keep their verdict" in lines and f"No. 1: {flips}" in lines and f"No. 2: {partly}" in lines
     assert summary._rests_on_lines([{"size": "05", "verdict_rests_on": ""}]) == []
+
+
+def test_every_load_of_a_load_list_gets_its_verdicts_and_sentence():
+    """A run at 5000 and 10000 N whose global peak is 50 ± 1 MPa at 5000 N (100 ± 2 at
+    10000 N) against 80 MPa: it passes at 5000 N and fails at 10000 N, and the sentence
+    names both loads (issue 50: the verdicts spoke for the first load only). The stand-in's
+    rf 1.2 mm end reads 50·(1.5/1.2)^0.5 = 55.9 MPa at 5000 N (pass) and 111.8 MPa at
+    10000 N (fail): the verdict holds at each load, on its own side."""
+    from pipeline.analysis.verdicts import load_rows, loads_verdict, sentence_over_loads
+    from pipeline.analysis.words import HOLDS, rests_on
+    from pipeline.post.formulas import hand_results
+    from helpers.answers import answer
+    case = _seats_given(load_N=5000.0)
+    sens = analyse_sensitivity(case, ALONE, analyse_one=_closed_form)
+    peaks = {"peak": answer(50.0, 1.0), "critical": answer(30.0, 0.03)}
+    checks = {"global_peak": (50.0, peaks["peak"]), "critical_peak": (30.0, peaks["critical"])}
+    rows = load_rows(case, (5000.0, 10000.0), peaks, hand_results(case.dims, 5000.0), checks, sens)
+    assert [r.verdicts["global_peak"] for r in rows] == ["pass", "fail"]
+    assert [r.verdicts["critical_peak"] for r in rows] == ["pass", "pass"]
+    assert [r.peak_MPa for r in rows] == pytest.approx([50.0, 100.0])
+    assert all(rests_on(r.sensitivity_sentence) == HOLDS for r in rows)
+    assert "global peak pass" in rows[0].sensitivity_sentence and "global peak fail" in rows[1].sensitivity_sentence
+    said = loads_verdict(rows)
+    assert said.startswith("At the loads asked (5000 and 10000 N): global peak pass at 5000 N, fail at 10000 N; "
+                           "critical peak pass at every load"), said
+    assert "10000 N, governs" in said
+    over = sentence_over_loads(rows)
+    assert over.startswith("At 5000 N: The verdict holds") and " At 10000 N: The verdict holds" in over
+    assert rests_on(over) == HOLDS
 
 
 @pytest.mark.slow

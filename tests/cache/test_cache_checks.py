@@ -222,6 +222,80 @@ def test_an_entry_changed_with_a_valid_checksum_is_caught_by_its_own_checks(cach
     check_one_line(capfd.readouterr().err, path, why)
 
 
+def _scaled_peaks(e: rc.Entry) -> None:
+    """The issue's forgery: both readings of both peaks × 1.2, the checksum written again."""
+    for which in ("peak", "critical"):
+        for reading in ("unaveraged", "averaged"):
+            e.meta[which][reading][0] *= 1.2
+
+
+def _moved_peak(e: rc.Entry) -> None:
+    """The critical peak's unaveraged place moved 0.5 mm along y: no node of the mesh."""
+    e.meta["critical"]["unaveraged"][1][1] += 0.5
+
+
+def _no_derivation(e: rc.Entry) -> None:
+    del e.meta["derives_from"]
+
+
+def _solution_changed(e: rc.Entry) -> None:
+    """The solution entry it derives from written again with another content (a key it does
+    not read: the same displacement, another sha256)."""
+    path = rc.path_of(e.meta["derives_from"]["solution"])
+    rewritten(path, lambda sol: sol.meta.__setitem__("rewritten", True))
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("change, why", [
+    (_scaled_peaks, "are not what its solution gives there"),
+    (_moved_peak, "places are not nodes of its mesh"),
+    (_no_derivation, "it names no mesh and solution it derives from"),
+    (_solution_changed, "the solution it derives from has changed since"),
+])
+def test_a_level_is_checked_against_the_mesh_and_solution_it_derives_from(cache, reference, tmp_path, capfd,
+                                                                            change, why):
+    """An error-bar mesh's stored readings are read again from the mesh and solution entries
+    they derive from before reuse (issue 50: peaks × 1.2 with a rewritten checksum passed
+    every check, and the error bars grew from 16.8 / 0.72 to 41.8 / 13.0 MPa). Each of these
+    is refused with one line, and the run's answer, error bars included, is the reference's
+    to the last bit (its mesh solved again)."""
+    path = entry_of(cache, "level", largest=False)
+    rewritten(path, change)
+    res = run(tmp_path / "out")
+    assert numbers(res) == numbers(reference)
+    check_one_line(capfd.readouterr().err, path, why)
+
+
+@pytest.mark.slow
+def test_a_level_whose_solution_was_evicted_is_dropped_without_a_line(cache, reference, tmp_path, capfd):
+    """The solution entries gone (the cache drops the least recently used): each error-bar
+    level that derives from one is stale, not damaged: dropped without a line, its mesh
+    solved again, the answer the reference's to the last bit."""
+    for p in cache.glob("solution-*.entry"):
+        p.unlink()
+    assert numbers(run(tmp_path / "out")) == numbers(reference)
+    assert cache_lines(capfd.readouterr().err) == []
+
+
+@pytest.mark.slow
+def test_an_honest_level_is_read_again_to_its_stored_readings(cache, reference, tmp_path, capfd):
+    """The stored readings of both error-bar meshes equal those read again from their mesh
+    and solution entries (pipeline/post/reread.py against DOLFINx's reading, to 1e-6; the
+    repeated run says nothing), and a run at another load reuses them, scaled."""
+    import pipeline.cache.levels as cl
+    for path in cache.glob("level-*.entry"):
+        m = decoded(path).meta
+        assert cl.derivation_problem(m, the_case()) is None, path
+    from dataclasses import replace
+    res = write_run(replace(the_case(), load_N=12_500.0), RunOptions(levels=LEVELS, to_tolerance=False,
+                                                                     sensitivity=False, outputs=Outputs(fields=False)),
+                    tmp_path / "out")
+    assert cache_lines(capfd.readouterr().err) == []
+    assert res["fe"]["levels"][2]["scaled_from"] == {"load_N": 10_000.0, "E_MPa": 210_000.0}
+    assert res["fe"]["levels"][2]["peak_MPa"] == pytest.approx(1.25 * reference["fe"]["levels"][2]["peak_MPa"],
+                                                               rel=1e-12)
+
+
 @pytest.mark.slow
 def test_a_solution_of_another_mesh_with_the_same_counts_is_not_used(cache, reference, tmp_path, capfd):
     """The stored node positions moved 1e-5 mm (what another mesh of the same counts
@@ -494,3 +568,19 @@ def test_a_file_above_the_bound_is_not_read(tmp_path, size, limit, kept):
     else:
         with pytest.raises(rc.Corrupt, match="above the bound"):
             rc.read_regular(path, limit)
+
+
+@pytest.mark.slow
+def test_a_p1_level_is_read_again_to_its_stored_readings(tmp_path, monkeypatch):
+    """P1 (its unaveraged reading a cell's constant value, DG0): both error-bar levels of a
+    run read back from their mesh and solution entries to their stored readings."""
+    import pipeline.cache.levels as cl
+    monkeypatch.setenv("CROSSHEAD_NO_CACHE", "0")
+    monkeypatch.setattr(rc, "ROOT", tmp_path / "runs")
+    case = resolve("05", None, {"mesh_factor": 3.0, "order": 1})
+    write_run(case, RunOptions(levels=LEVELS, to_tolerance=False, sensitivity=False, outputs=Outputs(fields=False)),
+              tmp_path / "out")
+    levels = list((tmp_path / "runs").glob("level-*.entry"))
+    assert len(levels) == 2
+    for path in levels:
+        assert cl.derivation_problem(decoded(path).meta, case) is None, path

@@ -56,6 +56,7 @@ def test_a_reused_result_is_scaled_by_q_over_q0(monkeypatch):
     """Linear elasticity: at Q = 25 kN every stress and force is 2.5× the stored one, E
     changes nothing, and the peaks stay where they were."""
     monkeypatch.setattr(rc, "load", lambda name, redo: rc.Entry(stored()))
+    monkeypatch.setattr(cl, "derivation_problem", lambda m, case: None)  # no mesh and solution here
     case = replace(CASE, load_N=2.5 * Q0, E_MPa=70_000.0)
     lv = cl.earlier("x", case, 1.3)
     assert lv.peak.unaveraged.value_MPa == pytest.approx(2.5 * 120.0, rel=1e-15)
@@ -65,3 +66,15 @@ def test_a_reused_result_is_scaled_by_q_over_q0(monkeypatch):
     assert lv.numbers["support_force_N"] == pytest.approx(2.5 * Q0 / 4, rel=1e-15)
     assert lv.peak.location_mm == (22.9, 6.9, 4.8) and lv.numbers["dofs"] == 30_000
     assert lv.scaled_from == {"load_N": Q0, "E_MPa": 210_000.0}
+
+
+def test_a_result_that_names_nothing_it_derives_from_is_refused(monkeypatch):
+    """A stored result without the mesh and solution entries it derives from cannot be
+    checked against them: refused, and one that would be stored without them is not kept
+    (issue 50)."""
+    assert cl.derivation_problem(stored(), CASE) == "it names no mesh and solution it derives from"
+    kept = []
+    monkeypatch.setattr(rc, "store", lambda name, entry: kept.append(name))
+    lv = cl.StoredLevel({k: stored()[k] for k in cl.NUMBERS}, None, None, {})
+    cl.store("x", lv, CASE, None)
+    assert kept == []

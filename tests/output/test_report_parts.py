@@ -1,12 +1,19 @@
 """The report's parts that need no run: the title block's blank fields, the print footer's
-escaping, the close-up's view of a known surface (mm)."""
+escaping, user text as text in report.md and report.html, the close-up's view of a known
+surface (mm)."""
 from __future__ import annotations
+
+from html.parser import HTMLParser
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
+from pipeline.inputs.case import DOCUMENT_KEYS
 from pipeline.output.closeup import ELEMENTS_ACROSS, peak_view
-from pipeline.output.report import css_string, footer_text, title_block_lines, without_docs_links
+from pipeline.output.report import (code_span, css_string, footer_text, html_document, md_text, title_block_lines,
+                                    without_docs_links)
 
 
 def test_a_title_block_without_a_document_table_is_blank_not_invented():
@@ -29,6 +36,74 @@ def test_the_footer_is_a_css_string_a_case_file_cannot_break_out_of():
     css = css_string(text)
     assert css.startswith('"') and css.endswith('"') and "<" not in css and '\\"' in css
     assert css[1:-1].replace('\\"', "").count('"') == 0
+
+
+class _Page(HTMLParser):
+    """Every tag of a page with its attributes, and the text of each table cell and code
+    element (entities resolved: the text a reader sees)."""
+
+    def __init__(self):
+        super().__init__(convert_charrefs=True)
+        self.tags: list[tuple[str, dict]] = []
+        self.cells: list[str] = []
+        self.code: list[str] = []
+        self._in: str | None = None
+
+    def handle_starttag(self, tag, attrs):
+        self.tags.append((tag, dict(attrs)))
+        if tag in ("td", "code"):
+            self._in = tag
+            (self.cells if tag == "td" else self.code).append("")
+
+    def handle_endtag(self, tag):
+        if tag == self._in:
+            self._in = None
+
+    def handle_data(self, data):
+        if self._in == "td":
+            self.cells[-1] += data
+        elif self._in == "code":
+            self.code[-1] += data
+
+
+# Markup a user might type into a title-block field or a case name, hostile or by accident.
+HOSTILE = ["[click](javascript:alert(1))", "![x](javascript:alert(1))", "<a href=\"javascript:alert(1)\">x</a>",
+           "<javascript:alert(1)>", "[x][1] [1]: javascript:alert(1)", "<script>alert(1)</script>",
+           "&#106;avascript:alert(1)", "JaVaScRiPt:alert(1)", "**bold** _it_ `code` | cell \\ end", "a`b``c"]
+TEXT = st.one_of(st.sampled_from(HOSTILE),
+                 st.text(alphabet=st.sampled_from(list("[]()!<>&*_`|\\#:;/.\"'=- ajvscriptJAVSCRIPT1")), min_size=1,
+                         max_size=40),
+                 st.text(alphabet=st.characters(blacklist_categories=("Cc", "Cs", "Zl", "Zp", "Cf")), min_size=1,
+                         max_size=20)).map(str.strip).filter(bool)
+
+
+@settings(max_examples=150, deadline=None)
+@given(doc=st.fixed_dictionaries({k: TEXT for k in DOCUMENT_KEYS}), name=TEXT)
+def test_user_text_is_text_in_the_report(tmp_path_factory, doc, name):
+    """Whatever a case file's [document] fields and name hold, report.html shows them as that
+    very text: no link (a javascript: URL least of all), image, script or other element comes
+    of them, and each table cell and the name's code span read back as typed (issue 50)."""
+    about = {"tool": "crosshead", "tool_version": "9.9", "created_utc": "2030-01-02T03:04:05+00:00",
+             "software": {}, "document": doc}
+    md = "\n".join([f"# Crosshead stress report: hook No. 05 (case {code_span(name)})\n",
+                    *title_block_lines({"about": about})])
+    page = _Page()
+    page.feed(html_document(md, tmp_path_factory.getbasetemp(), "Report"))
+    assert {t for t, _ in page.tags} <= {"html", "head", "meta", "title", "style", "body", "h1", "code", "table",
+                                         "thead", "tbody", "tr", "th", "td"}, page.tags
+    assert not any("javascript" in str(v).lower() for _, attrs in page.tags for v in attrs.values())
+    assert page.cells[1:2 * len(DOCUMENT_KEYS):2] == [doc[k] for k in DOCUMENT_KEYS]  # label | value rows
+    assert page.code == [name]
+
+
+def test_a_javascript_link_in_a_field_stays_text(tmp_path):
+    """The example of issue 50: a Markdown link to a javascript: URL in a title-block field
+    became a live link in report.html; it is now the characters typed, in report.md too."""
+    assert md_text("[click](javascript:alert(1))") == "\\[click\\](javascript:alert(1))"
+    page = _Page()
+    table = "| field | value |\n|---|---|\n| Part | " + md_text("[click](javascript:alert(1))") + " |\n"
+    page.feed(html_document(table, tmp_path, "R"))
+    assert "a" not in {t for t, _ in page.tags} and page.cells == ["Part", "[click](javascript:alert(1))"]
 
 
 def test_pointers_into_docs_are_dropped_from_the_size_table_s_notes():

@@ -86,3 +86,36 @@ def test_the_summary_is_the_run_s_own_row(written):
             assert s["critical_peak_MPa"] == fe["critical_peak_MPa"], name
         if not fe["peak"]["not_wanted"] and not fe["peak"]["singular_feature"]:
             assert s["peak_MPa"] == fe["peak_MPa"], name
+
+
+@pytest.mark.slow
+def test_a_peak_not_asked_for_is_not_in_the_answer(written):
+    """--want critical: fe.peak_MPa, the field a program reads as the global peak, is null;
+    the unrefined reading is kept under peak_unresolved_MPa (the global block's value), and
+    the summary row keeps it as the reading, with no value (issue 50: fe.peak_MPa held an
+    unrefined value 14 % low). A run for both peaks has no unresolved reading."""
+    fe = written["load sweep, critical peak only"]["fe"]
+    assert fe["peak_MPa"] is None and fe["peak_unresolved_MPa"] == fe["peak"]["value_MPa"]
+    assert fe["critical_peak_MPa"] == fe["critical"]["value_MPa"] and fe["critical_peak_unresolved_MPa"] is None
+    s = written["load sweep, critical peak only"]["summary"]
+    assert s["peak_MPa"] is None and s["peak_reading_MPa"] == fe["peak_unresolved_MPa"]
+    both = written["error bar and sensitivity"]["fe"]
+    assert both["peak_MPa"] == both["peak"]["value_MPa"] and both["peak_unresolved_MPa"] is None
+
+
+@pytest.mark.slow
+def test_a_load_list_says_the_verdict_at_every_load(written):
+    """5000 and 20000 N on No. 1.6 (critical peak only): each load_sweep row carries each
+    checked stress's verdict there, and load_sweep_verdict says them over the loads,
+    the largest named as governing; the critical peak's verdict at each load is its value
+    and band scaled to it against the allowable (errorbar.verdict_against)."""
+    from pipeline.post.errorbar import verdict_against
+    res = written["load sweep, critical peak only"]
+    allowable = res["case"]["allowable_MPa"]
+    for row in res["load_sweep"]:
+        want = verdict_against(row["critical_peak_MPa"], row["critical_band_MPa"], allowable)
+        assert row["verdicts"]["critical_peak"] == want and row["verdicts"]["global_peak"] == "none"
+        assert row["sensitivity_sentence"] is None  # a run for one peak has no sensitivity section
+    assert res["load_sweep_verdict"].startswith("At the loads asked (5000 and 20000 N): critical peak ")
+    assert "20000 N, governs" in res["load_sweep_verdict"]
+    assert written["one mesh"]["load_sweep_verdict"] is None

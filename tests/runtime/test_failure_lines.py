@@ -145,11 +145,14 @@ def test_a_cache_failure_names_the_cache(tmp_path, earlier, monkeypatch, capsys)
 @pytest.mark.parametrize("quiet", [[], ["--quiet"]], ids=["progress", "quiet"])
 def test_a_closed_stdout_still_writes_the_result(tmp_path, quiet):
     """No traceback (sys.stdout is None when descriptor 1 is closed at start), exit 0, the
-    result written."""
+    result written; the closing lines that stdout could not take are said to be lost, once,
+    on stderr (issue 50: lost in silence). --quiet shows none, so says none."""
+    from pipeline.cli.terminal import CLOSED_STDOUT
     out = tmp_path / "res"
     proc = shell(">&-", FAST + quiet + ["--out", out])
     assert proc.returncode == 0 and "Traceback" not in proc.stderr, proc.stderr
     assert (out / "results.json").is_file() and (out / ".crosshead-results").is_file()
+    assert proc.stderr.count(CLOSED_STDOUT) == (0 if quiet else 1), proc.stderr
 
 
 @pytest.mark.parametrize("redirect", ["2>&-", "2>/dev/full"], ids=["closed", "full"])
@@ -219,3 +222,79 @@ def test_a_full_stdout_met_by_the_meshing_heartbeat_is_reported_by_the_main_thre
     assert died == []
     with pytest.raises(cli.StdoutError, match="stdout: cannot write .No space left"):
         terminal.show("the next progress line")
+
+
+# ------------------------------------------------------------------ out of memory
+
+def no_leftovers(folder: Path) -> list[str]:
+    """What a run left in ``folder`` (its --out's parent): staging folders, locks, the folder."""
+    return sorted(p.name for p in folder.iterdir())
+
+
+def test_memory_running_out_mid_run_is_one_line_and_nothing_left(tmp_path, monkeypatch, capsys):
+    """A MemoryError while computing (what an estimate that let the run start can meet):
+    exit 3, one line saying memory ran out and that nothing was written; no staging folder,
+    no lock, no output folder (issue 50: a traceback, or exit 139 with .partial and .lock)."""
+    import pipeline.output.folder
+    from pipeline.cli import main
+
+    def starved(*a, **k):
+        raise MemoryError()
+    monkeypatch.setattr(pipeline.output.folder, "run", starved)
+    assert main(FAST + ["--quiet", "--out", str(tmp_path / "res")]) == 3
+    lines = failure_lines(capsys.readouterr().err)
+    assert len(lines) == 1 and lines[0].startswith("out of memory: MemoryError") and "nothing written" in lines[0]
+    assert no_leftovers(tmp_path) == []
+
+
+def test_a_thread_or_library_that_cannot_be_had_is_out_of_memory():
+    """What DOLFINx's and Python's failures say when the address space runs out, each read
+    as memory running out (pipeline.errors.out_of_memory); an ordinary failure is not."""
+    from pipeline.errors import OutOfMemory, out_of_memory
+    for exc in (MemoryError(), RuntimeError("can't start new thread"),
+                ImportError("libpetsc_real.so.3.18: failed to map segment from shared object"),
+                OSError(errno.ENOMEM, "Cannot allocate memory"), OutOfMemory("drawing: MemoryError")):
+        assert out_of_memory(exc), exc
+    assert not out_of_memory(RuntimeError("drawing failed")) and not out_of_memory(ValueError("x"))
+
+
+def test_a_drawing_process_s_failure_is_its_error_line_not_a_warning():
+    """The drawing process's stderr ends in VTK's coloured warnings: the line names its error,
+    without escapes, and a memory error is OutOfMemory (issue 50: the line was a warning
+    about the X server, with its escape codes)."""
+    from pipeline.errors import OutOfMemory
+    from pipeline.output.drawing import failure
+    warn = "\x1b[0m\x1b[33m2026 vtkXOpenGLRenderWindow.:1452 WARN| bad X server connection.\x1b[0m"
+    exc = failure(f"Traceback\n  File x\nMemoryError\n{warn}\n", 1)
+    assert isinstance(exc, OutOfMemory) and str(exc) == "drawing: MemoryError"
+    exc = failure(f"ValueError: no data\n{warn}\n", 1)
+    assert type(exc) is RuntimeError and str(exc) == "drawing failed: ValueError: no data"
+    assert "exit status -9" in str(failure("", -9))
+
+
+def _limited(gib: float):
+    """A child's address space limited to ``gib`` GiB (ulimit -v)."""
+    import resource
+
+    def limit():
+        resource.setrlimit(resource.RLIMIT_AS, (int(gib * 1024 ** 3), resource.RLIM_INFINITY))
+    return limit
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("gib, says", [
+    (0.2, "needs 0.9 GiB before it meshes anything"),   # no thread could start: a traceback before
+    (0.6, "needs 0.9 GiB before it meshes anything"),   # PETSc could not be loaded
+    (1.2, "this run needs about 1.4 GiB of it"),         # OpenBLAS waited for memory forever
+])
+def test_a_run_under_an_address_space_limit_is_refused_before_any_work(tmp_path, gib, says):
+    """Under ``ulimit -v``: exit 2, one line naming the limit and what the run needs, and
+    nothing written: no output folder, no staging folder, no lock (issue 50: tracebacks,
+    exit 139, .partial and .lock left, or a process that never ended). No. 05's default
+    run needs 1.03 GiB (VmPeak measured) and the picture's process 1.15 GiB."""
+    proc = subprocess.run([PY, "-m", "pipeline", "run", "--size", "05", "--out", str(tmp_path / "res")], cwd=ROOT,
+                          env=ENV, capture_output=True, text=True, timeout=300, preexec_fn=_limited(gib))
+    assert proc.returncode == 2, proc.stderr
+    lines = failure_lines(proc.stderr)
+    assert len(lines) == 1 and lines[0].startswith("error: memory: the address space is limited") and says in lines[0]
+    assert no_leftovers(tmp_path) == []

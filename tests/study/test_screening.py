@@ -184,8 +184,6 @@ def _stepping(monkeypatch, tmp_path, allowable: float, full_reading: float = 126
     (global peak 130 MPa on the ×1.69 mesh, 126 on ×1.3, ``full_reading`` on ×1, each with
     a ±0.2 MPa bracket; critical 60 MPa everywhere): the meshes each step asked for, and
     the variant's screening.json."""
-    from dataclasses import replace as _replace
-
     from pipeline.study import sweep as sweep_module
     from pipeline.study.plan import Study, plan
     by_factor = {1.69: 130.0, 1.3: 126.0, 1.0: full_reading}

@@ -75,12 +75,13 @@ def test_loads_are_read_alike_everywhere():
 
 @pytest.mark.slow
 def test_the_command_line_overrides_the_study_file(tmp_path):
-    """--levels 1 --ratio 1.3 beside a study file with levels = 8, ratio = 3 (whose
-    coarsest error-bar mesh, 3 x 3^7, would be refused): the command line wins, as it
-    does for the axes, the mesh factor and the output folder."""
+    """--levels 1 beside a study file with levels = 8, ratio = 3 (whose coarsest error-bar
+    mesh, 3 x 3^7, would be refused): the command line wins, as it does for the axes, the
+    mesh factor and the output folder; one mesh has no ratio, and --ratio with --levels 1
+    is refused (it could not take effect)."""
     study = tmp_path / "s.toml"
     study.write_text('[sweep]\nsize = "05"\ndims = { rf = "1.0,1.5" }\nmesh_factor = 3.0\nlevels = 8\nratio = 3.0\n')
-    sweep(tmp_path / "out", "--study", str(study), "--levels", "1", "--ratio", "1.3", "--quiet")
+    sweep(tmp_path / "out", "--study", str(study), "--levels", "1", "--quiet")
     rows = json.loads((tmp_path / "out" / "sweep.json").read_text(encoding="utf-8"))["rows"]
     assert [r["status"] for r in rows] == ["done", "done"]
 

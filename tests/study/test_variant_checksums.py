@@ -126,6 +126,47 @@ def test_damaged_variants_are_named_and_removed_and_a_user_s_folder_stays(tmp_pa
     assert (mine / "notes.txt").read_text() == "keep"
 
 
+def test_a_user_s_file_in_a_damaged_variant_stays_and_is_named(tmp_path):
+    """discard_damaged on a variant whose results.json was edited and beside which a user
+    put notes.txt and a folder: the variant's own files go, the user's stay, named in the
+    line; the folder stays the tool's (a marker that lists none of them), so that the next
+    run of the variant replaces it and carries them over (issue 50: the study deleted
+    them with the folder)."""
+    from pipeline.runtime.folders import MARKER, marker_data, user_names
+    bad = a_variant(tmp_path, "bad", {"x": 1})
+    (bad / "results.json").write_text('{"x": 2}\n')
+    (bad / "notes.txt").write_text("mine")
+    (bad / "paraview").mkdir()
+    (bad / "paraview" / "state.pvsm").write_text("<x/>")
+    said: list[str] = []
+    assert discard_damaged(tmp_path, [Task("bad", {"dims.rf": 1.5}, SimpleNamespace(size="05"), (1.0,))],
+                           said.append) == ["bad"]
+    assert said == ["sweep: variant bad (rf = 1.5 mm): results.json does not match its checksum; analysed again; "
+                    "kept bad/notes.txt, bad/paraview (not the study's)"]
+    assert sorted(p.name for p in bad.iterdir()) == [MARKER, "notes.txt", "paraview"]
+    assert marker_data(bad) == {"tool": "crosshead", "files": []} and user_names(bad) == ["notes.txt", "paraview"]
+    assert (bad / "paraview" / "state.pvsm").read_text() == "<x/>"
+
+
+def test_the_summary_of_a_study_names_a_variant_whatever_is_missing(tmp_path):
+    """python -m pipeline.study.summary on a study's variants/: a variant whose results.json
+    is deleted, and one whose whole folder is gone while sweep.json lists it as analysed,
+    are each named, not dropped in silence (issue 50)."""
+    from pipeline.runtime.folders import MARKER
+    from pipeline.study.summary import collect
+    out = tmp_path / "study"
+    out.mkdir()
+    (out / MARKER).write_text(json.dumps({"tool": "crosshead", "sweep": True}))
+    a_variant(out, "gone", {"x": 1}).joinpath("results.json").unlink()
+    (out / "variants" / "users").mkdir()  # a user's folder: not a variant, not named
+    (out / "sweep.json").write_text(json.dumps({"rows": [{"variant": "gone", "status": "done"},
+                                                          {"variant": "lost", "status": "done"},
+                                                          {"variant": "bad", "status": "invalid"}]}))
+    rows, skipped = collect(out / "variants", take_all=True)
+    assert rows == [] and skipped == ["gone (results.json is missing; not summarised)",
+                                      "lost (its folder is missing; not summarised)"]
+
+
 def sweep(out: Path, *args: str) -> subprocess.CompletedProcess:
     p = subprocess.run([sys.executable, "-m", "pipeline", "sweep", *args, "--out", str(out)], cwd=ROOT,
                        capture_output=True, text=True, timeout=600, env=dict(os.environ, CROSSHEAD_NO_CACHE="1"))
@@ -150,7 +191,11 @@ def test_an_edited_or_truncated_variant_is_analysed_again_and_never_summarised(t
     res["fe"]["peak_MPa"] = 50.0
     edited.write_text(json.dumps(res))
     cut.write_bytes(cut.read_bytes()[:cut.stat().st_size // 2])
+    (edited.parent / "notes.txt").write_text("mine")  # a user's file beside the edited results
     again = sweep(out, *STUDY)
+    # Issue 50: the user's file stays (it was deleted with the variant's folder), named.
+    assert (edited.parent / "notes.txt").read_text() == "mine"
+    assert f"kept {by_rf[1.0]}/notes.txt (not the study's)" in again.stdout + again.stderr
     for rf, text in ((1.0, "rf = 1 mm"), (1.5, "rf = 1.5 mm")):
         line = f"sweep: variant {by_rf[rf]} ({text}): results.json does not match its checksum; analysed again"
         assert (again.stdout + again.stderr).count(line) == 1, (again.stdout + again.stderr)
@@ -158,7 +203,8 @@ def test_an_edited_or_truncated_variant_is_analysed_again_and_never_summarised(t
     strip = lambda rows: [{k: v for k, v in r.items() if k != "time_s"} for r in rows]  # noqa: E731
     assert strip(json.loads((out / "sweep.json").read_text())["rows"]) == strip(first)
     # The size summary of the study's variants: an edited one is named, not a row.
-    res = json.loads(edited.read_text())
+    as_written = edited.read_text()
+    res = json.loads(as_written)
     res["fe"]["peak_MPa"] = 50.0
     edited.write_text(json.dumps(res))
     p = subprocess.run([sys.executable, "-m", "pipeline.study.summary", str(out / "variants"), "--all"], cwd=ROOT,
@@ -170,6 +216,17 @@ def test_an_edited_or_truncated_variant_is_analysed_again_and_never_summarised(t
         next(r["peak_MPa"] for r in first if r["dims.rf"] == 1.5))
     md = (out / "summary" / "summary.md").read_text(encoding="utf-8")
     assert f"{by_rf[1.0]} (results.json does not match its checksum; not summarised)" in md
+    # Issue 50: a variant whose results.json is deleted is named too, not dropped in silence.
+    edited.write_text(as_written)
+    cut.unlink()
+    p = subprocess.run([sys.executable, "-m", "pipeline.study.summary", str(out / "variants"), "--all"], cwd=ROOT,
+                       capture_output=True, text=True, timeout=300)
+    assert p.returncode == 0, p.stderr
+    md = (out / "summary" / "summary.md").read_text(encoding="utf-8")
+    assert f"{by_rf[1.5]} (results.json is missing; not summarised)" in md
+    with open(out / "summary" / "summary.csv", newline="") as f:
+        assert [float(r["peak_MPa"]) for r in csv.DictReader(f)] == pytest.approx(
+            [next(r["peak_MPa"] for r in first if r["dims.rf"] == 1.0)])
 
 
 def test_a_variant_changed_while_its_study_runs_is_analysed_again_before_the_summary(tmp_path, monkeypatch):
