@@ -187,7 +187,9 @@ def load_model_ranges(case: Case) -> dict[str, Range]:
     of the journal's bearing length Lj): the pressure's shape, both; its centre from the
     contact's nearest centre of pressure to the middle of the bearing surface (this model's,
     a journal that does not bend against its plate); the loaded length from the band as
-    concentrated as the contact's largest line load to all of it (mm)."""
+    concentrated as the contact's largest line load to all of it (mm). The ends that are the
+    surface's own middle and whole length are exact: rounded to STEP_MM they could overrun
+    the surface, and exact they are the case's own band, solved already."""
     start, end = journal_bearing_surface(case.dims)
     length = end - start
     band = case.bearing_band()
@@ -206,14 +208,14 @@ def load_model_ranges(case: Case) -> dict[str, Range]:
                                "narrows to a Hertz contact of ±17–40°, which neither shape is (see the contact "
                                "study's effect below)"),
         "bearing_centre_mm": Range("bearing_centre_mm", LOAD_MODEL, "mm", band.centre_mm,
-                                   mm(start + nearest * length), mm(start + length / 2),
+                                   mm(start + nearest * length), start + length / 2,
                                    f"the contact study's centre of pressure lies {cs.centre_hanging[0]:.3g}–"
                                    f"{cs.centre_hanging[1]:.3g} of the bearing length Lj from the fillet's run-out "
                                    f"with a hanging side plate, {cs.centre_standing[0]:.3g}–{cs.centre_standing[1]:.3g}"
                                    f" with a standing one (every fit, mesh, μ 0 and 0.1): from its nearest, "
                                    f"{nearest:.3g}·Lj, to the middle, 0.5·Lj (this model's){where}"),
         "bearing_length_mm": Range("bearing_length_mm", LOAD_MODEL, "mm", band.length_mm,
-                                   mm(length / cs.peak_line_load), mm(length),
+                                   mm(length / cs.peak_line_load), length,
                                    f"the contact study spreads the load over the whole bearing length, its line load "
                                    f"largest next to the fillet, up to {cs.peak_line_load:g}× its mean (standing "
                                    f"plate; hanging 1.55–1.8×): from a band as concentrated, Lj/{cs.peak_line_load:g}, "

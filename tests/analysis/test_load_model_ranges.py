@@ -29,6 +29,22 @@ def test_no05_centre_and_length_ranges_are_the_contact_studys():
     assert "no contact study" not in " ".join(x.reason for x in r.values())
 
 
+def test_the_whole_bearing_surface_is_an_end_as_it_is_not_rounded_past_it():
+    """rf = 1.2137 mm: the surface runs from 22.5 + 1.2137 = 23.7137 mm to 35 mm, Lj =
+    11.2863 mm, whose middle is 29.35685 mm. Rounded to 0.01 mm the whole length (11.29)
+    and the middle overrun the surface; the ends are the case's own band, which needs no
+    further solve."""
+    from pipeline.analysis.ranges import invalid_load, load_variant_cases, same_load
+    case = resolve("05", overrides={"dims.rf": 1.2137})
+    r = _load_ranges(case)
+    assert r["bearing_length_mm"].high == pytest.approx(11.2863, abs=1e-9)
+    assert r["bearing_centre_mm"].high == pytest.approx(29.35685, abs=1e-9)
+    for name in ("bearing_length_mm", "bearing_centre_mm"):
+        end = r[name].variant(case, r[name].high)
+        assert not invalid_load(end) and same_load(case, end), name
+    assert len(load_variant_cases(case)) == 3  # uniform shape, nearest centre, shortest band
+
+
 def test_another_size_takes_the_study_as_fractions_and_says_so():
     case = resolve("2.5")
     d = case.dims
