@@ -45,9 +45,10 @@ def checked_stresses(peaks: dict[str, PeakAnswer], sections: dict | None
 def verdicts(allowable_MPa: float, load_N: float, checks: dict[str, tuple[float, PeakAnswer | None]]
              ) -> dict[str, Verdict]:
     """Pass or fail of each checked stress against the allowable (MPa), with its margin and
-    error bar, and the hook load (N) that would bring it to the allowable (linear scaling:
-    the part's capacity at that allowable). A peak at a singular feature, or not asked for,
-    gets no verdict; a band that straddles the allowable gives "undecided"."""
+    error bar, the hook load (N) that would bring it to the allowable (linear scaling:
+    the part's capacity at that allowable) and the safety factor allowable / value. A peak
+    at a singular feature, or not asked for, gets no verdict; a band that straddles the
+    allowable gives "undecided"."""
     out = {}
     for name, (value, peak) in checks.items():
         if peak is not None and not peak.has_verdict:
@@ -61,7 +62,7 @@ def verdicts(allowable_MPa: float, load_N: float, checks: dict[str, tuple[float,
         out[name] = Verdict(value, band, verdict_against(value, band, allowable_MPa),
                             100 * (allowable_MPa / value - 1), load_N * allowable_MPa / value,
                             [load_N * allowable_MPa / hi, load_N * allowable_MPa / lo]
-                            if band is not None and lo > 0 else None, None)
+                            if band is not None and lo > 0 else None, None, allowable_MPa / value)
     return out
 
 
