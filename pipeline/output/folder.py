@@ -2,10 +2,12 @@
 replaces the output folder only when complete, each file written once (mm, N, MPa).
 
 What a run writes: results.json (always), mesh.msh (``outputs.mesh``) and, with
-``outputs.fields``, fields.vtu, the pictures and plots, report.md and report.html. The
-field file is written as soon as the requested mesh is solved, so that the drawing
-processes start beside the error-bar solves; results.json is written when the result is
-complete and the drawings have ended, and the report reads only it.
+``outputs.fields``, fields.vtu, the pictures and plots, report.md, report.html, report.pdf
+(where a headless Chromium is installed: pipeline/output/pdf.py) and the tables meshes.csv
+and sensitivity.csv. The field file is written as soon as the requested mesh is solved, so
+that the drawing processes start beside the error-bar solves; results.json is written when
+the result is complete and the drawings have ended, and the report and the tables read only
+it; the PDF is printed beside the tables, the run's last work.
 """
 from __future__ import annotations
 
@@ -13,6 +15,7 @@ import contextlib
 import time
 from dataclasses import dataclass, field, replace
 from pathlib import Path
+from typing import Callable
 
 from mpi4py import MPI
 
@@ -24,7 +27,7 @@ from pipeline.analysis.run import run
 from pipeline.fe.elasticity import Material
 from pipeline.inputs.case import Case
 from pipeline.inputs.options import RunOptions
-from pipeline.output import drawing
+from pipeline.output import drawing, flat, pdf
 from pipeline.output.fields import write_fields
 from pipeline.output.jsonio import write_json
 from pipeline.output.plots import convergence_plot
@@ -44,7 +47,7 @@ def write_run(case: Case, options: RunOptions, out_dir: Path, ctx: RunContext = 
     an earlier one as it was); returns results.json's content."""
     t_all = time.perf_counter()
     with staged_dir(out_dir, ctx.comm, ctx.say) as stage, contextlib.ExitStack() as stack:
-        early = EarlyOutput(case, options, stage, ctx.comm, stack)
+        early = EarlyOutput(case, options, stage, ctx.comm, stack, say=ctx.say)
         try:
             result = run(case, options, replace(ctx, on_requested=early.requested))
         except BaseException:
@@ -52,18 +55,22 @@ def write_run(case: Case, options: RunOptions, out_dir: Path, ctx: RunContext = 
             raise
         res = _write_files(result, stage, early, t_all)
         ctx.say(f"output: {', '.join(res['files'].values())} ({res['timings_s']['output']:.2f} s"
-                + (f"; picture {res['timings_s']['picture']:.2f} s, beside the error-bar solves)"
-                   if early.drawing else ")"))
+                + (f"; picture {res['timings_s']['picture']:.2f} s, beside the error-bar solves" if early.drawing else "")
+                + (f"; report.pdf {early.t_pdf:.2f} s" if early.t_pdf is not None else "") + ")")
     return res
 
 
 def _write_files(result: RunResult, stage: Path, early: "EarlyOutput", t_all: float) -> dict:
     """The files of a complete result: mesh.msh, the plots (the drawing ends), results.json
-    once, then the report from it; returns results.json's content."""
+    once, then the report from it, printed to report.pdf beside the tables (meshes.csv,
+    sensitivity.csv); returns results.json's content."""
     comm, outputs = early.comm, result.options.outputs
     files = {"results": "results.json", **({"mesh": "mesh.msh"} if outputs.mesh else {}), **early.files}
+    exe = pdf.browser() if outputs.fields and comm.rank == 0 else None
     if outputs.fields:
-        files.update(picture="von_mises.png", report="report.md", report_html="report.html")
+        files.update(picture="von_mises.png", report="report.md", report_html="report.html",
+                     **({"report_pdf": "report.pdf"} if exe else {}), meshes_table="meshes.csv",
+                     **({"sensitivity_table": "sensitivity.csv"} if result.sensitivity is not None else {}))
     if outputs.mesh and comm.rank == 0 and result.requested.msh is not None:
         (stage / "mesh.msh").write_bytes(result.requested.msh)
     timings = {"output": early.t_output}
@@ -79,7 +86,26 @@ def _write_files(result: RunResult, stage: Path, early: "EarlyOutput", t_all: fl
     write_json(stage / "results.json", res, comm.rank)
     if (outputs.fields or result.convergence is not None) and comm.rank == 0:
         write_report(stage)
+    if outputs.fields and comm.rank == 0:
+        printing = pdf.start_print(stage / "report.html", stage / "report.pdf", exe) if exe else None
+        with on_stop(printing.kill) if printing else contextlib.nullcontext():
+            write_tables(stage, res)  # beside the print
+            if printing is not None:
+                early.t_pdf, why = printing.finish()
+                if why is not None:  # the run stands without its PDF: results.json says so
+                    early.say(f"report.pdf: not printed, {why}")
+                    del res["files"]["report_pdf"]
+                    write_json(stage / "results.json", res, comm.rank)
     return res
+
+
+def write_tables(folder: Path, res: dict) -> None:
+    """A run's tables from its results.json content ``res`` (pipeline/output/flat.py):
+    meshes.csv, and sensitivity.csv when the run has a sensitivity section."""
+    (folder / "meshes.csv").write_text(flat.csv_text(flat.MESH_COLUMNS, flat.mesh_rows(res)), encoding="utf-8")
+    if res.get("sensitivity"):
+        (folder / "sensitivity.csv").write_text(flat.csv_text(flat.SENSITIVITY_COLUMNS, flat.sensitivity_rows(res)),
+                                                encoding="utf-8")
 
 
 @dataclass
@@ -97,6 +123,8 @@ class EarlyOutput:
     files: dict[str, str] = field(default_factory=dict)
     drawing: drawing.Drawing | None = None
     t_output: float = 0.0
+    t_pdf: float | None = None  # the print of report.pdf (s), when the run made one
+    say: Callable[[str], None] = print
 
     def requested(self, fine: Level, places: Pilot) -> None:
         """The run's ``on_requested``: write the field file of the requested mesh's level and
