@@ -39,7 +39,7 @@ def run_summary(out: Path) -> None:
     for key in ("peak", "critical"):
         say(peak_line(res, key))
     if fe.get("accuracy"):
-        say(accuracy_text(fe["accuracy"]))
+        say(f"error bars: {accuracy_text(fe['accuracy'])}")
     say(f"hand formulas (nominal): approximate {an['approximate_MPa']:.2f} MPa, exact {an['exact_MPa']:.2f} MPa")
     if res.get("load_sweep"):
         rows = res["load_sweep"]

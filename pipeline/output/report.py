@@ -158,9 +158,9 @@ def answer_lines(res: dict) -> list[str]:
     pub = an.get("published")
 
     def formula(key: str) -> str:
-        return _f(an[f"{key}_MPa"]) + (f" (published {_f(pub[f'{key}_MPa'])})" if pub else "")
+        return f"{_f(an[f'{key}_MPa'])} MPa" + (f" (published {_f(pub[f'{key}_MPa'])})" if pub else "")
     L.append(f"Hand formulas (nominal stress of the ligament beside the bore, {appendix.FORMULAS}): approximate "
-             f"{formula('approximate')} MPa, exact {formula('exact')} MPa; the FE peaks add the stress concentration"
+             f"{formula('approximate')}, exact {formula('exact')}; the FE peaks add the stress concentration"
              " (*Hand formulas and FE, like with like*).\n")
     if fe.get("accuracy"):
         L.append(f"Error bars ({appendix.ERROR_BAR}): {accuracy_text(fe['accuracy'])}.\n")
@@ -254,9 +254,9 @@ def sensitivity_section(res: dict) -> str:
     nominal = {"peak_MPa": fe["peak_MPa"], "critical_peak_MPa": fe["critical_peak_MPa"],
                "critical_section_nominal_MPa": sec.get("nominal_MPa"), "capacity_N": min(caps) if caps else None}
     L = ["## What the answer rests on (sensitivity)\n",
-         f"**{summ['sentence']}**\n",
-         "The error bar is the mesh's error for *this* model. The inputs below are assumed (the paper does "
-         "not give them) or are choices of the load model; each is varied alone over its range, the others kept "
+         "What the verdict rests on (page 1), in figures. The error bar is the mesh's error for *this* model; "
+         "the inputs below are assumed (the paper does not give them) or are choices of the load model, each "
+         "varied alone over its range, the others kept "
          f"(dimensions on one mesh ×{summ['mesh_factor']:.3g} each, the load model on this run's meshes; "
          f"method and why each range: {appendix.SENSITIVITY}).\n"]
     # The chart before the table: the table's rows may run on to the next page, the chart may not.

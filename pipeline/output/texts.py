@@ -67,14 +67,14 @@ def safety_text(value: float | None) -> str:
 
 
 def accuracy_text(acc: dict) -> str:
-    """One line on the accuracy asked and reached (results.json's fe.accuracy): each wanted
-    peak's band (%) against the tolerance, the meshes of the error bar and, when a band
-    stays above the tolerance, why; each peak's status says the same in its own words."""
+    """One line on the error bars (results.json's fe.accuracy): each wanted peak's band (%)
+    against the tolerance, the meshes of the error bar and, when a band stays above the
+    tolerance, why; each peak's status says the same in its own words."""
     bands = ", ".join(f"{p} {'no band' if b is None else f'{b:.2f} %'}" for p, b in acc["bands_pct"].items())
     meshes = f"meshes ×{', ×'.join(f'{f:.4g}' for f in acc['mesh_factors'])}"
     extra = len(acc["meshes_solved"]) - len(acc["mesh_factors"])
     solved = f" ({len(acc['meshes_solved'])} solved in all)" if extra > 0 else ""
-    head = f"error bars {bands} of the value; tolerance {acc['tolerance_pct']:g} %; {meshes}{solved}"
+    head = f"{bands} of the value; tolerance {acc['tolerance_pct']:g} %; {meshes}{solved}"
     if acc["met"]:
         return head
     if all(b is None for b in acc["bands_pct"].values()):
