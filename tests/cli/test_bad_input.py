@@ -716,8 +716,10 @@ def test_rigid_support_run_gives_no_global_safety_factor(tmp_path):
     assert fe["peak"].get("singular_feature") and fe["safety_factor"] is None
     assert fe["verdict"]["global_peak"]["verdict"] == "none"
     assert "singular" in fe["verdict"]["global_peak"]["why"]
-    assert "none (singular peak) (global)" in p.stdout
-    assert "**none**" in (out / "report.md").read_text()
+    line = next(ln for ln in p.stdout.splitlines() if ln.startswith("global peak"))
+    assert "  singular  no verdict  SF none  " in line
+    row = next(ln for ln in (out / "report.md").read_text().splitlines() if ln.startswith("| global peak"))
+    assert "| singular |" in row and "| **no verdict** |" in row and "| 0." not in row  # no safety factor
 
 
 def test_zero_fillet_peak_is_named_the_journal_root():
