@@ -59,11 +59,14 @@ class Printing:
         return time.perf_counter() - self.started, why
 
     def kill(self) -> None:
-        """Stop the browser and reap it (a stopped or failed run prints nothing)."""
+        """Stop the browser, reap it and remove its profile (a stopped or failed run prints
+        nothing and leaves no temporary folder)."""
         with contextlib.suppress(OSError):
             os.killpg(self.proc.pid, 9)
         with contextlib.suppress(subprocess.TimeoutExpired):
             self.proc.wait(timeout=5)
+        with contextlib.suppress(OSError):
+            self.profile.cleanup()
 
 
 def _is_pdf(path: Path) -> bool:
