@@ -61,14 +61,6 @@ def _sf(value: float | None, fe: dict, key: str) -> str:
     return f"none ({no_safety_factor_reason(fe, key)})" if value is None else f"{value:.2f}"
 
 
-def safety_text(fe: dict, key: str) -> str:
-    """The safety factor in bold, or why there is none (a singular peak)."""
-    value = fe.get(key)
-    if value is None:
-        return f"**none** ({fe.get(key + '_note', 'no finite peak')})"
-    return f"**{value:.2f}**"
-
-
 # ------------------------------------------------------------------------------- page 1
 
 # The title block's rows: (label, the about.document key), then the automatic ones.
