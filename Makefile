@@ -60,7 +60,7 @@ bench: $(SETUP)
 	$(PY) -m bench --out results/bench --ranks 1,2 $(BENCH_ARGS)
 	$(PY) -m bench --out results/bench-critical $(BENCH_CRITICAL_ARGS)
 	$(PY) -m bench.peer --out results/bench-peer $(BENCH_PEER_ARGS)
-	$(PY) -m bench.run_cost --out results/bench-run $(RUN_COST_ARGS)
+	$(PY) -m bench.run_cost --out results/bench-run --peer results/bench-peer/peer.json --sweeps results/bench-sweeps/sweeps.json $(RUN_COST_ARGS)
 
 bench-peer: $(SETUP)
 	$(PY) -m bench.peer --out results/bench-peer $(BENCH_PEER_ARGS)

@@ -67,11 +67,11 @@ def fillet_core_peak(case, u, mat):
     import numpy as np
 
     from geometry.places import at_journal_root
-    from pipeline.api import MIDPOINT, averaged_von_mises, nodal_peak, von_mises
+    from pipeline.api import fillet_region, node_peak, node_readings
 
     d = case.dims
-    return nodal_peak(von_mises(u, mat), averaged_von_mises(u, mat), MIDPOINT,
-                      lambda xyz: at_journal_root(d, xyz) & (np.abs(xyz[:, 0]) <= d.b1 / 2 + d.rf / 2))
+    return node_peak(node_readings(u, mat, fillet_region(case)),
+                     lambda xyz: at_journal_root(d, xyz) & (np.abs(xyz[:, 0]) <= d.b1 / 2 + d.rf / 2))
 
 
 def solve_point(size: str, factor: float, fit: str, clearance_mm: float, friction: float = 0.0,

@@ -12,17 +12,22 @@ Each study is a fresh process into a fresh folder with the run cache off:
   peak crosses it along rf), every variant with its error bar, and screened (``--screen``:
   one coarse mesh first, the full error bar only where the decision needs it;
   docs/sweeps.md, *Screened studies*);
-- ``sizes-full`` / ``sizes-screen``: the 19 sizes the same way, at 80 MPa.
+- ``sizes-full`` / ``sizes-screen``: the 19 sizes the same way, at 80 MPa;
+- ``near-full`` / ``near-screen``: a 24-variant grid of No. 05 (rf 1.8-2.5 mm × dj
+  17.5-19 mm) against 120 MPa, about half of whose variants lie within 5 % of it: the
+  screened study's steps between the cheap level and the full error bar at work.
 
-A ``*-full`` study runs today's code when ``--base`` names a checkout of it (the same
-.venv), else this code without ``--screen``. The configurations take turns (each repeat
+A ``*-full`` study runs the code of the checkout ``--base`` names (the same .venv; its
+own launcher), else this code without ``--screen``. The configurations take turns (each repeat
 runs every one) so that a drift of the machine's speed touches all alike; the figures are
 medians over ``--repeats``. A screened study is compared with its full study of the same
 repeat: its decisions (each row's verdict per peak, the crossings of the allowable) must
 be identical, and each variant's cheap band must hold the full study's value with its
-band. The targets: 19 sizes <= 60 s, 24 variants <= 90 s, 2 ranks >= 1.8x the throughput
-of 1, a screened study >= 3x faster than its full one (medians). Writes sweeps.json and
-prints a table.
+band, at every step it took; and from the full study's three readings of each variant, the
+smallest band each step short of the full error bar would need (needed_margins). The
+targets: 19 sizes <= 60 s, 24 variants <= 90 s, 2 ranks >= 1.8x the throughput of 1, a
+screened study >= 3x faster than its full one (medians). Writes sweeps.json and prints a
+table.
 """
 from __future__ import annotations
 
@@ -38,12 +43,16 @@ import sys
 import time
 from pathlib import Path
 
+from bench.run_cost import launcher
 from pipeline.api import marked_kind, refusal
 
 ROOT = Path(__file__).resolve().parents[1]
 GRID = ["--size", "05", "--dim", "rf=0.5:2.5:6", "--dim", "dj=16,17,18,19"]
 GRID_ALLOWABLE = ["--allowable", "140"]  # MPa: the grid's global peak crosses it along rf
 SIZES_ALLOWABLE = ["--allowable", "80"]  # MPa: St 50's lower value (paper: 80-120 MPa)
+# A grid whose global peak lies within 5 % of its allowable at about half of its variants.
+NEAR = ["--size", "05", "--dim", "rf=1.8:2.5:6", "--dim", "dj=17.5,18,18.5,19", "--allowable", "120"]
+NEAR_PCT = 5.0  # a variant is near the allowable when a peak lies within this % of it
 # name -> (MPI ranks, sweep arguments, run by today's code when --base is given)
 STUDIES = {
     "sizes-2": (2, ["--sizes", "all"], False),
@@ -53,12 +62,14 @@ STUDIES = {
     "grid-screen": (2, GRID + GRID_ALLOWABLE + ["--screen"], False),
     "sizes-full": (2, ["--sizes", "all"] + SIZES_ALLOWABLE, True),
     "sizes-screen": (2, ["--sizes", "all"] + SIZES_ALLOWABLE + ["--screen"], False),
+    "near-full": (2, NEAR, True),
+    "near-screen": (2, NEAR + ["--screen"], False),
 }
-SCREENED = {"grid-screen": "grid-full", "sizes-screen": "sizes-full"}  # screened -> its full study
-DEFAULT_STUDIES = ("grid-full", "grid-screen", "sizes-full", "sizes-screen")
+SCREENED = {"grid-screen": "grid-full", "sizes-screen": "sizes-full", "near-screen": "near-full"}
+DEFAULT_STUDIES = ("grid-full", "grid-screen", "sizes-full", "sizes-screen", "near-full", "near-screen")
 # --quick: the grid's line at dj = 17 mm (6 variants) and 6 sizes spread over the table,
 # for a machine too busy for the whole studies in one sitting.
-QUICK = {"dj=16,17,18,19": "dj=17", "all": "025,05,1.6,5,16,50"}
+QUICK = {"dj=16,17,18,19": "dj=17", "all": "025,05,1.6,5,16,50", "dj=17.5,18,18.5,19": "dj=18"}
 TARGETS_S = {"sizes-2": 60.0, "grid-2": 90.0}
 TARGET_SPEEDUP = 1.8
 TARGET_SCREEN_SPEEDUP = 3.0
@@ -67,10 +78,10 @@ VERDICTS = ("verdict", "critical_verdict")
 CROSSING_KEYS = ("peak", "axis", "fixed", "falls_below", "only_crossing", "last", "range_reaches")
 
 
-def command(ranks: int, args: list[str], out: Path, base: bool = False) -> list[str]:
-    """The sweep's command line on ``ranks`` MPI ranks (pipeline.runtime.launch for more
-    than one); ``base`` (today's code) changes only the folder it runs in."""
-    head = [sys.executable, "-m", "pipeline"] if ranks == 1 else [sys.executable, "-m", "pipeline.runtime.launch", str(ranks)]
+def command(ranks: int, args: list[str], out: Path, tree: Path = ROOT) -> list[str]:
+    """The sweep's command line on ``ranks`` MPI ranks (the launcher of the code in
+    ``tree`` for more than one), run in ``tree``."""
+    head = [sys.executable, "-m", "pipeline"] if ranks == 1 else [sys.executable, "-m", launcher(tree), str(ranks)]
     return head + ["sweep", *args, "--out", str(out), "--quiet"]
 
 
@@ -95,8 +106,8 @@ def time_study(name: str, work: Path, base: Path | None = None, quick: bool = Fa
     remove_study(out)  # the previous repeat's
     env = dict(os.environ, CROSSHEAD_NO_CACHE="1")
     t0 = time.perf_counter()
-    p = subprocess.run(command(ranks, args, out), cwd=base if (old and base) else ROOT, env=env,
-                       capture_output=True, text=True)
+    tree = base if (old and base) else ROOT
+    p = subprocess.run(command(ranks, args, out, tree), cwd=tree, env=env, capture_output=True, text=True)
     wall = time.perf_counter() - t0
     if p.returncode != 0:
         raise SystemExit(f"{name}: exit {p.returncode}: {(p.stderr.strip().splitlines() or ['?'])[-1]}")
@@ -116,8 +127,9 @@ def row_name(row: dict) -> str:
 
 def outcome(res: dict, out: Path) -> dict:
     """What a study decided (sweep.json's content ``res``; its folder ``out``): per row its
-    status and verdicts, its peaks (value, band; MPa) and how it was decided, and the
-    crossings of the allowable."""
+    status and verdicts, its peaks (value, band; MPa), how it was decided and the reading
+    of each screening step it took (value, band per peak; MPa), and the crossings of the
+    allowable."""
     rows = {}
     for r in res["rows"]:
         screening = out / "variants" / r["variant"] / "screening.json"
@@ -126,9 +138,56 @@ def outcome(res: dict, out: Path) -> dict:
                              "peak": [r.get("peak_MPa"), r.get("peak_band_MPa")],
                              "critical": [r.get("critical_peak_MPa"), r.get("critical_band_MPa")],
                              "decided_by": r.get("decided_by") or "", "time_s": r.get("time_s"),
-                             "cheap": None if s is None or not s.get("peaks") else
-                             {b: [s["peaks"][b]["value_MPa"], s["peaks"][b]["band_MPa"]] for b in ("peak", "critical")}}
+                             "steps": [] if s is None else [_step(t) for t in s.get("steps") or
+                                                            ([s] if s.get("peaks") else [])],
+                             "meshes": readings(out / "variants" / r["variant"])}
     return {"rows": rows, "crossings": res["crossings"], "allowable_MPa": res["allowable_MPa"]}
+
+
+LEVEL_KEYS = {"peak": ("peak_MPa", "peak_unaveraged_MPa", "peak_averaged_MPa"),
+              "critical": ("critical_peak_MPa", "critical_unaveraged_MPa", "critical_averaged_MPa")}
+
+
+def readings(folder: Path) -> dict | None:
+    """A variant's reading per peak on each of its meshes, finest first: [value, half the
+    gap between its unaveraged and averaged readings] (MPa); None unless it has the three
+    meshes of the full error bar."""
+    f = folder / "results.json"
+    if not f.is_file():
+        return None
+    levels = json.loads(f.read_text(encoding="utf-8"))["fe"].get("levels") or []
+    if len(levels) != 3 or any(lv.get(k) is None for lv in levels for keys in LEVEL_KEYS.values() for k in keys):
+        return None
+    return {peak: [[lv[v], 0.5 * abs(lv[u] - lv[a])] for lv in levels] for peak, (v, u, a) in LEVEL_KEYS.items()}
+
+
+def needed_margins(full: dict) -> dict:
+    """Per screening step short of the full error bar and per peak, the smallest fraction
+    of the value its band needs so that, on every variant of the full study ``full``, it
+    holds the full value with its error bar: one mesh (the x1.69 reading, band the larger
+    of the fraction and its half bracket) and two meshes (the x1.3 reading, band the larger
+    of the fraction and its half bracket plus TWO_MESH_FACTOR x the two readings'
+    difference; pipeline/study/screening.py)."""
+    from pipeline.api import TWO_MESH_FACTOR
+    need = {"one mesh": {"peak": 0.0, "critical": 0.0}, "two meshes": {"peak": 0.0, "critical": 0.0}}
+    for r in full["rows"].values():
+        if r["status"] != "done" or not r.get("meshes"):
+            continue
+        for peak in ("peak", "critical"):
+            (v, b), ((r1, g1), (r2, g2)) = r[peak], r["meshes"][peak][1:]
+            if v is None:
+                continue
+            for step, (x, own) in (("one mesh", (r2, g2)), ("two meshes", (r1, g1 + TWO_MESH_FACTOR * abs(r1 - r2)))):
+                want = abs(x - v) + (b or 0.0)
+                if own < want:
+                    need[step][peak] = max(need[step][peak], want / abs(x))
+    return need
+
+
+def _step(s: dict) -> dict:
+    """A screening step's name and reading (value, band per peak; MPa)."""
+    return {"step": s.get("step", "cheap level"),
+            **{b: [s["peaks"][b]["value_MPa"], s["peaks"][b]["band_MPa"]] for b in ("peak", "critical")}}
 
 
 def differences(full: dict, screened: dict) -> list[str]:
@@ -157,22 +216,30 @@ def differences(full: dict, screened: dict) -> list[str]:
 
 
 def coverage(full: dict, screened: dict) -> list[dict]:
-    """Per variant of a screened study, per peak: the cheap level's value and band (MPa),
-    the full study's value and band, and whether the cheap band holds the full value and
-    the full value with its band."""
+    """Per variant of a screened study, per screening step it took, per peak: the step's
+    value and band (MPa), the full study's value and band, and whether the step's band
+    holds the full value and the full value with its band."""
     out = []
     for name, b in screened["rows"].items():
         a = full["rows"].get(name)
-        if a is None or b["cheap"] is None or a["status"] != "done":
+        if a is None or a["status"] != "done":
             continue
-        for peak in ("peak", "critical"):
-            (c, cb), (v, vb) = b["cheap"][peak], a[peak]
-            if c is None or v is None:
-                continue
-            out.append({"row": name, "peak": peak, "cheap_MPa": c, "cheap_band_MPa": cb, "full_MPa": v,
-                        "full_band_MPa": vb, "covers_value": abs(v - c) <= cb,
-                        "covers_band": abs(v - c) + (vb or 0.0) <= cb, "decided_by": b["decided_by"]})
+        for step in b["steps"]:
+            for peak in ("peak", "critical"):
+                (c, cb), (v, vb) = step[peak], a[peak]
+                if c is None or v is None:
+                    continue
+                out.append({"row": name, "step": step["step"], "peak": peak, "cheap_MPa": c, "cheap_band_MPa": cb,
+                            "full_MPa": v, "full_band_MPa": vb, "covers_value": abs(v - c) <= cb,
+                            "covers_band": abs(v - c) + (vb or 0.0) <= cb, "decided_by": b["decided_by"]})
     return out
+
+
+def near(full: dict, pct: float = NEAR_PCT) -> int:
+    """How many rows of a full study have a peak within ``pct`` % of its allowable."""
+    a = full["allowable_MPa"]
+    return sum(any(r[p][0] is not None and abs(r[p][0] - a) <= pct / 100 * a for p in ("peak", "critical"))
+               for r in full["rows"].values())
 
 
 def summarise(runs: dict[str, list[dict]]) -> dict:
@@ -197,10 +264,15 @@ def summarise(runs: dict[str, list[dict]]) -> dict:
             diffs = [d for a, b in zip(runs[full], runs[screen]) for d in differences(a, b)]
             cover = [c for a, b in zip(runs[full], runs[screen]) for c in coverage(a, b)]
             cheap = [r for r in runs[screen][0]["rows"].values() if r["decided_by"].startswith("screened")]
+            by_step: dict[str, int] = {}
+            for r in runs[screen][0]["rows"].values():
+                last = r["steps"][-1]["step"] if r["decided_by"].startswith("screened") and r["steps"] else "full"
+                by_step[last] = by_step.get(last, 0) + 1
             out[f"{screen}_against_full"] = {
                 "median_ratio": ratio, "target": TARGET_SCREEN_SPEEDUP, "met": ratio >= TARGET_SCREEN_SPEEDUP,
                 "paired_ratios": [a["wall_s"] / b["wall_s"] for a, b in zip(runs[full], runs[screen])],
-                "decided_cheaply": len(cheap), "rows": len(runs[screen][0]["rows"]),
+                "decided_cheaply": len(cheap), "rows": len(runs[screen][0]["rows"]), "decided_at": by_step,
+                "near_allowable": near(runs[full][0]), "needed_margins": needed_margins(runs[full][0]),
                 "identical_decisions": not diffs, "differences": diffs,
                 "cheap_bands": len(cover), "cover_values": sum(c["covers_value"] for c in cover),
                 "cover_bands": sum(c["covers_band"] for c in cover), "coverage": cover}
@@ -223,10 +295,14 @@ def table(summary: dict) -> str:
         if c:
             lines.append(f"{screen} against {full}: {c['median_ratio']:.2f}x faster (medians; target >= "
                          f"{c['target']:g}x: {'yes' if c['met'] else 'NO'}); {c['decided_cheaply']} of {c['rows']} "
-                         f"rows decided cheaply; decisions identical: {'yes' if c['identical_decisions'] else 'NO'}; "
-                         f"cheap bands holding the full value {c['cover_values']}/{c['cheap_bands']}, "
-                         f"with its band {c['cover_bands']}/{c['cheap_bands']}")
+                         f"rows decided short of the full error bar "
+                         f"({', '.join(f'{k} {n}' for k, n in c['decided_at'].items())}); "
+                         f"{c['near_allowable']} within {NEAR_PCT:g} % of the allowable; decisions identical: "
+                         f"{'yes' if c['identical_decisions'] else 'NO'}; step bands holding the full value "
+                         f"{c['cover_values']}/{c['cheap_bands']}, with its band {c['cover_bands']}/{c['cheap_bands']}")
             lines += [f"  differs: {d}" for d in c["differences"][:10]]
+            lines.append("  margins the full study needs: " + "; ".join(
+                f"{step} {100 * m['peak']:.2f} % / {100 * m['critical']:.2f} %" for step, m in c["needed_margins"].items()))
     sp = summary.get("speedup_2_over_1")
     if sp:
         lines.append(f"2 ranks / 1 rank throughput: {sp['median']:.2f}x (median of {sp['pairs']} pairs; "
@@ -250,8 +326,8 @@ def main(argv: list[str] | None = None) -> int:
                     f"(default {','.join(DEFAULT_STUDIES)})")
     ap.add_argument("--quick", action="store_true", help="smaller studies: the grid's line at dj = 17 mm and "
                     f"the sizes {QUICK['all']} (for a busy machine)")
-    ap.add_argument("--base", type=Path, help="a checkout of today's code (same .venv) for the *-full studies, "
-                    "e.g. a git worktree of main; default: this code without --screen")
+    ap.add_argument("--base", type=Path, help="a checkout (same .venv) whose code runs the *-full studies, "
+                    "e.g. a git worktree of version 0.6; default: this code without --screen")
     args = ap.parse_args(argv)
     names = [n for n in args.studies.split(",") if n]
     unknown = [n for n in names if n not in STUDIES]

@@ -68,12 +68,12 @@ def main(argv: list[str] | None = None) -> dict:
     # %% [markdown]
     # ## A field file for ParaView
     #
-    # The requested mesh keeps its displacement and von Mises fields; `write_fields` puts
-    # them, mirrored to the whole part, into fields.vtu (docs/design.md §7 says how to read a
-    # peak from it).
+    # The requested mesh keeps its displacement and its von Mises readings at the nodes;
+    # `write_fields` puts them, mirrored to the whole part, into fields.vtu, where each peak
+    # is the reported array's value at its place (docs/design.md §7).
     a.out.mkdir(parents=True, exist_ok=True)
-    u, vm = result.requested.fields
-    write_fields(a.out, u, vm, Material(E=case.E_MPa, nu=case.nu), whole_part=True)
+    u, _ = result.requested.fields
+    write_fields(a.out, u, result.requested.readings, Material(E=case.E_MPa, nu=case.nu), whole_part=True)
     print(f"fields: {a.out / 'fields.vtu'}")
     return answer
 

@@ -38,6 +38,7 @@ WHERE = {
     "Level": "pipeline.analysis.level", "LevelTask": "pipeline.analysis.level", "Problem": "pipeline.analysis.level",
     "peaks_of": "pipeline.analysis.level", "set_up": "pipeline.analysis.level", "solve_level": "pipeline.analysis.level",
     "MeshPlan": "pipeline.analysis.meshes", "solve_meshes": "pipeline.analysis.meshes",
+    "analyse_sensitivity": "pipeline.analysis.sensitivity", "analyse_variant": "pipeline.analysis.sensitivity",
     "Pilot": "pipeline.analysis.pilot", "known_places": "pipeline.analysis.pilot", "pilot": "pipeline.analysis.pilot",
     "refinement_places": "pipeline.analysis.pilot",
     "dirichlet_bc": "pipeline.fe.assembly", "Material": "pipeline.fe.elasticity", "strain": "pipeline.fe.elasticity",
@@ -45,8 +46,13 @@ WHERE = {
     "Mesher": "pipeline.fe.meshing", "make_mesh": "pipeline.fe.meshing", "meshing_scale": "pipeline.fe.meshing",
     "normalised": "pipeline.fe.meshing", "owners": "pipeline.fe.meshing",
     "estimate_levels": "pipeline.post.errorbar", "critical_region": "pipeline.post.features",
-    "MIDPOINT": "pipeline.post.peaks", "averaged_von_mises": "pipeline.post.peaks", "nodal_peak": "pipeline.post.peaks",
+    "fillet_region": "pipeline.post.features",
+    "MIDPOINT": "pipeline.post.peaks", "UNAVERAGED": "pipeline.post.peaks", "NodalPeak": "pipeline.post.peaks",
+    "Peak": "pipeline.post.peaks", "NodeReadings": "pipeline.post.peaks", "node_readings": "pipeline.post.peaks",
+    "node_peak": "pipeline.post.peaks",
     "peak": "pipeline.post.peaks", "von_mises": "pipeline.post.peaks", "von_mises_of": "pipeline.post.peaks",
+    # Design studies: the screening steps and their bands.
+    "STEPS": "pipeline.study.screening", "TWO_MESH_FACTOR": "pipeline.study.screening",
     # Files and the process.
     "write_fields": "pipeline.output.fields", "json_safe": "pipeline.output.jsonio",
     "code_key": "pipeline.cache.codekey", "source_files": "pipeline.cache.codekey",

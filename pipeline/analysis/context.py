@@ -23,12 +23,16 @@ class RunContext:
     matter); ``mesher``: this process's gmsh session of the case's part, if it has one;
     ``on_requested``: called with the requested mesh's level (fields kept) and the refined
     places as soon as it is solved, so that a caller may write its fields and draw them
-    while the error-bar meshes are solved (the analysis itself writes nothing)."""
+    while the error-bar meshes are solved (the analysis itself writes nothing); ``memo``:
+    where the runs of one process keep the places and meshes they solved for each other
+    (a screened study's steps on one variant; None: nothing kept,
+    pipeline/analysis/reuse.py)."""
 
     comm: MPI.Comm = field(default_factory=lambda: MPI.COMM_WORLD)
     say: Progress = quiet
     mesher: Mesher | None = None
     on_requested: Callable[..., None] | None = None  # (Level, Pilot) -> None
+    memo: dict | None = None
 
     def alone(self) -> "RunContext":
         """This context on this rank alone (MPI.COMM_SELF), saying nothing unless it is rank 0,

@@ -5,7 +5,6 @@ import time
 from dataclasses import dataclass, field
 from typing import Callable, Sequence
 
-import numpy as np
 from dolfinx import fem
 
 from pipeline.analysis.context import Progress, RunContext, quiet
@@ -17,7 +16,7 @@ from pipeline.fe.solve import Loads, Method, Solution, failure_advice, solve
 from pipeline.inputs.case import BearingBand, Case, formula_bands, small_features
 from pipeline.post import formulas as formulas_module
 from pipeline.post.features import critical_region, fillet_region
-from pipeline.post.peaks import MIDPOINT, UNAVERAGED, NodalPeak, averaged_von_mises, largest, nodal_peak, von_mises
+from pipeline.post.peaks import NodalPeak, NodeReadings, node_peak, node_readings
 from pipeline.post.sections import FormulaLoad, formula_load_sections, section_results
 
 Hotspots = Sequence[tuple[float, float, float]]
@@ -42,34 +41,33 @@ class Level:
     timings: dict[str, float]
     scaled_from: dict | None = None  # see solve.Solution.scaled_from
     fields: tuple | None = None  # (u, von_mises) on the requested mesh only
+    readings: NodeReadings | None = None  # von Mises at the nodes, both ways and reported: with fields
     sections: dict | None = None  # section results (pipeline/post/sections.py), requested mesh only
     msh: bytes | None = None  # the gmsh file of the requested mesh, on rank 0, when asked
     # solve_level's load_variants on this mesh, in order: (global peak, critical peak, sections)
     load_variants: list[tuple[NodalPeak, NodalPeak, dict | None]] = field(default_factory=list)
 
 
-def peaks_of(case: Case, u: fem.Function, mat: Material) -> tuple[fem.Function, NodalPeak, NodalPeak]:
-    """Von Mises (MPa, DG) of displacement u (mm) and the case's global and critical peaks,
-    read as :func:`read_peaks` does: the one way every solver's result is read."""
-    vm = von_mises(u, mat)
-    return (vm, *read_peaks(case, vm, averaged_von_mises(u, mat)))
+def peaks_of(case: Case, u: fem.Function, mat: Material) -> tuple[NodeReadings, NodalPeak, NodalPeak]:
+    """Von Mises (MPa) of displacement u (mm) read at the nodes by the case's reading rule,
+    and the case's global and critical peaks, read as :func:`read_peaks` does: the one way
+    every solver's result is read."""
+    readings = node_readings(u, mat, fillet_region(case))
+    return (readings, *read_peaks(case, readings))
 
 
-def read_peaks(case: Case, vm: fem.Function, averaged: tuple[np.ndarray, np.ndarray]
-               ) -> tuple[NodalPeak, NodalPeak]:
-    """The global and the critical peak (MPa), each feature read by its rule: the shoulder
-    fillet by the midpoint of its unaveraged and averaged readings, everything else by the
+def read_peaks(case: Case, readings: NodeReadings) -> tuple[NodalPeak, NodalPeak]:
+    """The global and the critical peak (MPa): the nodes of the largest reported value over
+    the part and over the critical region. ``readings`` carry the reading rule at each node
+    (pipeline.post.peaks.node_readings with the case's fillet region): on the shoulder
+    fillet the midpoint of the node's unaveraged and averaged readings, everywhere else its
     unaveraged one. Measured against independent references (docs/accuracy.md): at the
     fillet the unaveraged value lies above the reference and the averaged one below; at the
     bore edge both lie within 0.2 % and the averaged one's slower convergence would put a
-    false trend into the error bar. The global peak is the largest over the features."""
-    fillet = fillet_region(case)
-    if fillet is None:
-        pk = nodal_peak(vm, averaged, UNAVERAGED)
-    else:
-        pk = largest(nodal_peak(vm, averaged, MIDPOINT, fillet),
-                     nodal_peak(vm, averaged, UNAVERAGED, lambda xyz: ~fillet(xyz)))
-    return pk, nodal_peak(vm, averaged, UNAVERAGED, critical_region(case))
+    false trend into the error bar. Node by node, so that the field file's reported array
+    holds each reported value at its place
+    (docs/decisions/0035-reported-value-node-by-node.md)."""
+    return node_peak(readings), node_peak(readings, critical_region(case))
 
 
 @dataclass(frozen=True)
@@ -143,6 +141,17 @@ def formula_load_cases(case: Case, prob: Problem) -> dict[str, tuple[BearingBand
 # A further right-hand side on a problem's operator: its journal load model (shape and band,
 # mm: the cache key's) and its load case on the problem's mesh.
 MoreLoad = tuple[dict, LoadCase]
+# The further right-hand sides' relative tolerance (a hand formula's load position, a load
+# model's variant): what they give are section integrals and the sensitivity section's
+# ratios, which move by a few 1e-4 MPa from 1e-8's, in two thirds of the iterations
+# (docs/decisions/0036-sensitivity-variants-by-morphing.md).
+MORE_RTOL = 1e-5
+
+
+def more_rtol(case: Case) -> float:
+    """The tolerance of the case's further right-hand sides: MORE_RTOL, or the case's own
+    when that is looser."""
+    return max(case.rtol, MORE_RTOL)
 
 
 def journal_load(shape: str, band: BearingBand) -> dict:
@@ -183,7 +192,8 @@ def new_solution(case: Case, prob: Problem, more: Sequence[LoadCase] = (), V=Non
     m = prob.mesh
     try:
         loads = Loads(prob.loads.tractions, prob.loads.constraints, [lc_k.tractions for lc_k in more])
-        return solve(m.mesh, m.facet_tags, prob.material, loads, Method(case.order, case.solver, case.rtol), V)
+        method = Method(case.order, case.solver, case.rtol, more_rtol=more_rtol(case))
+        return solve(m.mesh, m.facet_tags, prob.material, loads, method, V)
     except NumericalError as exc:  # the one line says what to try, from what this case makes hard
         raise NumericalError(f"{exc}; {failure_advice(case.solver, case.nu, small_features(case.dims))}") from None
 
@@ -223,7 +233,7 @@ def read_level(case: Case, task: LevelTask, prob: Problem, sol: Solution, more: 
                                  f"constraint reaction {point_r:.3g} N (limit {limit:.3g} N)")
     support, eq_err, point_r = equilibrium(lc, sol.reactions)
     t0 = time.perf_counter()
-    vm, pk, crit = peaks_of(case, sol.u, mat)
+    readings, pk, crit = peaks_of(case, sol.u, mat)
     sections = None
     sym_x = m.facet_ids.get("symmetry_x")
     sym_idx = next((i for i, c in enumerate(lc.constraints) if c.component == 0 and c.marker == sym_x
@@ -252,7 +262,9 @@ def read_level(case: Case, task: LevelTask, prob: Problem, sol: Solution, more: 
                  residual_rel=sol.residual_rel, seat_force_N=lc.seat_force_z_N,
                  support_force_N=support, equilibrium_error_N=eq_err,
                  constraint_reaction_N=point_r, jacobian_ratio=m.jacobian_ratio,
-                 timings=timings, scaled_from=sol.scaled_from, fields=(sol.u, vm) if task.keep_fields else None,
+                 timings=timings, scaled_from=sol.scaled_from,
+                 fields=(sol.u, readings.vm) if task.keep_fields else None,
+                 readings=readings if task.keep_fields else None,
                  msh=m.msh, sections=sections, load_variants=load_readings)
 
 

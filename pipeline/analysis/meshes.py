@@ -70,13 +70,16 @@ def _solve(case: Case, plan: MeshPlan, places: Pilot, ctx: RunContext) -> list[L
     tasks = plan.tasks(places)
     on = error_bar_ranks(factors, comm.size)
     t0 = time.perf_counter()
+    known = [reuse.remembered(case, t, ctx) is not None for t in tasks]  # solved by this process before
+    todo = [k for k in range(len(tasks)) if not known[k]]
     with reuse.mesher(case.dims, case.model, ctx) as m:
-        loaders = make_meshes(case.dims, case.model, [t.spec(case) for t in tasks], comm=comm,
-                              keep_msh=[t.keep_msh for t in tasks], solve_on=on, mesher=m)
+        made = make_meshes(case.dims, case.model, [tasks[k].spec(case) for k in todo], comm=comm,
+                           keep_msh=[tasks[k].keep_msh for k in todo], solve_on=[on[k] for k in todo], mesher=m)
+    loaders = dict(zip(todo, made))
     if comm.size > 1 and len(factors) > 1:
         say(f"meshes ×{', ×'.join(f'{f:.3g}' for f in factors)} made on {min(comm.size, len(factors))} ranks at once "
             f"({time.perf_counter() - t0:.2f} s)")
-    fine = reuse.level(case, tasks[0], ctx, loaders[0])
+    fine = reuse.level(case, tasks[0], ctx, loaders.get(0))
     if places.source == KNOWN and not inside_refinement(fine.critical.location_mm, places,
                                                         case.mesh_spec(factors[0]).edge_hotspot_radius):
         say(f"the critical peak at ({', '.join(f'{c:.2f}' for c in fine.critical.location_mm)}) mm lies outside "
@@ -90,7 +93,7 @@ def _solve(case: Case, plan: MeshPlan, places: Pilot, ctx: RunContext) -> list[L
     for k in range(1, len(factors)):
         if on[k] == comm.rank and error is None:
             try:
-                mine.append((k, reuse.error_bar_level(case, tasks[k], alone, loaders[k])))
+                mine.append((k, reuse.error_bar_level(case, tasks[k], alone, loaders.get(k))))
             except Exception as exc:  # re-raised on every rank below
                 error = (k, exc)
     wait_for_ranks(comm)

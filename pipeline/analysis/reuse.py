@@ -1,5 +1,7 @@
-"""The one seam between a run and the run cache (pipeline/cache/): every read and write of
-earlier work happens here, and no other module of the pipeline imports the cache.
+"""The one seam between a run and the work done before it: the run cache
+(pipeline/cache/), and the memo of the runs in one process (RunContext.memo: a screened
+study's steps on one variant solve each mesh once). Every read and write of earlier work
+happens here, and no other module of the pipeline imports the cache.
 
 A run that changes only the hook load, E or the allowable takes from an earlier run of the
 same part and model (linear elasticity with traction loads: stresses scale with Q/Q0,
@@ -18,6 +20,7 @@ from __future__ import annotations
 
 import contextlib
 import time
+from dataclasses import replace
 from typing import Callable, Sequence
 
 from dolfinx import fem
@@ -25,8 +28,8 @@ from mpi4py import MPI
 
 from geometry.table import Dimensions
 from pipeline.analysis.context import RunContext
-from pipeline.analysis.level import (Level, LevelTask, MoreLoad, Problem, more_loads, new_solution, read_level,
-                                     say_mesh, set_up)
+from pipeline.analysis.level import (Level, LevelTask, MoreLoad, Problem, more_loads, more_rtol, new_solution,
+                                     read_level, say_mesh, set_up)
 from pipeline.analysis.pilot import Pilot, pilot, pilot_factor, refinement_places
 from pipeline.cache import levels as levelcache
 from pipeline.cache import meshes as meshcache
@@ -67,20 +70,61 @@ def mesher(d: Dimensions, model: str, ctx: RunContext) -> contextlib.AbstractCon
 
 def places(case: Case, ctx: RunContext) -> Pilot:
     """The places the run refines (pipeline.analysis.pilot.refinement_places); the pilot's
-    are those of an earlier run of the same part and model when the cache has them."""
-    if case.want == "critical":
-        return refinement_places(case, ctx)
-    return pilot_places(case, ctx)
+    are those of an earlier run of the same part and model when the memo or the cache has
+    them."""
+    key = ("places", _pilot_key(case))
+    if ctx.memo is not None and key in ctx.memo:
+        return ctx.memo[key]
+    found = refinement_places(case, ctx) if case.want == "critical" else pilot_places(case, ctx)
+    if ctx.memo is not None:
+        ctx.memo[key] = found
+    return found
+
+
+def remembered(case: Case, task: LevelTask, ctx: RunContext) -> Level | None:
+    """The level an earlier run of this process solved for the same case and mesh with at
+    least what ``task`` asks (fields, sections, the same further loads) (ctx.memo), with
+    only what it asks (an error-bar mesh's level travels between ranks: no fields), or None."""
+    kept = None if ctx.memo is None else ctx.memo.get(_memo_key(case, task))
+    if kept is None:
+        return None
+    old, lv = kept
+    covers = ((old.keep_fields or not task.keep_fields) and (old.sections or not task.sections)
+              and (old.keep_msh or not task.keep_msh) and old.formula_loads == task.formula_loads
+              and old.load_variants == task.load_variants)
+    if not covers:
+        return None
+    return replace(lv, fields=lv.fields if task.keep_fields else None, sections=lv.sections if task.sections else None,
+                   msh=lv.msh if task.keep_msh else None)
+
+
+def _memo_key(case: Case, task: LevelTask) -> tuple:
+    """What makes one mesh's level in the memo: the case (its load included) whatever its
+    own mesh factor and tolerance, and the mesh's factor and refined places."""
+    return ("level", repr(replace(case, mesh_factor=1.0, mesh_pinned=False, tolerance_pct=1.0)), task.factor,
+            tuple(task.hotspots))
+
+
+def _remember(case: Case, task: LevelTask, ctx: RunContext, lv: Level) -> Level:
+    """Keep ``lv``, solved for ``task``, in ctx.memo (when it has one); returns it."""
+    if ctx.memo is not None:
+        ctx.memo[_memo_key(case, task)] = (task, lv)
+    return lv
+
+
+def _pilot_key(case: Case) -> str:
+    """The run-cache key of the case's pilot places: what shapes the stress field, not its
+    size (load, E and the allowable do not move the places)."""
+    return runcache.key("pilot", dims=case.dims, model=case.model, support=case.support, nu=case.nu, want=case.want,
+                        bearing=case.load_model(), order=case.order, solver=case.solver,
+                        spec=case.mesh_spec(pilot_factor(case)))
 
 
 def pilot_places(case: Case, ctx: RunContext) -> Pilot:
     """The pilot's places of the case: an earlier run's (load, E and the allowable do not
     move them), or a new pilot solve, then kept. Read on rank 0 for every rank."""
     t0 = time.perf_counter()
-    # What shapes the stress field, not its size: load, E and the allowable do not move the places.
-    name = runcache.key("pilot", dims=case.dims, model=case.model, support=case.support, nu=case.nu, want=case.want,
-                        bearing=case.load_model(), order=case.order, solver=case.solver,
-                        spec=case.mesh_spec(pilot_factor(case)))
+    name = _pilot_key(case)
     reach = max(case.dims.b1, case.dims.b6, case.dims.h3)  # mm: the part's largest dimension
     known = placecache.earlier(name, pilot_factor(case), reach) if ctx.comm.rank == 0 else None
     known = ctx.comm.bcast(known, root=0)
@@ -112,13 +156,17 @@ def solve_or_scale(case: Case, prob: Problem, reuse: bool = True, more: Sequence
         return new_solution(case, prob, [lc_k for _, lc_k in more], V)
     target = solvecache.Target(m, V, ids)
 
-    def earlier(name: str, lc_k) -> Solution | None:
-        entry = solvecache.earlier(name, m.mesh.comm)
-        return None if entry is None else solvecache.scaled(entry, target, lc_k, case, prob.material, name)
+    # The further right-hand sides are solved (and kept, and checked on reuse) at their own
+    # tolerance (level.more_rtol).
+    cases = [case] + [replace(case, rtol=more_rtol(case))] * len(more)
 
-    names = [solvecache.key(case, m, V)] + [solvecache.key(case, m, V, model) for model, _ in more]
+    def earlier(name: str, lc_k, case_k: Case) -> Solution | None:
+        entry = solvecache.earlier(name, m.mesh.comm)
+        return None if entry is None else solvecache.scaled(entry, target, lc_k, case_k, prob.material, name)
+
+    names = [solvecache.key(case, m, V)] + [solvecache.key(cases[1], m, V, model) for model, _ in more]
     loads = [lc] + [lc_k for _, lc_k in more]
-    found = [earlier(n, lc_k) for n, lc_k in zip(names, loads)]
+    found = [earlier(n, lc_k, c) for n, lc_k, c in zip(names, loads, cases)]
     t_key = time.perf_counter() - t0
     missing = [k for k, s in enumerate(found) if s is None]
     timings = {"assemble": 0.0, "solve": 0.0}
@@ -128,7 +176,7 @@ def solve_or_scale(case: Case, prob: Problem, reuse: bool = True, more: Sequence
         t0 = time.perf_counter()
         for k, s in zip(missing, [new, *new.more]):
             s.more = []
-            solvecache.store(names[k], s, ids, case)
+            solvecache.store(names[k], s, ids, cases[k])
             found[k] = s
         timings["solve"] += time.perf_counter() - t0
     sol = found[0]
@@ -149,12 +197,16 @@ def level(case: Case, task: LevelTask, ctx: RunContext, load_mesh: Callable[[], 
           ) -> Level:
     """One mesh of the case as pipeline.analysis.level.solve_level reads it, its solution
     (and its further right-hand sides') scaled from an earlier run's when the cache has
-    them (:func:`solve_or_scale`), else solved and kept."""
+    them (:func:`solve_or_scale`), else solved and kept; the memo's, when this process
+    solved it already."""
+    lv = remembered(case, task, ctx)
+    if lv is not None:
+        return lv
     prob = set_up(case, task, ctx, load_mesh)
     say_mesh(prob, task.factor, ctx.say)
     more = more_loads(case, task, prob)
     sol = solve_or_scale(case, prob, task.reuse, more.loads)
-    return read_level(case, task, prob, sol, more, ctx.say)
+    return _remember(case, task, ctx, read_level(case, task, prob, sol, more, ctx.say))
 
 
 def error_bar_level(case: Case, task: LevelTask, ctx: RunContext, load_mesh: Callable[[], ImportedMesh]) -> Level:
@@ -162,6 +214,8 @@ def error_bar_level(case: Case, task: LevelTask, ctx: RunContext, load_mesh: Cal
     problem scaled to the case's load (pipeline/cache/levels.py), without importing the mesh;
     or else :func:`level`, then kept. A task with further right-hand sides always goes
     through :func:`level`: the level cache keeps no variants' readings."""
+    if remembered(case, task, ctx) is not None:
+        return remembered(case, task, ctx)
     spec = task.spec(case)
     name = levelcache.key(case, spec)
     plain = not task.load_variants and not task.formula_loads

@@ -16,7 +16,8 @@ from pipeline.analysis.level import Level
 from pipeline.analysis.meshes import MeshPlan
 from pipeline.analysis.pilot import Pilot
 from pipeline.analysis.result import PeakAnswer, RunResult
-from pipeline.analysis.sensitivity import LOAD_MESH_RATIO, analyse_sensitivity, load_variant_cases
+from pipeline.analysis.ranges import load_variant_cases
+from pipeline.analysis.sensitivity import LOAD_MESH_RATIO, analyse_sensitivity
 from pipeline.analysis.tolerance import solve_to_tolerance
 from pipeline.analysis.verdicts import (SAFETY_KEYS, checked_stresses, load_rows, safety_factor, sensitivity_answer,
                                         verdicts)
@@ -40,11 +41,12 @@ def run(case: Case, options: RunOptions, ctx: RunContext = RunContext()) -> RunR
         #    (for the critical peak alone, the bore edges the dimensions name); every mesh is
         #    refined there.
         places = reuse.places(case, ctx)
-        case = replace(case, mesh_factor=options.factors(case)[0])  # a convergence study's finest is finer
+        factors = options.factors(case)  # finest first: a convergence study's finest is finer than the case's
+        case = replace(case, mesh_factor=factors[0])
         # 2. The requested mesh and the error bar's coarser ones, over the ranks; then more
         #    meshes until each wanted peak's band is within the tolerance. The load model's
         #    variants and the hand formulas' load positions ride on those meshes' operators.
-        plan = MeshPlan(factors=tuple(options.factors(case)), formula_loads=options.formula_loads,
+        plan = MeshPlan(factors=tuple(factors), formula_loads=options.formula_loads,
                         load_variants=tuple(load_variant_cases(case)) if vary else (),
                         load_variants_at=case.mesh_factor * LOAD_MESH_RATIO, keep_msh=options.outputs.mesh)
         meshes = solve_to_tolerance(case, options, plan, places, ctx)

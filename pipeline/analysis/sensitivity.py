@@ -8,36 +8,40 @@ peak by −7 % to +31 % over plausible values. A reader must see both.
 
 Each end of a dimension's range is one variant: the case with that one input changed,
 analysed on a single mesh coarser than the run's, refined at the places its dimensions
-name (features.known_raisers: no pilot solve), over the MPI ranks, one variant per rank.
-The nominal case is analysed the same way, and its values are the baseline the variants
-are compared with, so the mesh's bias cancels: an end's value is the run's value ×
-variant / baseline. The nominal case on a second mesh of the same size, refined at the
-run's own pilot places instead, measures the noise of such single meshes (how far another
-choice of places moves one reading), stated beside the differences. A load-model choice
-changes only the right-hand side: its ends are solved on the operator of one of the run's
-own meshes (analysis.analyse's ``load_variants``).
+name (features.known_raisers: no pilot solve), over the MPI ranks. The nominal case is
+analysed on such a mesh, and its values are the baseline the variants are compared with,
+so the mesh's bias cancels: an end's value is the run's value × variant / baseline. A
+variant's mesh is the nominal one with its nodes moved onto the variant's dimensions
+(pipeline/fe/morph.py), solved on the nominal's set-up (pipeline/fe/resolve.py), unless
+the move would squeeze a ring of elements too far: then it is meshed anew
+(docs/decisions/0036-sensitivity-variants-by-morphing.md). The nominal case on a second
+mesh of the same size, refined at the run's own pilot places instead, measures the noise
+of such single meshes (how far another choice of places moves one reading), stated beside
+the differences. A load-model choice changes only the right-hand side: its ends are solved
+on the operator of one of the run's own meshes (MeshPlan's ``load_variants``).
 """
 from __future__ import annotations
 
-import math
 import time
 from dataclasses import dataclass, field, replace
 from typing import Callable, Sequence
 
 from mpi4py import MPI
 
-from geometry.table import Dimensions, InputError, validate
-
 from geometry.part import GeometryError
+from geometry.table import InputError, validate
+from pipeline.analysis import reuse
 from pipeline.analysis.context import RunContext
-from pipeline.analysis.level import Level
+from pipeline.analysis.level import Level, LevelTask, Problem, peaks_of, set_up
 from pipeline.analysis.meshes import MeshPlan, solve_meshes
-from pipeline.analysis.pilot import KNOWN, Pilot, known_places
+from pipeline.analysis.pilot import KNOWN, Pilot, inside_refinement, known_places
+from pipeline.analysis.ranges import DIMENSION, LOAD_MODEL, Range, invalid_load, ranges_of, same_load
 from pipeline.errors import NumericalError
-from pipeline.fe.meshing import owners
-from pipeline.inputs.case import Case, check, journal_bearing_surface
-from pipeline.inputs.choices import BEARING_SHAPES
-from pipeline.post.sections import journal_nominal
+from pipeline.fe.loads import crosshead_loads, equilibrium
+from pipeline.fe.morph import Mover, MorphError, as_variant, remesh_reason
+from pipeline.fe.resolve import ResolveOptions, Resolver
+from pipeline.inputs.case import Case
+from pipeline.post.sections import journal_nominal, section_results
 from pipeline.runtime.idle import wait_for_ranks
 
 # The dimension variants' mesh: the run's mesh factor × this, refined at the places the
@@ -47,39 +51,15 @@ MESH_RATIO = 2.2
 # ratio 1.3, whose operator they are solved on beside the other error-bar mesh.
 LOAD_MESH_RATIO = 1.69
 NOISE_RATIO = 1.1  # without the run's pilot places, the second nominal mesh is this much coarser
-# Default ranges stop this far (× h3, mm) inside a geometry rule of geometry/table.py: a
-# fillet that runs out exactly at a face is degenerate geometry (docs/design.md §2).
-RULE_MARGIN = 0.02
-DJ_SPREAD = 0.10  # dj: ± this fraction of the assumed 0.8·h
-RF_SPREAD = 0.20  # rf: ± this fraction of the assumed fillet (r/dj 0.06–0.09 at No. 05)
-SEAT_SPREAD = 0.06  # seat_inner, seat_outer: ± this fraction of Dm
-# The stresses a verdict is given for, and their results.json names (pipeline/output/results.py).
-CHECKED = ("global_peak", "critical_peak", "critical_section_nominal", "journal_root_nominal")
-
-
-@dataclass(frozen=True)
-class Range:
-    """One input varied: its --dim (or load-model option) name, its unit, its value in the
-    case, the ends of its range (in that unit), why that range, and what a geometry rule
-    changed in it (empty when nothing)."""
-
-    input: str
-    kind: str  # DIMENSION or LOAD_MODEL
-    unit: str  # "mm", or "" for a choice (the bearing pressure's shape)
-    nominal: float | str
-    low: float | str
-    high: float | str
-    reason: str
-    note: str = ""
-
-    def variant(self, case: Case, value: float | str) -> Case:
-        """The case with this input at ``value`` (unchecked)."""
-        if self.kind == DIMENSION:
-            return replace(case, dims=replace(case.dims, **{self.input: value}))
-        return replace(case, **{self.input: value})
-
-
-DIMENSION, LOAD_MODEL = "dimension", "load model"  # the kinds of input
+# The relative work of one job, to spread them over the ranks: a variant meshed and set up
+# anew, one moved from its rank's nominal mesh (the matrices and CG only), and what a rank
+# pays once to hold that nominal mesh and its set-up (docs/decisions/0036-sensitivity-variants-by-morphing.md).
+FRESH_COST, MOVED_COST, BASE_COST = 1.8, 0.6, 0.8
+# The iterative solver's relative tolerance of every job of the section (the nominal's
+# too, so that variant / nominal compares like with like): the readings move by a few
+# 1e-4 MPa from those at the run's 1e-8, far below the section's noise, in two thirds of
+# the iterations (docs/decisions/0036-sensitivity-variants-by-morphing.md).
+RTOL = 1e-5
 
 
 @dataclass(frozen=True)
@@ -87,7 +67,7 @@ class Reading:
     """One variant analysed on the sensitivity mesh (MPa): both peaks, the critical
     section's nominal stress (None without the quarter model's section) and the journal
     root's; or why it has none (``invalid``: the variant breaks a geometry rule;
-    ``failed``: its mesh or solve failed)."""
+    ``failed``: its mesh or solve failed); where its critical peak sits (mm), when known."""
 
     peak_MPa: float | None = None
     critical_MPa: float | None = None
@@ -95,6 +75,7 @@ class Reading:
     journal_MPa: float | None = None
     invalid: str | None = None
     failed: str | None = None
+    critical_at: tuple[float, float, float] | None = None
 
     @property
     def ok(self) -> bool:
@@ -119,199 +100,6 @@ class Sensitivity:
     not_varied: dict[str, str] = field(default_factory=dict)
     time_s: float = 0.0
     second_mesh: str = ""  # which mesh the noise was measured on, in words
-
-
-STEP_MM = 0.01  # default range ends are rounded to this (mm): a drawing's precision
-
-
-def _clip_high(value: float, limit: float, rule: str, unit: str) -> tuple[float, str]:
-    """``value`` (rounded to STEP_MM) capped at ``limit`` (rounded down) and a note saying
-    so (empty when not capped)."""
-    value = round(round(value / STEP_MM) * STEP_MM, 9)
-    if value <= limit:
-        return value, ""
-    capped = round(math.floor(limit / STEP_MM + 1e-9) * STEP_MM, 9)
-    return capped, f"high end clipped from {value:.4g} to {capped:.4g} {unit} ({rule})"
-
-
-def _clip_low(value: float, limit: float, rule: str, unit: str) -> tuple[float, str]:
-    """``value`` (rounded to STEP_MM) raised to ``limit`` (rounded up) and a note saying
-    so (empty when not raised)."""
-    value = round(round(value / STEP_MM) * STEP_MM, 9)
-    if value >= limit:
-        return value, ""
-    raised = round(math.ceil(limit / STEP_MM - 1e-9) * STEP_MM, 9)
-    return raised, f"low end clipped from {value:.4g} to {raised:.4g} {unit} ({rule})"
-
-
-def default_range(name: str, d: Dimensions) -> Range:
-    """The plausible range (mm) of an assumed dimension of part ``d``, kept
-    RULE_MARGIN·h3 inside the geometry rules (the note says where it was clipped).
-
-    dj ± 10 %: journals of standard diameters around 0.8·h that still fit the bearing
-    plates; rf ± 20 %: the fillet radii a machinist would turn on this journal (r/dj 0.06 to
-    0.09 at No. 05's 20 mm journal); seat diameters ± 0.06·Dm: another thrust washer on the
-    same track."""
-    m = RULE_MARGIN * d.h3
-    room = min(d.h3, d.b1) / 2 - m  # dj/2 + rf must stay below this
-    if name == "dj":
-        lo, _ = _clip_low(d.dj * (1 - DJ_SPREAD), 0.0, "", "mm")
-        hi, note = _clip_high(d.dj * (1 + DJ_SPREAD), 2 * (room - d.rf), f"dj/2 + rf <= min(h3, b1)/2 - {m:.2g} mm", "mm")
-        return Range("dj", DIMENSION, "mm", d.dj, lo, hi,
-                     f"±{100 * DJ_SPREAD:.0f} % of the assumed journal diameter: the journal diameters that fit "
-                     "the bearing plates and the geometry rules", note)
-    if name == "rf":
-        lo, hi = _clip_low(d.rf * (1 - RF_SPREAD), 0.0, "", "mm")[0], d.rf * (1 + RF_SPREAD)
-        hi, note = _clip_high(hi, min(room - d.dj / 2, d.b2 - m),
-                              f"dj/2 + rf <= min(h3, b1)/2 - {m:.2g} mm and rf <= b2 - {m:.2g} mm", "mm")
-        return Range("rf", DIMENSION, "mm", d.rf, lo, hi,
-                     f"±{100 * RF_SPREAD:.0f} % of the assumed fillet radius: the radii a machinist would turn "
-                     f"on this journal (r/dj {lo / d.dj:.3f} to {hi / d.dj:.3f})", note)
-    if name in ("seat_inner", "seat_outer"):
-        v = getattr(d, name)
-        lo, hi = v - SEAT_SPREAD * d.d14, v + SEAT_SPREAD * d.d14  # rounded by the clips below
-        if name == "seat_inner":
-            lo, n1 = _clip_low(lo, d.d2 + m, f"seat_inner >= d2 + {m:.2g} mm", "mm")
-            hi, n2 = _clip_high(hi, d.d14 - m, f"seat_inner <= d14 - {m:.2g} mm", "mm")
-        else:
-            lo, n1 = _clip_low(lo, d.d14 + m, f"seat_outer >= d14 + {m:.2g} mm", "mm")
-            hi, n2 = _clip_high(hi, d.b1 - m, f"seat_outer <= b1 - {m:.2g} mm", "mm")
-        return Range(name, DIMENSION, "mm", v, lo, hi,
-                     f"±{100 * SEAT_SPREAD:.0f} % of Dm: another thrust washer on the same track (a judgement; "
-                     "the paper gives no seat)", "; ".join(n for n in (n1, n2) if n))
-    raise ValueError(f"no default range for {name!r}")
-
-
-DIMENSION_INPUTS = ("dj", "rf", "seat_inner", "seat_outer")  # the dimensions with a default range
-
-
-def ranges_of(case: Case) -> tuple[list[Range], dict[str, str]]:
-    """The ranges a run varies, and the inputs it does not vary with the reason: every
-    assumed input over its default range (or the case's own range for it), and an input
-    the user set only when the case gives a range for it (case file [sensitivity], or
-    --vary); the dimensions first, then the load model's choices."""
-    given = dict((k, (lo, hi)) for k, lo, hi in case.sensitivity_ranges)
-    out: list[Range] = []
-    skipped: dict[str, str] = {}
-    for name in DIMENSION_INPUTS:
-        if name in given:
-            lo, hi = given[name]
-            out.append(Range(name, DIMENSION, "mm", getattr(case.dims, name), lo, hi,
-                             "the range the case gives"))
-        elif name in case.assumed:
-            out.append(default_range(name, case.dims))
-        else:
-            skipped[name] = "set by the user, and no range given for it"
-    if case.support != "bearing":
-        skipped.update({name: f"support {case.support}: no bearing pressure" for name in LOAD_MODEL_INPUTS})
-        return out, skipped
-    defaults = load_model_ranges(case)
-    for name in LOAD_MODEL_INPUTS:
-        if name in given:
-            lo, hi = given[name]
-            out.append(replace(defaults[name], low=lo, high=hi, reason="the range the case gives", note=""))
-        elif getattr(case, name) == getattr(Case, name):  # the default model: assumed
-            out.append(defaults[name])
-        else:
-            skipped[name] = "set by the user, and no range given for it"
-    return out, skipped
-
-
-# The load model's choices (docs/design.md §3), varied after the dimensions.
-LOAD_MODEL_INPUTS = ("bearing_shape", "bearing_centre_mm", "bearing_length_mm")
-
-
-@dataclass(frozen=True)
-class ContactStudy:
-    """The measured figures of the CalculiX contact study of the bearing load model (a
-    documented reference study, like the paper's published values: kept here, never
-    computed at run time). Lengths as fractions of the journal's bearing length
-    Lj = b6/2 − b1/2 − rf, from the fillet's run-out; peaks as the contact model's change
-    against this pipeline's cos θ model on the same mesh (%)."""
-
-    source: str
-    size: str  # the one size it was measured on
-    centre_hanging: tuple[float, float]  # the contact force's centre / Lj, plate hanging from its top
-    centre_standing: tuple[float, float]  # the same, plate standing on its bottom
-    peak_line_load: float  # the largest line load along the journal / its mean (innermost eighth)
-    fillet_peak_pct: dict[str, tuple[float, float]]  # per fit, over plate supports and the finer meshes
-    critical_peak_pct: tuple[float, float]  # every fit, support and mesh
-    edge_of_contact_pct: tuple[float, float]  # H9/d9: the plate bore's sharp edge as the global peak
-
-    @property
-    def fillet_range_pct(self) -> tuple[float, float]:
-        """The fillet peak's change over every fit (%)."""
-        return min(lo for lo, _ in self.fillet_peak_pct.values()), max(hi for _, hi in self.fillet_peak_pct.values())
-
-
-# docs/load-reference.md, "Results" and "Ranges for the load model's inputs" (make load-reference).
-CONTACT_STUDY = ContactStudy(
-    source="CalculiX contact, the journal in a side-plate bore (the load reference study, make load-reference)",
-    size="05",
-    centre_hanging=(0.387, 0.408),  # x_c 28.25–28.49 mm, lever 5.75–5.99 mm, every fit and mesh
-    centre_standing=(0.277, 0.347),  # x_c 27.05–27.82 mm, lever 4.55–5.32 mm
-    peak_line_load=2.5,  # standing plate, zero clearance (hanging: 1.55–1.8)
-    fillet_peak_pct={"zero clearance": (-7.1, 2.3), "H7/g6": (-10.7, -6.2), "H9/d9": (-3.4, 6.9)},
-    critical_peak_pct=(-13.2, -4.3),
-    edge_of_contact_pct=(28.0, 49.0),
-)
-
-
-def load_model_ranges(case: Case) -> dict[str, Range]:
-    """The plausible range of each load-model choice of support "bearing", set by the
-    contact study (CONTACT_STUDY, measured on No. 05 and applied to every size as fractions
-    of the journal's bearing length Lj): the pressure's shape, both; its centre from the
-    contact's nearest centre of pressure to the middle of the bearing surface (this model's,
-    a journal that does not bend against its plate); the loaded length from the band as
-    concentrated as the contact's largest line load to all of it (mm)."""
-    start, end = journal_bearing_surface(case.dims)
-    length = end - start
-    band = case.bearing_band()
-    cs = CONTACT_STUDY
-    where = "" if str(case.size) == cs.size else f"; measured on No. {cs.size}, applied as fractions of Lj"
-
-    def mm(v: float) -> float:
-        return round(round(v / STEP_MM) * STEP_MM, 9)
-
-    nearest = min(cs.centre_standing[0], cs.centre_hanging[0])
-    return {
-        "bearing_shape": Range("bearing_shape", LOAD_MODEL, "", case.bearing_shape, BEARING_SHAPES[0],
-                               BEARING_SHAPES[-1], "both shapes of the bearing pressure: the contact study's pressure "
-                               "around the journal at zero clearance lies between them (standing plate within 2.5 "
-                               "points of cos θ's share per 15° band, hanging plate flat to 63°); with clearance it "
-                               "narrows to a Hertz contact of ±17–40°, which neither shape is (see the contact "
-                               "study's effect below)"),
-        "bearing_centre_mm": Range("bearing_centre_mm", LOAD_MODEL, "mm", band.centre_mm,
-                                   mm(start + nearest * length), mm(start + length / 2),
-                                   f"the contact study's centre of pressure lies {cs.centre_hanging[0]:.3g}–"
-                                   f"{cs.centre_hanging[1]:.3g} of the bearing length Lj from the fillet's run-out "
-                                   f"with a hanging side plate, {cs.centre_standing[0]:.3g}–{cs.centre_standing[1]:.3g}"
-                                   f" with a standing one (every fit, mesh, μ 0 and 0.1): from its nearest, "
-                                   f"{nearest:.3g}·Lj, to the middle, 0.5·Lj (this model's){where}"),
-        "bearing_length_mm": Range("bearing_length_mm", LOAD_MODEL, "mm", band.length_mm,
-                                   mm(length / cs.peak_line_load), mm(length),
-                                   f"the contact study spreads the load over the whole bearing length, its line load "
-                                   f"largest next to the fillet, up to {cs.peak_line_load:g}× its mean (standing "
-                                   f"plate; hanging 1.55–1.8×): from a band as concentrated, Lj/{cs.peak_line_load:g}, "
-                                   f"to all of it{where}"),
-    }
-
-
-def load_variant_cases(case: Case) -> list[Case]:
-    """The cases the load-model ranges need solved on the run's mesh: each end of each range
-    that differs from the case's own load model and is valid, in the order of the ranges
-    (:func:`analyse_sensitivity` reads their results in this order)."""
-    out = []
-    for r in ranges_of(case)[0]:
-        if r.kind == LOAD_MODEL:
-            ends = [r.variant(case, v) for v in (r.low, r.high)]
-            out += [c for c in ends if not _invalid_load(c) and not same_load(case, c)]
-    return out
-
-
-def same_load(a: Case, b: Case) -> bool:
-    """Whether two cases load the journals alike (shape and band)."""
-    return a.bearing_shape == b.bearing_shape and a.bearing_band() == b.bearing_band()
 
 
 def read_level(case: Case, lv: Level) -> Reading:
@@ -348,12 +136,158 @@ def analyse_variant(case: Case, factor: float, places: Sequence[tuple[float, flo
 
 
 Places = Sequence[tuple[float, float, float]]
+NOMINAL, FRESH, MOVED = "nominal", "fresh", "moved"  # how a job is analysed
+
+
+@dataclass(frozen=True)
+class Job:
+    """One reading the section needs: a case at mesh ``factor`` refined at ``places`` (None:
+    its dimensions' own), how it is analysed (NOMINAL: the base mesh that MOVED variants are
+    moved from; FRESH: a mesh of its own), and its progress line's label."""
+
+    case: Case
+    factor: float
+    places: Places | None
+    how: str
+    label: str
+
+
+def jobs_of(case: Case, ranges: Sequence[Range], places: Pilot | None) -> list[Job]:
+    """The jobs of the dimension ranges, in order: the nominal case, the noise's second
+    mesh (at the run's pilot ``places`` when it has its own, else NOISE_RATIO coarser), then
+    each range's low and high end; an end the move cannot reach is meshed anew."""
+    factor = case.mesh_factor * MESH_RATIO
+    known = known_places(replace(case, mesh_factor=factor)).hotspots
+    own = places is not None and places.source != KNOWN and tuple(places.hotspots) != tuple(known)
+    case = replace(case, rtol=max(case.rtol, RTOL))
+    base = NOMINAL if case.order == 2 and case.solver == "pmg" else FRESH  # what resolve.py solves
+    jobs = [Job(case, factor, None, base, "nominal"),
+            Job(case, factor, places.hotspots, FRESH, "nominal, the run's places") if own
+            else Job(case, factor * NOISE_RATIO, None, FRESH, "nominal, 2nd mesh")]
+    for r in ranges:
+        for v in (r.low, r.high):
+            c = r.variant(case, v)
+            how = MOVED if _movable(case, c) else FRESH
+            jobs.append(Job(c, factor, None, how, f"{r.input} = {v:.4g} {r.unit}" + (", meshed anew" if how == FRESH
+                                                                                     else "")))
+    return jobs
+
+
+def _movable(case: Case, variant: Case) -> bool:
+    """Whether the variant's mesh can be the nominal one moved: a valid variant the move
+    reaches without squeezing a ring of elements too far, of a P2 case solved by the
+    p-multigrid (what pipeline/fe/resolve.py solves)."""
+    if case.order != 2 or case.solver != "pmg":
+        return False
+    try:
+        validate(variant.dims)
+    except InputError:
+        return False
+    return remesh_reason(case.dims, variant.dims) is None
+
+
+def spread(jobs: Sequence[Job], ranks: int) -> list[int]:
+    """The rank that analyses each job: the nominal on rank 0, then the others, the dearest
+    first, each to the rank that would finish it soonest; a rank's first moved variant also
+    pays for holding the nominal mesh (FRESH_COST, MOVED_COST, BASE_COST)."""
+    load, holds, out = [0.0] * ranks, [False] * ranks, [0] * len(jobs)
+    cost = {FRESH: FRESH_COST, MOVED: MOVED_COST}
+    for k in sorted(range(len(jobs)), key=lambda k: (jobs[k].how != NOMINAL, -cost.get(jobs[k].how, 0.0), k)):
+        how = jobs[k].how
+
+        def finish(r: int) -> float:
+            return load[r] + cost.get(how, 0.0) + (BASE_COST if how != FRESH and not holds[r] else 0.0)
+        r = 0 if how == NOMINAL else min(range(ranks), key=lambda r: (finish(r), r))
+        load[r], holds[r], out[k] = finish(r), holds[r] or how != FRESH, r
+    return out
+
+
+def analyse_jobs(jobs: Sequence[Job], comm: MPI.Comm) -> dict[int, Reading]:
+    """The readings of this rank's jobs (``jobs`` are every rank's, numbered in order, and
+    :func:`spread` says whose): the fresh ones each on a mesh of its own, the nominal and
+    moved ones on one nominal mesh moved onto each variant (:func:`moved_readings`)."""
+    who = spread(jobs, comm.size)
+    mine = [k for k in range(len(jobs)) if who[k] == comm.rank]
+    out = {k: analyse_variant(jobs[k].case, jobs[k].factor, jobs[k].places) for k in mine if jobs[k].how == FRESH}
+    moved = [k for k in mine if jobs[k].how != FRESH]
+    if moved:
+        nominal = jobs[0].case
+        with_nominal = jobs[moved[0]].how == NOMINAL
+        variants = [jobs[k].case for k in moved[1:]] if with_nominal else [jobs[k].case for k in moved]
+        readings = moved_readings(nominal, jobs[moved[0]].factor, variants, with_nominal)
+        out.update(zip(moved, readings))
+    return out
+
+
+def moved_readings(case: Case, factor: float, variants: Sequence[Case], with_nominal: bool) -> list[Reading]:
+    """On this rank alone: the nominal case's reading first when ``with_nominal``, then
+    each variant's, on the nominal mesh at ``factor`` refined at its known places with its
+    nodes moved onto the variant's dimensions, all solved on one set-up (its preconditioner
+    kept, CG started from the last solution). A variant the move cannot reach, or whose
+    critical peak falls outside the moved places' refinement, is meshed anew
+    (:func:`analyse_variant`)."""
+    base = replace(case, mesh_factor=factor)
+    ctx = RunContext(comm=MPI.COMM_SELF)
+    with reuse.mesher(base.dims, base.model, ctx) as mesher:
+        prob = set_up(base, LevelTask(factor, known_places(base).hotspots), replace(ctx, mesher=mesher))
+    m, out = prob.mesh, []
+    mover = Mover.of(m.mesh, base.dims)
+    with Resolver(m.mesh, m.facet_tags, base.order, prob.material, prob.loads.constraints, base.rtol,
+                  ResolveOptions(reuse_preconditioner=True)) as solver:
+        try:
+            if with_nominal:
+                out.append(_solved_reading(base, prob, solver))
+            for v in variants:
+                out.append(_moved_reading(replace(v, mesh_factor=factor), prob, mover, solver))
+        finally:
+            mover.reset()
+    return out
+
+
+def _moved_reading(v: Case, nominal: Problem, mover: Mover, solver: Resolver) -> Reading:
+    """Variant ``v`` on the nominal problem's mesh moved onto its dimensions, or anew."""
+    try:
+        q = mover.move_to(v.dims)
+    except MorphError:
+        return analyse_variant(v, v.mesh_factor)
+    mv = as_variant(nominal.mesh, v.dims, q)
+    lc = crosshead_loads(mv, v.dims, v.load_N, v.support, shape=v.bearing_shape, band=v.bearing_band(), order=v.order)
+    rd = _solved_reading(v, Problem(mv, nominal.material, lc, 0.0), solver)
+    radius = v.mesh_spec(v.mesh_factor).edge_hotspot_radius
+    if rd.critical_at is not None and not inside_refinement(rd.critical_at, known_places(v), radius):
+        mover.reset()
+        return analyse_variant(v, v.mesh_factor)
+    return rd
+
+
+def _solved_reading(case: Case, prob: Problem, solver: Resolver) -> Reading:
+    """The reading of ``case`` on its problem as the mesh's nodes now are, solved by the
+    set-up ``solver``; loads checked to balance to 1e-6·Q."""
+    try:
+        sol = solver.solve(prob.loads.tractions)
+    except NumericalError as exc:
+        return Reading(failed=" ".join(str(exc).split()))
+    _, eq_err, point_r = equilibrium(prob.loads, sol.reactions)
+    limit = 1e-6 * case.load_N
+    if not (eq_err <= limit and point_r <= limit):
+        return Reading(failed=f"loads out of balance: equilibrium error {eq_err:.3g} N, constraint reaction "
+                              f"{point_r:.3g} N (limit {limit:.3g} N)")
+    _, pk, crit = peaks_of(case, sol.u, prob.material)
+    sym_x = prob.mesh.facet_ids.get("symmetry_x")
+    sym_idx = next((i for i, c in enumerate(prob.loads.constraints) if c.component == 0 and c.marker == sym_x
+                    and sym_x is not None), None)
+    sections = section_results(sol, prob.material, case, sym_idx, pk.value_MPa)
+    return Reading(peak_MPa=pk.value_MPa, critical_MPa=crit.value_MPa,
+                   section_MPa=(sections.get("critical_section") or {}).get("nominal_MPa"),
+                   journal_MPa=journal_root(case), critical_at=crit.location_mm)
 
 
 def analyse_sensitivity(case: Case, ctx: RunContext, levels: Sequence[Level] = (), places: Pilot | None = None,
-                        analyse_one: Callable[[Case, float, Places | None], Reading] = analyse_variant) -> Sensitivity:
-    """Every range's two ends and the nominal case, spread over the ranks (one variant per
-    rank at a time, each on MPI.COMM_SELF), gathered on every rank.
+                        analyse_one: Callable[[Case, float, Places | None], Reading] | None = None) -> Sensitivity:
+    """Every range's two ends and the nominal case, spread over the ranks (each rank on
+    MPI.COMM_SELF), gathered on every rank: the variants moved from the nominal mesh where
+    they can be (:func:`analyse_jobs`), or each by ``analyse_one`` when it is given (a
+    stand-in analysis).
 
     The noise is the nominal case's value on a second mesh at the same factor refined at
     the run's pilot places (``places``, the run's), or, when the run has none or they are
@@ -365,41 +299,26 @@ def analyse_sensitivity(case: Case, ctx: RunContext, levels: Sequence[Level] = (
     if not levels:  # no requested mesh whose operator the load model's variants are solved on
         skipped.update({r.input: "no requested mesh to solve it on" for r in ranges if r.kind == LOAD_MODEL})
         ranges = [r for r in ranges if r.kind == DIMENSION]
-    factor = case.mesh_factor * MESH_RATIO
-    known = known_places(replace(case, mesh_factor=factor)).hotspots
-    own = places is not None and places.source != KNOWN and tuple(places.hotspots) != tuple(known)
-    jobs: list[tuple[Case, float, Places | None, str]] = [
-        (case, factor, None, "nominal"),
-        (case, factor, places.hotspots, "nominal, the run's places") if own
-        else (case, factor * NOISE_RATIO, None, "nominal, 2nd mesh")]
-    for r in (r for r in ranges if r.kind == DIMENSION):
-        jobs += [(r.variant(case, r.low), factor, None, f"{r.input} = {r.low:.4g} {r.unit}"),
-                 (r.variant(case, r.high), factor, None, f"{r.input} = {r.high:.4g} {r.unit}")]
-    who = owners([1.0] * len(jobs), comm.size)
+    jobs = jobs_of(case, [r for r in ranges if r.kind == DIMENSION], places)
+    who = spread(jobs, comm.size) if analyse_one is None else [k % comm.size for k in range(len(jobs))]
     mine: dict[int, Reading] = {}
     error = None
-    for k, (c, f, at, label) in enumerate(jobs):
-        if who[k] != comm.rank or error is not None:
-            continue
-        try:
-            mine[k] = analyse_one(c, f, at)
-        except Exception as exc:  # re-raised on every rank below
-            error = exc
-            continue
-        if comm.rank == 0:
-            say(_line(label, 0, mine[k]))
+    try:
+        mine = (analyse_jobs(jobs, comm) if analyse_one is None else
+                {k: analyse_one(j.case, j.factor, j.places) for k, j in enumerate(jobs) if who[k] == comm.rank})
+    except Exception as exc:  # re-raised on every rank below
+        error = exc
     wait_for_ranks(comm)
     gathered = comm.allgather((mine, error))
     errors = [e for _, e in gathered if e is not None]
     if errors:
         raise errors[0]
     readings = {k: rd for m, _ in gathered for k, rd in m.items()}
-    for k, (_, _, _, label) in enumerate(jobs):
-        if who[k] != 0:  # rank 0 said its own
-            say(_line(label, who[k], readings[k]))
+    for k, job in enumerate(jobs):
+        say(_line(job.label, who[k], readings[k]))
     second = readings[1]
     k = 2  # the first dimension variant's job
-    # The load model's ends were solved on one of the run's meshes (analyse's
+    # The load model's ends were solved on one of the run's meshes (MeshPlan's
     # load_variants_at): its nominal reading is their baseline, its variants their ends.
     host = next((lv for lv in levels if lv.load_variants), levels[0] if levels else None)
     run = read_level(case, host) if host is not None else None
@@ -414,7 +333,7 @@ def analyse_sensitivity(case: Case, ctx: RunContext, levels: Sequence[Level] = (
         pair = []
         for v in (r.low, r.high):
             c = r.variant(case, v)
-            why = _invalid_load(c)
+            why = invalid_load(c)
             pair.append(Reading(invalid=why) if why else run if same_load(case, c)
                         else _reading(c, *next(solved)))
             if pair[-1].ok:
@@ -423,20 +342,13 @@ def analyse_sensitivity(case: Case, ctx: RunContext, levels: Sequence[Level] = (
                     f"critical {pair[-1].critical_MPa:.2f} MPa")
         ends.append((pair[0], pair[1]))
         baselines.append(run)
+    factor = jobs[0].factor
+    own = jobs[1].places is not None
     how = (f"a mesh ×{factor:.3g} refined at the run's pilot places instead of the dimensions' places" if own
            else f"a mesh ×{factor * NOISE_RATIO:.3g}, refined at the dimensions' places")
     return Sensitivity(ranges=ranges, ends=ends, baselines=baselines, baseline=readings[0], second=second,
                        mesh_factor=factor,
                        not_varied=skipped, time_s=time.perf_counter() - t0, second_mesh=how)
-
-
-def _invalid_load(case: Case) -> str | None:
-    """Why a load-model variant cannot be solved (a band off the journal), or None."""
-    try:
-        check(case)
-    except InputError as exc:
-        return " ".join(str(exc).split())
-    return None
 
 
 def _reading(case: Case, peak, critical, sections: dict | None) -> Reading:

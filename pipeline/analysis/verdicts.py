@@ -6,13 +6,16 @@ from __future__ import annotations
 
 from pipeline.analysis.result import (Flip, LoadRow, PeakAnswer, SafetyFactor, SensitivityAnswer, SensitivityEntry,
                                       Verdict)
-from pipeline.analysis.sensitivity import CHECKED, CONTACT_STUDY, Sensitivity, journal_root
+from pipeline.analysis.ranges import CONTACT_STUDY
+from pipeline.analysis.sensitivity import Sensitivity, journal_root
 from pipeline.analysis.words import STRESS_NAMES, range_text, value_text
 from pipeline.fe.linearity import stress_factor
 from pipeline.inputs.case import Case
 from pipeline.post.errorbar import verdict_against
 from pipeline.post.formulas import HandResults
 
+# The stresses a verdict is given for, by their results.json names.
+CHECKED = ("global_peak", "critical_peak", "critical_section_nominal", "journal_root_nominal")
 # results.json's safety-factor keys, by the peak block they divide.
 SAFETY_KEYS = {"peak": "safety_factor", "critical": "critical_safety_factor"}
 

@@ -31,7 +31,9 @@ class RunOptions:
     """What a run does with its case.
 
     ``levels`` meshes for the error bar (the requested one and coarser ones by ``ratio``);
-    ``finer`` of them below the case's own mesh (a convergence study's); ``to_tolerance``:
+    ``finer`` of them below the case's own mesh (a convergence study's; negative: the
+    finest that many steps above it, a screened study's steps on the error bar's coarser
+    meshes, pipeline.study.screening); ``to_tolerance``:
     more meshes until each wanted peak's band is within the case's tolerance;
     ``sensitivity``: vary the assumed inputs (when both peaks are wanted);
     ``formula_loads``: solve the journal load at each hand formula's position too (the

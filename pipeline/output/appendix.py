@@ -64,13 +64,14 @@ def _error_bar(res: dict) -> list[str]:
     this run's peaks read that way, and what each peak status means."""
     fe = res["fe"]
     L = ["### A.2 Peaks and their error bar\n",
-         "Each peak is read two ways at the nodes: the largest element-node value of von Mises "
-         "interpolated into a discontinuous space (*unaveraged*), and the largest von Mises of the "
-         "stress averaged over the elements meeting at each node (*averaged*). At the shoulder fillet, a "
+         "Von Mises is read two ways at each node: the largest of the element-node values of von Mises "
+         "interpolated into a discontinuous space (*unaveraged*), and the von Mises of the stress "
+         "averaged over the elements meeting at the node (*averaged*). At the shoulder fillet, a "
          "steep surface maximum resolved by a few elements, the unaveraged value lies above an "
          "independent reference and the averaged one below it (measured on 30 of 33 meshes), so the "
-         "reported value there is their midpoint; everywhere else it is the unaveraged value (at the "
-         "bore edge both lie within 0.2 % of the reference).\n"]
+         "reported value at a fillet node is the midpoint of its two readings; everywhere else it is the "
+         "unaveraged value (at the bore edge both lie within 0.2 % of the reference). A peak is the node "
+         "of the largest reported value; its readings:\n"]
     for key, label in (("peak", "Global peak"), ("critical", "Critical peak")):
         b = fe[key]
         rule = "the midpoint of the two" if "midpoint" in b.get("definition", "") else "the unaveraged reading"

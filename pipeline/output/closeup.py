@@ -2,23 +2,24 @@
 
 Runs in a drawing process of its own (``python -m pipeline.output.closeup FOLDER``, started
 by pipeline.output.drawing beside the error-bar solves) and reads only what the run wrote:
-fields.vtu (the requested mesh: its tets' vertices and their element-node von Mises) and
+fields.vtu (the requested mesh: its tets' vertices and the reported von Mises there) and
 results.json (the peaks as reported). One PNG, ``mesh_closeup.png``: a panel per peak
 (global, critical), the undeformed surface seen along its outward normal at the peak,
-coloured by the unaveraged von Mises, each surface triangle's edges drawn (the curved
-tets' straight chords), the peak's node marked. A reviewer sees how many elements resolve
+coloured by the reported von Mises (the report's reading rule at each node), each surface
+triangle's edges drawn (the curved tets' straight chords), the peak's node marked. A reviewer sees how many elements resolve
 each peak.
 """
 from __future__ import annotations
 
+import json
 import sys
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from pipeline.output.picture import (COLOURS, _ball, _scale_column, _surface_actor, _text, _turbo, _write_png,
-                                     boundary_surface, element_nodes)
+from pipeline.output.picture import (COLOURS, REPORTED, _ball, _scale_column, _surface_actor, _text, _turbo,
+                                     _write_png, outer_surface, read_fields)
 
 FILE = "mesh_closeup.png"
 PANEL_PX, SCALE_PX, HEIGHT_PX = 720, 240, 560  # 0.6 MB of PNG for No. 05
@@ -107,10 +108,10 @@ def render_closeup(folder: Path, res: dict) -> Path:
     from vtkmodules.vtkRenderingCore import vtkRenderWindow
 
     folder = Path(folder)
-    xyz, tets, arrays = element_nodes(folder / "fields.vtu")
-    used, tri = boundary_surface(xyz, tets)
-    points, vm = xyz[used], arrays["von_mises_MPa"][used]
-    lut = _turbo(float(arrays["von_mises_MPa"].min()), float(arrays["von_mises_MPa"].max()))
+    xyz, tets, arrays = read_fields(folder / "fields.vtu", (REPORTED,))
+    used, tri = outer_surface(tets)
+    points, vm = xyz[used], arrays[REPORTED][used]
+    lut = _turbo(float(arrays[REPORTED].min()), float(arrays[REPORTED].max()))
     h = float(res["case"]["dims"]["h3"])
     window = vtkRenderWindow()
     window.SetOffScreenRendering(1)
@@ -131,6 +132,5 @@ def render_closeup(folder: Path, res: dict) -> Path:
     return out
 
 
-if __name__ == "__main__":
-    from pipeline.output.drawing import read_input
-    render_closeup(Path(sys.argv[1]), read_input(sys.argv[2:], Path(sys.argv[1])))
+if __name__ == "__main__":  # a finished run's folder, drawn again from its results.json
+    render_closeup(Path(sys.argv[1]), json.loads((Path(sys.argv[1]) / "results.json").read_text(encoding="utf-8")))

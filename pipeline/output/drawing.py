@@ -1,10 +1,14 @@
-"""The drawing processes of a run: the picture (pipeline.output.picture, VTK), the mesh
+"""The drawing process of a run: the picture (pipeline.output.picture, VTK), the mesh
 close-ups at the peaks (pipeline.output.closeup, VTK) and the plots
-(pipeline.output.plots, matplotlib), each in a process of its own. They start as soon as
-the requested mesh's fields are written, so that their imports overlap the error-bar
-solves, and each reads what it draws from its standard input: the picture and the
-close-ups the requested mesh's peaks at once, the plots the complete results when the run
-has them. They read the field file the run wrote and no other state."""
+(pipeline.output.plots, matplotlib), in one process of its own (VTK cannot share a
+process with DOLFINx). It starts as soon as the requested mesh's fields are written, so
+that its imports and the picture overlap the error-bar solves, and reads what it draws
+from its standard input, one JSON document a line: the requested mesh's case and peaks
+(the picture and the close-ups, drawn at once), then the complete results (the plots).
+It reads the field file the run wrote and no other state.
+
+    python -m pipeline.output.drawing FOLDER    # the run's; reads its standard input
+"""
 from __future__ import annotations
 
 import contextlib
@@ -16,78 +20,78 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
+from pipeline.output.closeup import render_closeup
 from pipeline.output.jsonio import json_safe
-
-EARLY = ("pipeline.output.picture", "pipeline.output.closeup")   # drawn from the requested mesh
-LATE = ("pipeline.output.plots",)                                 # drawn from the complete results
-
+from pipeline.output.picture import render_folder
+from pipeline.output.plots import draw_plots
 
 @dataclass
 class Drawing:
-    """The drawing processes started by :func:`start`, by module, and when (perf_counter, s)."""
+    """The drawing process started by :func:`start`, and when (perf_counter, s)."""
 
-    procs: dict[str, subprocess.Popen]
+    proc: subprocess.Popen
     started: float
 
     def kill(self, wait_s: float | None = 1.0) -> None:
-        """Stop every drawing process (a failed or stopped run draws nothing) and reap it, so
-        that none lingers as a zombie while the run ends; each is waited for ``wait_s``
-        seconds at most (None: until it has ended; after SIGKILL it takes milliseconds)."""
-        for proc in self.procs.values():
-            proc.kill()
-        for proc in self.procs.values():
-            with contextlib.suppress(subprocess.TimeoutExpired):
-                proc.wait(timeout=wait_s)
-            with contextlib.suppress(OSError, ValueError):
-                proc.stdin.close()
+        """Stop the drawing (a failed or stopped run draws nothing) and reap it, so that it
+        does not linger as a zombie while the run ends; waited for ``wait_s`` seconds at most
+        (None: until it has ended; after SIGKILL it takes milliseconds)."""
+        self.proc.kill()
+        with contextlib.suppress(subprocess.TimeoutExpired):
+            self.proc.wait(timeout=wait_s)
+        with contextlib.suppress(OSError, ValueError):
+            self.proc.stdin.close()
 
     def finish(self, results: dict, folder: Path) -> float:
-        """Hand the plots the complete ``results``, wait for every drawing process, and
-        return their wall time (s) from start. Raises if one failed or no picture was made."""
-        for module in LATE:
-            _send(self.procs[module], results)
-        for module, proc in self.procs.items():
-            err = proc.stderr.read()  # to its end: the process's only pipe left open
-            proc.wait()
-            if proc.returncode != 0:
-                tail = (err.strip().splitlines() or ["no message"])[-1]
-                raise RuntimeError(f"drawing failed ({module}): {tail}")
+        """Hand the drawing the complete ``results`` (for the plots), wait for it, and return
+        its wall time (s) from start. Raises if it failed or made no picture."""
+        _send(self.proc, results, last=True)
+        err = self.proc.stderr.read()  # to its end: the process's only pipe left open
+        self.proc.wait()
+        if self.proc.returncode != 0:
+            tail = (err.strip().splitlines() or ["no message"])[-1]
+            raise RuntimeError(f"drawing failed: {tail}")
         if not (folder / "von_mises.png").exists():
             raise RuntimeError("picture rendering failed: no von_mises.png")
         return time.perf_counter() - self.started
 
 
 def start(folder: Path, scene: dict) -> Drawing:
-    """Start the drawing processes of the run writing into ``folder``, the picture and the
-    close-ups with ``scene`` (the requested mesh's case and peaks, results.json's keys).
-    VTK cannot share a process with DOLFINx; side by side they finish sooner than one
-    after the other once the ranks' solves leave the cores free."""
-    procs = {module: subprocess.Popen([sys.executable, "-m", module, str(folder), "--stdin"],
-                                      stdin=subprocess.PIPE, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
-                                      text=True, cwd=Path(__file__).resolve().parents[2])
-             for module in (*EARLY, *LATE)}
+    """Start the drawing process of the run writing into ``folder`` and hand it ``scene``
+    (the requested mesh's case and peaks, results.json's keys): it draws the picture and
+    the close-ups at once."""
+    proc = subprocess.Popen([sys.executable, "-m", "pipeline.output.drawing", str(folder)],
+                            stdin=subprocess.PIPE, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+                            text=True, cwd=Path(__file__).resolve().parents[2])
     # mpirun binds each rank to one core, and a child inherits its parent's binding: the
     # drawing then shared rank 0's core while rank 1's core idled once its mesh was
-    # solved. Let them run on any core.
-    for proc in procs.values():
-        with contextlib.suppress(AttributeError, OSError):  # no affinity outside Linux
-            os.sched_setaffinity(proc.pid, range(os.cpu_count() or 1))
-    for module in EARLY:
-        _send(procs[module], scene)
-    return Drawing(procs=procs, started=time.perf_counter())
+    # solved. Let it run on any core.
+    with contextlib.suppress(AttributeError, OSError):  # no affinity outside Linux
+        os.sched_setaffinity(proc.pid, range(os.cpu_count() or 1))
+    _send(proc, scene)
+    return Drawing(proc=proc, started=time.perf_counter())
 
 
-def _send(proc: subprocess.Popen, doc: dict) -> None:
-    """Write ``doc`` as JSON to the process's standard input and close it (a process that
-    has already ended is left to report its own failure)."""
+def _send(proc: subprocess.Popen, doc: dict, last: bool = False) -> None:
+    """Write ``doc`` as one line of JSON to the process's standard input, and close it when
+    ``last`` (a process that has already ended is left to report its own failure)."""
     with contextlib.suppress(BrokenPipeError, OSError, ValueError):
-        proc.stdin.write(json.dumps(json_safe(doc)))
-        proc.stdin.close()
+        proc.stdin.write(json.dumps(json_safe(doc)) + "\n")
+        proc.stdin.flush()
+        if last:
+            proc.stdin.close()
 
 
-def read_input(argv: list[str], folder: Path) -> dict:
-    """What a drawing process draws: the document on its standard input when the run
-    started it (``--stdin``), else folder/results.json (a person drawing a finished run)."""
-    if "--stdin" in argv:
-        return json.load(sys.stdin)
-    return json.loads((folder / "results.json").read_text(encoding="utf-8"))
+def draw(folder: Path) -> None:
+    """The drawing process: the picture and the close-ups from the first line of standard
+    input, then the plots from the second (the complete results)."""
+    scene = json.loads(sys.stdin.readline())
+    render_folder(folder, scene)
+    render_closeup(folder, scene)
+    line = sys.stdin.readline()
+    if line.strip():  # none: the run ended without results (it was stopped)
+        draw_plots(folder, json.loads(line))
+
+
+if __name__ == "__main__":
+    draw(Path(sys.argv[1]))

@@ -2,12 +2,13 @@
 replaces the output folder only when complete, each file written once (mm, N, MPa).
 
 What a run writes: results.json (always), mesh.msh (``outputs.mesh``) and, with
-``outputs.fields``, fields.vtu, the pictures and plots, report.md, report.html, report.pdf
-(where a headless Chromium is installed: pipeline/output/pdf.py) and the tables meshes.csv
-and sensitivity.csv. The field file is written as soon as the requested mesh is solved, so
-that the drawing processes start beside the error-bar solves; results.json is written when
-the result is complete and the drawings have ended, and the report and the tables read only
-it; the PDF is printed beside the tables, the run's last work.
+``outputs.fields``, fields.vtu, peaks.vtp, the pictures and plots, report.md, report.html,
+report.pdf (where a headless Chromium is installed: pipeline/output/pdf.py) and the tables
+meshes.csv and sensitivity.csv. The field file is written as soon as the requested mesh is
+solved, so that the drawing processes start beside the error-bar solves; peaks.vtp (the
+reported places with their bands) and results.json are written when the result is complete
+and the drawings have ended, and the report and the tables read only results.json; the PDF
+is printed beside the tables, the run's last work.
 """
 from __future__ import annotations
 
@@ -28,7 +29,7 @@ from pipeline.fe.elasticity import Material
 from pipeline.inputs.case import Case
 from pipeline.inputs.options import RunOptions
 from pipeline.output import drawing, flat, pdf
-from pipeline.output.fields import write_fields
+from pipeline.output.fields import write_fields, write_peaks
 from pipeline.output.jsonio import write_json
 from pipeline.output.plots import convergence_plot
 from pipeline.output.report import write_report
@@ -61,20 +62,22 @@ def write_run(case: Case, options: RunOptions, out_dir: Path, ctx: RunContext = 
 
 
 def _write_files(result: RunResult, stage: Path, early: "EarlyOutput", t_all: float) -> dict:
-    """The files of a complete result: mesh.msh, the plots (the drawing ends), results.json
-    once, then the report from it, printed to report.pdf beside the tables (meshes.csv,
-    sensitivity.csv); returns results.json's content."""
+    """The files of a complete result: mesh.msh, the plots (the drawing ends), peaks.vtp,
+    results.json once, then the report from it, printed to report.pdf beside the tables
+    (meshes.csv, sensitivity.csv); returns results.json's content."""
     comm, outputs = early.comm, result.options.outputs
     files = {"results": "results.json", **({"mesh": "mesh.msh"} if outputs.mesh else {}), **early.files}
     exe = pdf.browser() if outputs.fields and comm.rank == 0 else None
     if outputs.fields:
-        files.update(picture="von_mises.png", report="report.md", report_html="report.html",
+        files.update(peaks="peaks.vtp", picture="von_mises.png", report="report.md", report_html="report.html",
                      **({"report_pdf": "report.pdf"} if exe else {}), meshes_table="meshes.csv",
                      **({"sensitivity_table": "sensitivity.csv"} if result.sensitivity is not None else {}))
     if outputs.mesh and comm.rank == 0 and result.requested.msh is not None:
         (stage / "mesh.msh").write_bytes(result.requested.msh)
     timings = {"output": early.t_output}
     res = results_json(result, files, timings)
+    if outputs.fields and comm.rank == 0:   # the places reported, beside the field file
+        write_peaks(stage, res["fe"], early.whole_part)
     if early.drawing is not None:
         timings["picture"] = early.drawing.finish(res, stage)
         res["files"].update({k: name for k, name in PLOTS.items() if (stage / name).exists()})
@@ -123,6 +126,7 @@ class EarlyOutput:
     files: dict[str, str] = field(default_factory=dict)
     drawing: drawing.Drawing | None = None
     t_output: float = 0.0
+    whole_part: bool = False   # the field file holds a quarter model mirrored to the whole part
     t_pdf: float | None = None  # the print of report.pdf (s), when the run made one
     say: Callable[[str], None] = print
 
@@ -136,8 +140,9 @@ class EarlyOutput:
             self.drawing = None
         t0 = time.perf_counter()
         case = replace(self.case, mesh_factor=fine.factor)
-        whole = case.model == "quarter" and not self.options.outputs.quarter_fields
-        self.files.update(write_fields(self.stage, *fine.fields, Material(E=case.E_MPa, nu=case.nu), whole_part=whole))
+        self.whole_part = case.model == "quarter" and not self.options.outputs.quarter_fields
+        self.files.update(write_fields(self.stage, fine.fields[0], fine.readings, Material(E=case.E_MPa, nu=case.nu),
+                                       whole_part=self.whole_part))
         self.t_output += time.perf_counter() - t0
         if self.comm.rank == 0:
             self.drawing = drawing.start(self.stage, scene(case, fine))

@@ -1,9 +1,9 @@
 """Off-screen picture of von Mises stress on the deformed part, peaks marked (mm, MPa).
 
 Runs in its own process (``python -m pipeline.output.picture FOLDER``) and reads only files the
-run wrote: fields.vtu (the displacement, and the element-node von Mises values: the
-unaveraged reading of the peaks) and results.json (the peaks as reported). A separate process because VTK's
-wheel crashes (std::regex, bad_alloc) when DOLFINx's libraries are loaded first.
+run wrote: fields.vtu (the displacement, and the reported von Mises at each node: the
+quantity the report reports) and results.json (the peaks as reported). A separate process
+because VTK's wheel crashes (std::regex, bad_alloc) when DOLFINx's libraries are loaded first.
 
 Drawn with VTK's own classes, not pyvista's plotter: pyvista.plotting imports
 matplotlib.pyplot, most of the picture's CPU time, while it runs beside the error-bar
@@ -11,6 +11,7 @@ solves on the same cores (docs/decisions/0007-drawing-and-field-files.md).
 """
 from __future__ import annotations
 
+import json
 import sys
 from dataclasses import dataclass
 from pathlib import Path
@@ -40,62 +41,28 @@ VIEWS = ((-0.9, -1.5, 0.9), (0.5, 1.6, -1.0))
 COLOURS = {"black": (0.0, 0.0, 0.0), "magenta": (0.8, 0.0, 0.8), "red": (0.85, 0.1, 0.1),
            "green": (0.1, 0.6, 0.2)}
 
-# Weights of the positions' sort key: irrational ratios, so that different positions of a
-# mesh share a key only by a rare chance (_position_numbers checks for it).
-_KEY = (1.0, np.sqrt(2.0) * 1e3, np.pi * 1e6)
-_TET_FACES = np.array([(1, 2, 3), (0, 3, 2), (0, 1, 3), (0, 2, 1)])
+_TET_FACES = np.array([(1, 2, 3), (0, 3, 2), (0, 1, 3), (0, 2, 1)])   # outward for a positive tet
+REPORTED = "von_mises_reported_MPa"   # pipeline.output.fields.REPORTED (no DOLFINx import here)
 
 
-def boundary_surface(xyz: np.ndarray, tets: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The outer surface of disconnected tets (every tet its own nodes): (nodes used, triangles).
-
-    ``xyz`` (n×3, mm) and ``tets`` (m×4 node indices). Returns the indices of the nodes
-    the surface uses and its triangles numbered into that list, so every node keeps its
-    own values (von Mises, displacement). Why: in such a grid every face of every tet is
-    a free face, and VTK would draw all of them (twenty times those on the part's
-    boundary, docs/decisions/0007-drawing-and-field-files.md). A face is on the boundary when no
-    other tet has the same three corner positions.
-    """
-    corner = _position_numbers(xyz)
+def outer_surface(tets: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The outer surface of a connected mesh of tets (m×4 node indices, positively
+    oriented): (nodes used, triangles numbered into that list, outward). A face is on the
+    surface when no other tet has the same three nodes."""
     faces = tets[:, _TET_FACES].reshape(-1, 3)
-    key = np.sort(corner[faces], axis=1)
-    n = int(corner.max()) + 1
-    code = (key[:, 0] * n + key[:, 1]) * n + key[:, 2]
-    by_code = np.argsort(code, kind="stable")
-    sorted_code = code[by_code]
-    differs = sorted_code[1:] != sorted_code[:-1]
-    alone = np.r_[True, differs] & np.r_[differs, True]  # no other face has these corners
-    outer = faces[np.sort(by_code[alone])]
-    used, tri = np.unique(outer, return_inverse=True)
+    key = np.sort(faces, axis=1)
+    n = int(tets.max()) + 1
+    if n ** 3 < 2 ** 63:   # one integer per face: a 1-D sort
+        code = (key[:, 0] * n + key[:, 1]) * n + key[:, 2]
+        order = np.argsort(code, kind="stable")
+        ordered = code[order]
+        differs = ordered[1:] != ordered[:-1]
+        alone = order[np.r_[True, differs] & np.r_[differs, True]]
+    else:
+        _, first, count = np.unique(key, axis=0, return_index=True, return_counts=True)
+        alone = first[count == 1]
+    used, tri = np.unique(faces[np.sort(alone)], return_inverse=True)
     return used, tri.reshape(-1, 3)
-
-
-def _position_numbers(xyz: np.ndarray) -> np.ndarray:
-    """A number per row of ``xyz`` (mm) that is equal exactly for equal positions.
-
-    The positions are sorted by one mixed key (a 1-D sort, under half the time of a
-    three-column lexsort). Two different positions could share a key by chance; then a key's run would
-    hold more than one position, which the check below finds, and the exact three-column
-    sort is used instead.
-    """
-    # + 0.0 turns -0.0 into 0.0: equal positions must compare equal.
-    rounded = np.round(xyz, 9) + 0.0
-    # Element by element (not a matrix product, whose summation order may vary by row),
-    # so equal rows give bit-equal keys.
-    key = _KEY[0] * rounded[:, 0] + _KEY[1] * rounded[:, 1] + _KEY[2] * rounded[:, 2]
-    order = np.argsort(key)
-    ordered = rounded[order]
-    starts = np.empty(len(ordered), dtype=bool)
-    starts[:1] = True
-    starts[1:] = np.any(ordered[1:] != ordered[:-1], axis=1)
-    sorted_key = key[order]
-    if not np.array_equal(starts[1:], sorted_key[1:] != sorted_key[:-1]):
-        order = np.lexsort((rounded[:, 2], rounded[:, 1], rounded[:, 0]))
-        ordered = rounded[order]
-        starts[1:] = np.any(ordered[1:] != ordered[:-1], axis=1)
-    numbers = np.empty(len(xyz), dtype=np.int64)
-    numbers[order] = np.cumsum(starts) - 1
-    return numbers
 
 
 def seen_from(points: np.ndarray, tri: np.ndarray, target: np.ndarray, eye: np.ndarray,
@@ -136,32 +103,26 @@ def mark_places(points0: np.ndarray, points: np.ndarray, tri: np.ndarray, loc, m
     return [next((p for p in drawn if seen_from(points, tri, p, eye, tol_mm)), None) for eye in eyes]
 
 
-def read_vtu(path: Path) -> tuple[np.ndarray, np.ndarray, dict[str, np.ndarray], dict[str, np.ndarray]]:
-    """(points mm, cells (m, nodes per cell), point arrays, cell arrays by name) of a VTK XML
-    unstructured grid of one kind of cell."""
+def read_fields(path: Path, names: tuple[str, ...]) -> tuple[np.ndarray, np.ndarray, dict[str, np.ndarray]]:
+    """(points mm, each tet's four corner nodes (m×4), the point arrays ``names``) of a field
+    file of 10-node tets (fields.vtu); only those arrays are read."""
     from vtkmodules.util.numpy_support import vtk_to_numpy
     from vtkmodules.vtkIOXML import vtkXMLUnstructuredGridReader
     reader = vtkXMLUnstructuredGridReader()
     reader.SetFileName(str(path))
+    reader.UpdateInformation()
+    selection = reader.GetPointDataArraySelection()
+    selection.DisableAllArrays()
+    for name in names:
+        selection.EnableArray(name)
+    reader.GetCellDataArraySelection().DisableAllArrays()
     reader.Update()
     grid = reader.GetOutput()
     xyz = vtk_to_numpy(grid.GetPoints().GetData()).astype(float)
     offsets = vtk_to_numpy(grid.GetCells().GetOffsetsArray())
-    cells = vtk_to_numpy(grid.GetCells().GetConnectivityArray()).astype(np.int64).reshape(len(offsets) - 1, -1)
-    arrays = [{data.GetArrayName(i): vtk_to_numpy(data.GetArray(i)).astype(float) for i in range(data.GetNumberOfArrays())}
-              for data in (grid.GetPointData(), grid.GetCellData())]
-    return xyz, cells, arrays[0], arrays[1]
-
-
-def element_nodes(path: Path) -> tuple[np.ndarray, np.ndarray, dict[str, np.ndarray]]:
-    """fields.vtu as the unaveraged reading sees it: every tet with its own four vertices
-    (points mm, tets), their von Mises values (von_mises_MPa, the element-node values) and
-    displacements (displacement_mm)."""
-    xyz, cells, point_data, cell_data = read_vtu(path)
-    vertices = cells[:, :4].ravel()
-    return (xyz[vertices], np.arange(len(vertices), dtype=np.int64).reshape(-1, 4),
-            {"von_mises_MPa": cell_data["von_mises_unaveraged_MPa"].ravel(),
-             "displacement_mm": point_data["displacement_mm"][vertices]})
+    cells = vtk_to_numpy(grid.GetCells().GetConnectivityArray()).reshape(len(offsets) - 1, -1)
+    data = grid.GetPointData()
+    return xyz, cells[:, :4].astype(np.int64), {name: vtk_to_numpy(data.GetArray(name)).astype(float) for name in names}
 
 
 def _surface_actor(points: np.ndarray, tri: np.ndarray, values: np.ndarray, lut):
@@ -314,17 +275,16 @@ def _scene(folder: Path, res: dict) -> _Scene:
     """Read folder/fields.vtu and the peaks of ``res`` (results.json's case and fe keys)
     into what the panels draw: the outer surface displaced so its largest move is 4 % of
     b6 (mm), its colours, the load arrows and where each panel marks the peaks."""
-    xyz, tets, arrays = element_nodes(folder / "fields.vtu")
-    used, tri = boundary_surface(xyz, tets)
-    points0, vm, disp = xyz[used], arrays["von_mises_MPa"][used], arrays["displacement_mm"][used]
+    xyz, tets, arrays = read_fields(folder / "fields.vtu", ("displacement_mm", REPORTED))
+    used, tri = outer_surface(tets)
+    points0, vm, disp = xyz[used], arrays[REPORTED][used], arrays["displacement_mm"][used]
     length = float(res["case"]["dims"]["b6"])
     umax = float(np.linalg.norm(disp, axis=1).max()) or 1.0
     scale = 0.04 * length / umax
     points = points0 + scale * disp
     fe, case = res["fe"], res["case"]
-    # The colour range of every node, not only the surface's: the peak can sit on a tet
-    # that touches the surface at a vertex only, whose value there is drawn by no triangle.
-    lut = _turbo(float(arrays["von_mises_MPa"].min()), float(arrays["von_mises_MPa"].max()))
+    # The colour range of every node, not only the surface's: its top is the global peak.
+    lut = _turbo(float(arrays[REPORTED].min()), float(arrays[REPORTED].max()))
     centre = 0.5 * (points.min(axis=0) + points.max(axis=0))
     whole = bool(points0[:, 0].min() < -1e-6 * length)
     arrows = load_arrows(res["case"]["dims"], res["case"]["load_N"], whole)
@@ -513,6 +473,5 @@ def render_folder(folder: Path, res: dict, out_name: str = "von_mises.png") -> P
     return out
 
 
-if __name__ == "__main__":
-    from pipeline.output.drawing import read_input
-    render_folder(Path(sys.argv[1]), read_input(sys.argv[2:], Path(sys.argv[1])))
+if __name__ == "__main__":  # a finished run's folder, drawn again from its results.json
+    render_folder(Path(sys.argv[1]), json.loads((Path(sys.argv[1]) / "results.json").read_text(encoding="utf-8")))

@@ -6,6 +6,7 @@ error-bar solves and the picture (pipeline/output/picture.py), from the files th
 """
 from __future__ import annotations
 
+import json
 import sys
 from pathlib import Path
 
@@ -264,6 +265,5 @@ def draw_plots(folder: Path, res: dict) -> None:
     tornado_plot(folder / "sensitivity.png", res)
 
 
-if __name__ == "__main__":
-    from pipeline.output.drawing import read_input
-    draw_plots(Path(sys.argv[1]), read_input(sys.argv[2:], Path(sys.argv[1])))
+if __name__ == "__main__":  # a finished run's folder, drawn again from its results.json
+    draw_plots(Path(sys.argv[1]), json.loads((Path(sys.argv[1]) / "results.json").read_text(encoding="utf-8")))

@@ -191,11 +191,12 @@ def notes_lines(res: dict) -> list[str]:
 def pictures_lines(res: dict) -> list[str]:
     """The von Mises picture and the mesh close-ups at the peaks, with what they show."""
     L = ["![von Mises on the deformed part](von_mises.png)\n",
-         "Above: von Mises on the deformed part, coloured by the element-node values without averaging (the scale's "
-         "top is the unaveraged reading; the global peak reported at the fillet, the midpoint of the two readings, "
-         "lies below it)."
-         + (" Below: the mesh at each peak, seen along the surface's normal (undeformed; the surface triangles' "
-            "edges are the curved elements' chords), the peak's node marked: how many elements resolve it."
+         "Above: von Mises on the deformed part, coloured by the reported von Mises at each node (the midpoint of "
+         "the node's unaveraged and averaged readings on the shoulder fillet, the unaveraged one elsewhere), so the "
+         "scale's top is the global peak."
+         + (" Below: the mesh at each peak, seen along the surface's normal (undeformed, the reported von Mises; the "
+            "surface triangles' edges are the curved elements' chords), the peak's node marked: how many elements "
+            "resolve it."
             if (res.get("files") or {}).get("mesh_closeup") else "") + "\n"]
     if (res.get("files") or {}).get("mesh_closeup"):
         L.append(f"![the mesh at the two peaks, element edges drawn]({res['files']['mesh_closeup']})\n")

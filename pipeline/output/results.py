@@ -14,12 +14,14 @@ from pipeline.post.errorbar import METHOD_TEXT
 from pipeline.post.peaks import MIDPOINT, UNAVERAGED
 
 DEFINITION = {
-    MIDPOINT: "a peak at the shoulder fillet: the midpoint of two nodal readings over the fillet, the largest "
-              "element-node von Mises value without averaging (unaveraged_MPa; above the true peak there, measured) and "
-              "the largest von Mises value of the nodal-averaged stress (averaged_MPa; mostly below it). The global "
-              "peak is the larger of this and the largest unaveraged value elsewhere",
-    UNAVERAGED: "the largest element-node von Mises value without averaging (unaveraged_MPa); the largest "
-                "value of the nodal-averaged stress over the same region is shown beside it (averaged_MPa)",
+    MIDPOINT: "a peak at the shoulder fillet: the largest over the fillet's nodes of the midpoint of a node's two "
+              "readings, its largest element-node von Mises value without averaging (unaveraged_MPa; above the true "
+              "peak there, measured) and the von Mises of its nodal-averaged stress (averaged_MPa; mostly below it). "
+              "The global peak is the larger of this and the largest unaveraged value elsewhere; fields.vtu holds "
+              "the reported value at every node (von_mises_reported_MPa)",
+    UNAVERAGED: "the largest over the nodes of a node's largest element-node von Mises value without averaging "
+                "(unaveraged_MPa); the von Mises of the nodal-averaged stress at that node is shown beside it "
+                "(averaged_MPa); fields.vtu holds the reported value at every node (von_mises_reported_MPa)",
 }
 
 

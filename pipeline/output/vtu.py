@@ -19,7 +19,7 @@ VTK_CELL_TYPES = {"tetra": (10, 4), "tetra10": (24, 10)}  # name -> (VTK type id
 _VTK_DTYPES = {np.dtype(np.float64): "Float64", np.dtype(np.float32): "Float32", np.dtype(np.int64): "Int64",
                np.dtype(np.int32): "Int32", np.dtype(np.uint8): "UInt8"}
 CHUNK_BYTES = 1 << 20  # uncompressed bytes per zlib chunk
-ZLIB_LEVEL = 6
+ZLIB_LEVEL = 1  # the fastest: Float32 data compress little at any level (docs/decisions/0007-drawing-and-field-files.md)
 
 
 def _index_dtype(largest: int) -> np.dtype:
@@ -43,30 +43,31 @@ def _data_array(name: str, array: np.ndarray, offset: int) -> str:
 
 
 def write_vtu(path: Path, points: np.ndarray, cells: np.ndarray, cell_type: str,
-              point_data: dict[str, np.ndarray], cell_data: dict[str, np.ndarray] | None = None,
-              points_dtype: type = np.float64) -> None:
+              point_data: dict[str, np.ndarray], points_dtype: type = np.float64,
+              scalars: str | None = None) -> None:
     """Write one cell type's grid: points (n, 3, mm, stored as ``points_dtype``), cells (m, k)
-    indexing them in VTK's node order, point arrays (n,) or (n, c) and cell arrays (m,) or
-    (m, c), named with their units, each kept in its own dtype (float64, float32, int32 ...)."""
+    indexing them in VTK's node order, and point arrays (n,) or (n, c), named with their
+    units, each kept in its own dtype (float64, float32, int32 ...). ``scalars``: the point
+    array that is the active scalars (what ParaView colours by)."""
     vtk_type, k = VTK_CELL_TYPES[cell_type]
     cells = np.asarray(cells)
     if cells.ndim != 2 or cells.shape[1] != k:
         raise ValueError(f"{cell_type} cells need {k} nodes each, got shape {cells.shape}")
+    if scalars is not None and scalars not in point_data:
+        raise ValueError(f"the active scalars {scalars!r} are not a point array")
     n, m = len(points), len(cells)
     index = _index_dtype(max(n, k * m))
     blocks = [("Points", np.ascontiguousarray(points, dtype=points_dtype)),
               ("connectivity", np.ascontiguousarray(cells, dtype=index).ravel()),
               ("offsets", np.arange(k, k * m + 1, k, dtype=index)),
               ("types", np.full(m, vtk_type, dtype=np.uint8))]
-    cell_data = cell_data or {}
-    for kind, arrays, rows in (("point", point_data, n), ("cell", cell_data, m)):
-        for name, a in arrays.items():
-            a = np.ascontiguousarray(a)
-            if a.dtype not in _VTK_DTYPES:
-                a = a.astype(np.float64)
-            if len(a) != rows:
-                raise ValueError(f"{kind} array {name!r} has {len(a)} rows for {rows} {kind}s")
-            blocks.append((name, a))
+    for name, a in point_data.items():
+        a = np.ascontiguousarray(a)
+        if a.dtype not in _VTK_DTYPES:
+            a = a.astype(np.float64)
+        if len(a) != n:
+            raise ValueError(f"point array {name!r} has {len(a)} rows for {n} points")
+        blocks.append((name, a))
     n_point = 4 + len(point_data)
     payloads = [_compressed(a.tobytes()) for _, a in blocks]
     offsets = np.concatenate([[0], np.cumsum([len(p) for p in payloads])[:-1]]).astype(int)
@@ -80,8 +81,7 @@ def write_vtu(path: Path, points: np.ndarray, cells: np.ndarray, cell_type: str,
         f'<Piece NumberOfPoints="{n}" NumberOfCells="{m}">',
         "<Points>", tags[0], "</Points>",
         "<Cells>", *tags[1:4], "</Cells>",
-        "<PointData>", *tags[4:n_point], "</PointData>",
-        "<CellData>", *tags[n_point:], "</CellData>",
+        f"<PointData Scalars={quoteattr(scalars)}>" if scalars else "<PointData>", *tags[4:n_point], "</PointData>",
         "</Piece>", "</UnstructuredGrid>",
         '<AppendedData encoding="raw">',
         "_"])

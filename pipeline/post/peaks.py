@@ -1,8 +1,10 @@
-"""Post-processing: von Mises in a discontinuous space and its peaks (mm, MPa).
+"""Post-processing: von Mises in a discontinuous space, read at the nodes, and its peaks (mm, MPa).
 
-A peak is read two ways at the nodes (docs/design.md §5): the largest element-node value
-without averaging (for P2 displacements the stress in discontinuous P1, for Pk in
-DG(k−1)), and the largest von Mises of the nodal-averaged stress.
+Von Mises is read two ways at each node (docs/design.md §5): *unaveraged*, the largest
+element-node value there (for P2 displacements the stress in discontinuous P1, for Pk in
+DG(k−1)), and *averaged*, the von Mises of the nodal-averaged stress. The reading rule
+(:func:`reading`) makes one reported value of the two at every node, and a peak is the node
+of the largest reported value: the same rule the field file's reported array holds.
 """
 from __future__ import annotations
 
@@ -26,16 +28,22 @@ class Peak:
 MIDPOINT, UNAVERAGED = "midpoint", "unaveraged"  # rules for a NodalPeak's value
 
 
+def reading(unaveraged, averaged, midpoint):
+    """The reported von Mises (MPa) of a node's two readings: their midpoint where
+    ``midpoint`` holds (the shoulder fillet), else the unaveraged one. Numbers or arrays."""
+    return np.where(midpoint, 0.5 * (unaveraged + averaged), unaveraged)
+
+
 @dataclass(frozen=True)
 class NodalPeak:
-    """A peak von Mises stress (MPa) read two ways at the nodes, and the value reported.
+    """A peak von Mises stress (MPa): the two readings at its node, and the value reported.
 
-    ``unaveraged``: the largest element-node value. ``averaged``: the largest von Mises of
-    the nodal-averaged stress over the same region. At a steep surface maximum resolved by
-    few elements (No. 05's fillet) the first lies above the true peak (each element
-    extrapolates its own linear stress to the node, and the largest of those scattered
-    values is taken) and the second below (averaging smooths a maximum); ``rule``
-    MIDPOINT reports the middle of the two, UNAVERAGED the first (docs/design.md §5).
+    ``unaveraged``: the largest element-node value at the node. ``averaged``: the von Mises
+    of the nodal-averaged stress there. At a steep surface maximum resolved by few elements
+    (No. 05's fillet) the first lies above the true peak (each element extrapolates its own
+    linear stress to the node, and the largest of those scattered values is taken) and the
+    second below (averaging smooths a maximum); ``rule`` MIDPOINT reports the middle of the
+    two, UNAVERAGED the first (:func:`reading`, docs/design.md §5).
     """
 
     unaveraged: Peak
@@ -44,9 +52,7 @@ class NodalPeak:
 
     @property
     def value_MPa(self) -> float:
-        if self.rule == UNAVERAGED:
-            return self.unaveraged.value_MPa
-        return 0.5 * (self.unaveraged.value_MPa + self.averaged.value_MPa)
+        return float(reading(self.unaveraged.value_MPa, self.averaged.value_MPa, self.rule == MIDPOINT))
 
     @property
     def half_width_MPa(self) -> float:
@@ -92,11 +98,6 @@ def peak(vm: fem.Function, region: Callable[[np.ndarray], np.ndarray] | None = N
     """
     vals, xyz = _owned(vm, region)
     return _gathered_max(vals, xyz, vm.function_space.mesh.comm)
-
-
-def largest(*peaks: NodalPeak) -> NodalPeak:
-    """The peak with the largest reported value (the peak of a part read feature by feature)."""
-    return max(peaks, key=lambda p: p.value_MPa)
 
 
 def _gathered_max(vals: np.ndarray, xyz: np.ndarray, comm) -> Peak:
@@ -175,23 +176,96 @@ def von_mises_of(s: np.ndarray) -> np.ndarray:
     return np.sqrt(1.5 * np.einsum("nij,nij->n", dev, dev))
 
 
-def averaged_von_mises(u: fem.Function, mat: Material) -> tuple[np.ndarray, np.ndarray]:
-    """Von Mises stress (MPa) of the nodal-averaged stress tensor (:func:`averaged_stress`) at
-    this rank's owned nodes of CG(q), and the nodes' coordinates (mm). Collective over MPI."""
+@dataclass(frozen=True)
+class NodeReadings:
+    """Von Mises (MPa) read at this rank's owned nodes of CG(q), q = max(k − 1, 1) for Pk
+    displacements (the vertices for P2), both ways, and the value reported there.
+
+    ``unaveraged``: the largest element-node value at the node, over every element that
+    has the node (on any rank). ``averaged``: the von Mises of the nodal-averaged stress
+    (:func:`averaged_stress`). ``midpoint``: the nodes whose reported value is the midpoint
+    of the two (the shoulder fillet's); every other node reports its unaveraged value
+    (docs/design.md §5). ``vm`` is the element-node field the readings came from."""
+
+    vm: fem.Function
+    space: fem.FunctionSpace
+    xyz: np.ndarray
+    unaveraged: np.ndarray
+    averaged: np.ndarray
+    midpoint: np.ndarray
+
+    @property
+    def reported(self) -> np.ndarray:
+        """The reported von Mises (MPa) at each owned node: the reading rule applied there."""
+        return reading(self.unaveraged, self.averaged, self.midpoint)
+
+    def as_function(self, values: np.ndarray, name: str) -> fem.Function:
+        """``values`` (one per owned node) as a function of CG(q), ghost values set. Collective."""
+        f = fem.Function(self.space, name=name)
+        f.x.array[:len(values)] = values
+        f.x.scatter_forward()
+        return f
+
+
+def node_readings(u: fem.Function, mat: Material, midpoint: Callable[[np.ndarray], np.ndarray] | None,
+                  vm: fem.Function | None = None) -> NodeReadings:
+    """Both readings of the von Mises of displacement ``u`` (mm) at the nodes of CG(q), the
+    midpoint taken where ``midpoint`` (a function of the nodes' coordinates, mm, giving a
+    mask; None: nowhere); ``vm`` the element-node field (:func:`von_mises`), if made
+    already. Collective over MPI."""
+    vm = von_mises(u, mat) if vm is None else vm
     averaged = averaged_stress(u, mat)
-    C = averaged.function_space
+    q = averaged.function_space.ufl_element().degree()
+    C = fem.FunctionSpace(u.function_space.mesh, ("CG", q))
     n_owned = C.dofmap.index_map.size_local
-    s = averaged.x.array.reshape(-1, 3, 3)[:n_owned]
-    return von_mises_of(s), C.tabulate_dof_coordinates()[:n_owned]
+    xyz = C.tabulate_dof_coordinates()[:n_owned]
+    unaveraged = _element_node_max(vm, C)
+    a = von_mises_of(averaged.x.array.reshape(-1, 3, 3)[:n_owned])
+    mask = np.zeros(n_owned, dtype=bool) if midpoint is None else np.asarray(midpoint(xyz), dtype=bool)
+    return NodeReadings(vm=vm, space=C, xyz=xyz, unaveraged=unaveraged, averaged=a, midpoint=mask)
 
 
-def nodal_peak(vm: fem.Function, averaged: tuple[np.ndarray, np.ndarray], rule: str,
-               region: Callable[[np.ndarray], np.ndarray] | None = None) -> NodalPeak:
-    """The unaveraged peak of vm and the averaged one (values and nodes from
-    :func:`averaged_von_mises`) over ``region`` (None: everywhere). Collective over MPI."""
-    vals, xyz = averaged
-    if region is not None:
-        inside = region(xyz)
-        vals, xyz = vals[inside], xyz[inside]
-    return NodalPeak(unaveraged=peak(vm, region), averaged=_gathered_max(vals, xyz, vm.function_space.mesh.comm),
-                     rule=rule)
+def _element_node_max(vm: fem.Function, C: fem.FunctionSpace) -> np.ndarray:
+    """At each owned node of CG(q) ``C``, the largest value of the element-node field ``vm``
+    (DG(q), or DG0 for P1: each element's constant) over the elements that have the node,
+    the elements of every rank. Collective."""
+    mesh = C.mesh
+    q = C.ufl_element().degree()
+    if vm.function_space.ufl_element().degree() != q:   # DG0 (P1): exact in DG1
+        v = fem.Function(fem.FunctionSpace(mesh, ("DG", q)))
+        v.interpolate(vm)
+        vm = v
+    W = vm.function_space
+    owned_cells = mesh.topology.index_map(mesh.topology.dim).size_local
+    # DG(q) and CG(q) number a cell's nodes alike, so row k of both dofmaps is one node.
+    dg = W.dofmap.list.array.reshape(-1, W.dofmap.dof_layout.num_dofs)[:owned_cells].ravel()
+    cg = C.dofmap.list.array.reshape(-1, C.dofmap.dof_layout.num_dofs)[:owned_cells].ravel()
+    imap = C.dofmap.index_map
+    n_owned = imap.size_local
+    best = np.full(n_owned + imap.num_ghosts, -np.inf)
+    np.maximum.at(best, cg, vm.x.array[dg])
+    # The cells of other ranks at this rank's nodes: each rank's values at its ghost nodes
+    # (global numbers) go to every rank, and the owner keeps the largest.
+    start = imap.local_range[0]
+    for ghosts, values in mesh.comm.allgather((np.asarray(imap.ghosts, dtype=np.int64), best[n_owned:])):
+        mine = (ghosts >= start) & (ghosts < start + n_owned)
+        np.maximum.at(best, ghosts[mine] - start, values[mine])
+    return best[:n_owned]
+
+
+def node_peak(r: NodeReadings, region: Callable[[np.ndarray], np.ndarray] | None = None) -> NodalPeak:
+    """The node of the largest reported value over ``region`` (None: everywhere) and both
+    readings there, its rule the node's (MIDPOINT on the fillet, else UNAVERAGED): its
+    ``value_MPa`` is the reported value at that node. Ties broken by coordinates, so the
+    answer does not depend on the partition. Collective over MPI; every rank gets it."""
+    values = r.reported
+    inside = np.ones(len(values), dtype=bool) if region is None else np.asarray(region(r.xyz), dtype=bool)
+    idx = np.flatnonzero(inside)
+    if len(idx):
+        i = int(idx[np.argmax(values[idx])])
+        local = (float(values[i]), tuple(float(c) for c in r.xyz[i]), float(r.unaveraged[i]),
+                 float(r.averaged[i]), bool(r.midpoint[i]))
+    else:
+        local = (-np.inf, (np.nan, np.nan, np.nan), -np.inf, -np.inf, False)
+    _, at, u, a, mid = max(r.space.mesh.comm.allgather(local), key=lambda p: (p[0], p[1]))
+    return NodalPeak(unaveraged=Peak(u, at), averaged=Peak(a, at), rule=MIDPOINT if mid else UNAVERAGED)

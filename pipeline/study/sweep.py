@@ -19,21 +19,25 @@ from __future__ import annotations
 
 import contextlib
 import json
+import math
 import os
 import shutil
 import time
 from dataclasses import replace
 from pathlib import Path
-from typing import Callable
+from typing import Callable, Iterator
 
 from mpi4py import MPI
 
 from geometry.part import GeometryError
 from pipeline.analysis.context import RunContext
 from pipeline.analysis.words import coarse_mesh_note
-from pipeline.study.screening import FILE, screen_case, screening_of
+from pipeline.output import flat
+from pipeline.study.screening import (FILE, FULL, NEXT_STEPS, STEPS, screen_case, screened_rows, screening_of,
+                                      undecided)
 from pipeline.errors import InputError, NumericalError
 from pipeline.inputs.options import Outputs, RunOptions
+from pipeline.inputs.case import Case
 from pipeline.output.folder import write_run
 from pipeline.runtime.interrupts import on_stop, stop_outcome
 # pipeline.fe.meshing loads DOLFINx, whose import starts PETSc collectively over COMM_WORLD:
@@ -63,21 +67,21 @@ def _claim(out: Path, key: str) -> bool:
         return False
 
 
-def _done(out: Path, key: str, full: bool = True) -> bool:
-    """Has task ``key`` ended, with results or with its failure written, each matching
-    its checksums? (Results without them are a run that stopped, or files changed since.)
-    With ``full``, results of the cheap level of a screened study
-    (pipeline.study.screening) do not count: the task wants its full error bar."""
+def _done(out: Path, key: str, need: str | None = FULL) -> bool:
+    """Has task ``key`` ended as far as ``need`` asks, with results or with its failure
+    written, each matching its checksums? (Results without them are a run that stopped,
+    or files changed since.) ``need``: FULL, the full error bar; NEXT_STEPS, a screened
+    study's step past the cheap level; None, any results (pipeline.study.screening)."""
     failed = failure_file(out, key)
     if failed.is_file() and failure_fault(failed) is None:
         return True
     folder = variant_folder(out, key)
     if folder_fault(folder) is not None:
         return False
-    if not full:
+    s = screening(folder)
+    if need is None or s is None or s["full_error_bar"]:
         return True
-    cheap = screening(folder)
-    return cheap is None or cheap["full_error_bar"]
+    return need == NEXT_STEPS and s.get("step", STEPS[0].name) != STEPS[0].name
 
 
 def screening(folder: Path) -> dict | None:
@@ -146,19 +150,20 @@ def _remove(path: Path) -> None:
         path.unlink(missing_ok=True)
 
 
-def run_task(task: Task, out: Path, study: Study, screen: bool = False, why_full: str | None = None) -> None:
+def run_task(task: Task, out: Path, study: Study, screen: bool = False,
+             escalation: tuple[str, str] | None = None) -> None:
     """Analyse one task on this rank alone, then write the checksums of its files; a
     failure is written beside (with its own checksum), never raised. What the task left
     before (files that failed their checksums) is removed first, so that only this run's
-    files are found. ``screen``: the cheap level only (one coarse mesh,
-    pipeline.study.screening), whose reading goes into screening.json; when it fails,
-    the full analysis runs at once. ``why_full``: the full analysis of a screened study's
-    variant, which keeps the cheap level's reading with why it was not enough. No variant
-    solves the journal load at the hand formulas' positions: the study's table does not
-    read those sections (results.json's ``fe.sections.formula_load`` is null)."""
+    files are found. ``screen``: the cheap level only (pipeline.study.screening), whose
+    reading goes into screening.json; when it fails, the full analysis runs at once.
+    ``escalation``: (why, how far) a screened study's variant goes past the cheap level:
+    the next steps until one decides it, or the full error bar. No variant solves the
+    journal load at the hand formulas' positions: the study's table does not read those
+    sections (results.json's ``fe.sections.formula_load`` is null)."""
     case = replace(task.case, load_N=task.loads[0])
     folder, failed = variant_folder(out, task.key), failure_file(out, task.key)
-    cheap = screening(folder) if why_full is not None and folder_fault(folder) is None else None
+    cheap = screening(folder) if escalation is not None and folder_fault(folder) is None else None
     _remove(folder)
     _remove(failed)
     # No variant solves the journal load at the hand formulas' positions (the study's table
@@ -167,45 +172,93 @@ def run_task(task: Task, out: Path, study: Study, screen: bool = False, why_full
                          formula_loads=False,
                          loads=tuple(task.loads) if len(task.loads) > 1 else (),
                          outputs=Outputs(fields=False, mesh=False))
-    alone = RunContext(comm=MPI.COMM_SELF)
-    if screen:
-        try:
-            res = write_run(screen_case(case), replace(options, levels=1, sensitivity=False), folder, alone)
-            write_text(folder / FILE, json.dumps(screening_of(res), indent=1) + "\n")
-            write_manifest(folder)
-            return
-        except (NumericalError, GeometryError, InputError) as exc:
-            _remove(folder)
-            why_full = f"the cheap level failed: {' '.join(str(exc).split())}"
+    alone = RunContext(comm=MPI.COMM_SELF, memo={})  # a variant's steps solve each mesh once
+    tried = list((cheap or {}).get("steps", []))  # every step's reading so far, for the bench's coverage check
     try:
+        if screen:
+            try:
+                res = write_run(screen_case(case), replace(options, levels=1, sensitivity=False), folder, alone)
+                first = screening_of(res)
+                _finish(folder, dict(first, steps=[_brief(first)]))
+                return
+            except (NumericalError, GeometryError, InputError) as exc:
+                _remove(folder)
+                escalation = (f"the cheap level failed: {' '.join(str(exc).split())}", FULL)
+        why, how_far = escalation or (None, FULL)
+        if how_far == NEXT_STEPS and _stepwise(study, case):
+            for s in _next_steps(case, options, folder, alone):
+                tried.append(_brief(s))
+                if s["decided"]:
+                    _finish(folder, dict(s, steps=tried))
+                    return
         write_run(case, options, folder, alone)
     except (NumericalError, GeometryError, InputError) as exc:
+        _remove(folder)
         write_failure(failed, {"error": " ".join(str(exc).split()), "size": case.size, "parameters": task.params})
         return
-    if why_full is not None:
-        kept = dict(cheap or {"peaks": None}, full_error_bar=True, why_full=why_full)
+    _finish(folder, None if why is None else dict(cheap or {"peaks": None}, full_error_bar=True, why_full=why,
+                                                  steps=tried))
+
+
+def _stepwise(study: Study, case: Case) -> bool:
+    """Whether a screened variant may stop short of the full error bar on the steps
+    between: their bands were measured for the default three meshes at ratio 1.3, on the
+    default mesh (a coarser case mesh misreads more)."""
+    return (study.screen and study.levels == 3 and math.isclose(study.ratio, 1.3) and not study.sensitivity
+            and case.mesh_factor <= 1.0)
+
+
+def _next_steps(case: Case, options: RunOptions, folder: Path, ctx: RunContext) -> Iterator[dict]:
+    """The readings of the steps between the cheap level and the full error bar
+    (screening.STEPS), cheapest first, each on the full error bar's own meshes and places
+    (ctx's memo solves each mesh once) with its results in ``folder``; each says whether
+    its bands decide every peak against the allowable (``decided``). The caller stops at
+    the first that does; after the last, the full error bar reuses what they solved."""
+    for step in STEPS[1:-1]:
+        coarser = options.levels - step.levels  # ratio steps from the case's mesh to the step's finest
+        res = write_run(case, replace(options, levels=step.levels, finer=-coarser), folder, ctx)
+        s = screening_of(res, step)
+        s["decided"] = not any(undecided(r, case.allowable_MPa) for r in screened_rows(flat.rows(res), s))
+        yield s
+
+
+def _brief(s: dict) -> dict:
+    """A step's reading as screening.json's ``steps`` lists it: the step, its meshes and
+    each peak's value and band (MPa)."""
+    return {"step": s["step"], "meshes": s["meshes"],
+            "peaks": {b: {k: s["peaks"][b][k] for k in ("value_MPa", "band_MPa")} for b in s["peaks"]}}
+
+
+def _finish(folder: Path, kept: dict | None) -> None:
+    """Write a variant's screening.json (``kept``, when it has one) and its checksums."""
+    if kept is not None:
         write_text(folder / FILE, json.dumps(kept, indent=1) + "\n")
     write_manifest(folder)
 
 
 def work(tasks: list[Task], out: Path, study: Study, say: Progress, before: int,
-         full: dict[str, str] | None = None) -> None:
+         more: dict[str, tuple[str, str]] | None = None) -> None:
     """Every rank takes the next unclaimed, unfinished task until none is left; ``before``
     tasks had finished when the study started (the pace counts only this run's). A
-    screened study's tasks on the cheap level only; ``full``: the full analysis of these
-    tasks of a screened study (key -> why the cheap level was not enough)."""
-    screen = study.screen and full is None
-    todo = [t for t in tasks if t.case is not None and (full is None or t.key in full)]
+    screened study's tasks on the cheap level only; ``more``: these tasks of a screened
+    study further (key -> why the cheap level was not enough, and how far: the next
+    steps or the full error bar)."""
+    screen = study.screen and more is None
+    todo = [t for t in tasks if t.case is not None and (more is None or t.key in more)]
     t0 = time.perf_counter()
-    what = "screened" if screen else "done" if full is None else "given the full error bar"
+    what = "screened" if screen else "done" if more is None else "analysed further"
+
+    def need(key: str) -> str | None:
+        return None if screen else FULL if more is None else more[key][1]
     for task in todo:
-        if _done(out, task.key, full=not screen) or not _claim(out, task.key + ("" if full is None else ".full")):
+        claim = task.key + ("" if more is None else f".{more[task.key][1].replace(' ', '-')}")
+        if _done(out, task.key, need(task.key)) or not _claim(out, claim):
             continue
         # A variant says nothing until it ends: a large one (a fine mesh, a small fillet)
         # is heard from every HEARTBEAT_S while it runs.
         with heartbeat(say, f"sweep: variant {inputs_text(task.params)}"):
-            run_task(task, out, study, screen=screen, why_full=None if full is None else full[task.key])
-        finished = sum(_done(out, t.key, full=not screen) if full is not None else _ended(out, t.key) for t in todo)
+            run_task(task, out, study, screen=screen, escalation=None if more is None else more[task.key])
+        finished = sum(_done(out, t.key, need(t.key)) if more is not None else _ended(out, t.key) for t in todo)
         say(f"sweep: {finished}/{len(todo)} variants {what}; "
             f"about {time_left_s(time.perf_counter() - t0, finished - before, len(todo) - finished):.0f} s left")
 
@@ -222,13 +275,15 @@ def escalate(tasks: list[Task], out: Path, study: Study, allowable: float, say: 
         if comm.rank == 0:
             rows = with_verdicts(rows_of(tasks, out), allowable)
             todo = {k: w for k, w in escalations(rows, swept_axes(axes_of(study)), allowable).items()
-                    if not _done(out, k, full=True)}
+                    if not _done(out, k, w[1])}
             if todo:
-                say(f"sweep: {_count(len(todo), 'variant')} {'needs' if len(todo) == 1 else 'need'} the full error bar")
+                full = sum(w[1] == FULL for w in todo.values())
+                say(f"sweep: {_count(len(todo), 'variant')} {'needs' if len(todo) == 1 else 'need'} more than the cheap level "
+                    f"({full} the full error bar, {len(todo) - full} the next steps)")
         todo = comm.bcast(todo, root=0)
         if not todo:
             return
-        work(tasks, out, study, say, 0, full=todo)
+        work(tasks, out, study, say, 0, more=todo)
 
 
 def _count(n: int, noun: str) -> str:

@@ -171,22 +171,23 @@ def crossing_pairs(rows: list[dict], axis: str, allowable: float):
                     yield fixed, cols, group, i
 
 
-def escalations(rows: list[dict], axes: list[str], allowable: float) -> dict[str, str]:
-    """The variants of a screened study that need the full error bar, each with why: a row
-    of theirs whose band holds the allowable (MPa) or that has a singular peak
-    (pipeline.study.screening.undecided), or a neighbour of a crossing of the
-    allowable along one of ``axes`` (its value and band set the crossing's place and
-    range). Rows already analysed in full count as they are."""
-    from pipeline.study.screening import undecided
-    why: dict[str, str] = {}
-    for r in rows:
-        if r["status"] == "done" and undecided(r, allowable):
-            why.setdefault(r["variant"], f"its band holds the allowable {allowable:g} MPa")
+def escalations(rows: list[dict], axes: list[str], allowable: float) -> dict[str, tuple[str, str]]:
+    """The variants of a screened study that need more than they have, each with why and
+    how far: a neighbour of a crossing of the allowable along one of ``axes`` goes to the
+    full error bar (its value and band set the crossing's place and range); a row whose
+    band holds the allowable (MPa) or that has a singular peak
+    (pipeline.study.screening.undecided) takes the next steps (screening.NEXT_STEPS).
+    Rows already analysed in full count as they are."""
+    from pipeline.study.screening import FULL, NEXT_STEPS, undecided
+    why: dict[str, tuple[str, str]] = {}
     for axis in axes:
         for _, (_, _, label), group, i in crossing_pairs(rows, axis, allowable):
             for r in group[i:i + 2]:
-                why.setdefault(r["variant"], f"it borders a crossing of the {label} along "
-                                             f"{axis.replace('dims.', '')}")
+                why.setdefault(r["variant"], (f"it borders a crossing of the {label} along "
+                                              f"{axis.replace('dims.', '')}", FULL))
+    for r in rows:
+        if r["status"] == "done" and undecided(r, allowable):
+            why.setdefault(r["variant"], (f"its band holds the allowable {allowable:g} MPa", NEXT_STEPS))
     return why
 
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import pytest
 
-from pipeline.analysis.sensitivity import ranges_of
+from pipeline.analysis.ranges import ranges_of
 from pipeline.inputs.case import resolve
 from pipeline.analysis.verdicts import contact_study_effect
 

@@ -1,4 +1,4 @@
-"""The ends of the sensitivity ranges (pipeline/analysis/sensitivity.py; docs/design.md §10),
+"""The ends of the sensitivity ranges (pipeline/analysis/ranges.py; docs/design.md §10),
 worked out by hand: each end rounded to 0.01 mm (a drawing's precision), a high end capped
 at a geometry rule rounded down, a low end raised to one rounded up, each cap said in the
 range's note (mm).
@@ -14,7 +14,7 @@ from dataclasses import replace
 
 import pytest
 
-from pipeline.analysis.sensitivity import _clip_high, _clip_low, default_range
+from pipeline.analysis.ranges import _clip_high, _clip_low, default_range
 from pipeline.inputs.case import resolve
 
 NO05 = resolve("05").dims

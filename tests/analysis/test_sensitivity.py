@@ -18,7 +18,8 @@ import pytest
 from mpi4py import MPI
 
 from geometry.table import InputError, load_table, validate
-from pipeline.analysis.sensitivity import Reading, analyse_sensitivity, default_range, ranges_of
+from pipeline.analysis.ranges import default_range, ranges_of
+from pipeline.analysis.sensitivity import Reading, analyse_sensitivity
 from pipeline.inputs.case import read_case_file, resolve
 from pipeline.analysis.context import RunContext
 from pipeline.analysis.verdicts import sensitivity_answer
@@ -317,7 +318,7 @@ def test_a_load_model_variant_on_the_runs_operator_is_its_own_solve():
     (level.solve_level's load_variants) equals a solve of that case from scratch on the same
     mesh (its own assembly and preconditioner), to the solver's tolerance."""
     from pipeline.analysis.level import LevelTask, solve_level
-    from pipeline.analysis.sensitivity import load_variant_cases
+    from pipeline.analysis.ranges import load_variant_cases
     case = resolve("05", None, {"mesh_factor": 3.0})
     variants = load_variant_cases(case)
     # No. 05's bearing surface runs from x = 24 to 35 mm (Lj 11 mm): the contact study's nearest

@@ -4,7 +4,7 @@ import json
 
 import pytest
 
-from bench.sweeps import STUDIES, command, coverage, differences, remove_study, summarise
+from bench.sweeps import STUDIES, command, coverage, differences, near, remove_study, summarise
 from pipeline.runtime.outdir import MARKER
 
 
@@ -27,6 +27,24 @@ def test_commands_use_the_launcher_for_two_ranks(tmp_path):
     two = command(*STUDIES["sizes-2"][:2], tmp_path)
     assert one[1:3] == ["-m", "pipeline"] and "sweep" in one
     assert two[1:4] == ["-m", "pipeline.runtime.launch", "2"] and two[-3:] == ["--out", str(tmp_path), "--quiet"]
+    old = tmp_path / "v06"  # a checkout from before the runtime package: its own launcher
+    (old / "pipeline").mkdir(parents=True)
+    assert command(*STUDIES["near-full"][:2], tmp_path, old)[1:4] == ["-m", "pipeline.launch", "2"]
+
+
+def test_every_step_a_variant_took_is_held_against_the_full_study():
+    """A variant that took the cheap level, one mesh and the full error bar: each step's
+    band is checked against the full value (made-up MPa); the near count reads the full
+    study's peaks against its allowable (120 MPa, 5 %: 114-126)."""
+    full = _outcome({"a": _r("fail", [125.0, 1.0])}, [])
+    steps = [{"step": "cheap level", "peak": [131.0, 13.1], "critical": [66.0, 2.0]},
+             {"step": "one mesh", "peak": [128.0, 2.5], "critical": [66.0, 1.0]}]
+    screened = _outcome({"a": dict(_r("fail", [125.0, 1.0]), steps=steps)}, [])
+    c = {(r["step"], r["peak"]): r["covers_band"] for r in coverage(full, screened)}
+    # |125 - 131| + 1 = 7 <= 13.1; |125 - 128| + 1 = 4 > 2.5.
+    assert c == {("cheap level", "peak"): True, ("cheap level", "critical"): True,
+                 ("one mesh", "peak"): False, ("one mesh", "critical"): True}
+    assert near(full) == 1 and near(_outcome({"a": _r("fail", [127.0, 1.0])}, [])) == 0
 
 
 def test_only_a_sweep_folder_is_removed_between_repeats(tmp_path):
@@ -68,7 +86,7 @@ def _outcome(rows: dict, crossings: list) -> dict:
 
 def _r(verdict, peak, cheap=None, decided_by=""):
     return {"status": "done", "verdict": verdict, "critical_verdict": "pass", "peak": peak, "critical": [66.0, 0.1],
-            "decided_by": decided_by, "cheap": cheap}
+            "decided_by": decided_by, "steps": [] if cheap is None else [dict(cheap, step="cheap level")]}
 
 
 def test_a_screened_study_is_compared_with_its_full_one_decision_by_decision():
@@ -92,3 +110,18 @@ def test_a_screened_study_is_compared_with_its_full_one_decision_by_decision():
                    "grid-screen": [dict(cheap, wall_s=30.0, variants=2, ok=2)]})["grid-screen_against_full"]
     assert s["median_ratio"] == 4.0 and s["met"] is True and s["identical_decisions"] is True
     assert (s["cover_values"], s["cover_bands"], s["cheap_bands"]) == (4, 3, 4)
+
+
+def test_the_margins_a_full_study_needs_follow_from_its_coarser_readings():
+    """One variant, global peak 100 ± 1 MPa on the full error bar; x1.3 reads 102 (half
+    bracket 0.5), x1.69 reads 104 (half bracket 0.5). One mesh must hold 100 ± 1 from 104:
+    |104 - 100| + 1 = 5, 5/104 of the value. Two meshes: |102 - 100| + 1 = 3 against the
+    rule's own 0.5 + 3 × 2 = 6.5: no fraction needed. The critical peak reads 60 ± 0.1 on
+    every mesh with a 0.2 half bracket: never needs one."""
+    from bench.sweeps import needed_margins
+    row = dict(_r("pass", [100.0, 1.0]), critical=[60.0, 0.1],
+               meshes={"peak": [[100.0, 0.5], [102.0, 0.5], [104.0, 0.5]],
+                       "critical": [[60.0, 0.2], [60.0, 0.2], [60.0, 0.2]]})
+    need = needed_margins(_outcome({"a": row}, []))
+    assert need["one mesh"]["peak"] == pytest.approx(5.0 / 104.0)
+    assert need["two meshes"] == {"peak": 0.0, "critical": 0.0} and need["one mesh"]["critical"] == 0.0

@@ -134,7 +134,7 @@ def test_a_load_change_scales_the_load_models_variants_too(cache, monkeypatch):
     from pipeline.analysis import reuse
     from pipeline.analysis.context import RunContext
     from pipeline.analysis.level import LevelTask
-    from pipeline.analysis.sensitivity import load_variant_cases
+    from pipeline.analysis.ranges import load_variant_cases
 
     def level(case):
         task = LevelTask(case.mesh_factor, sections=True, formula_loads=True,

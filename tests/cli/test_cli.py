@@ -123,8 +123,9 @@ def test_bad_input_exit_2_one_line(tmp_path, args, field):
 
 
 def _tet_cube(n: int) -> tuple[np.ndarray, np.ndarray]:
-    """A cube [0, n]³ of 5·n³ disconnected tets (each tet its own nodes, as the picture reads fields.vtu):
-    the 5-tet split of a unit cube, mirrored cube to cube so that faces match."""
+    """A cube [0, n]³ of 5·n³ positively oriented tets sharing their nodes, as fields.vtu's
+    whole part shares them: the 5-tet split of a unit cube, mirrored cube to cube so that
+    faces match. Returns (nodes, tets)."""
     import itertools
     base = [(0, 1, 2, 4), (1, 3, 2, 7), (1, 4, 5, 7), (2, 4, 7, 6), (1, 2, 4, 7)]
     corners = np.array([(i & 1, (i >> 1) & 1, (i >> 2) & 1) for i in range(8)], float)
@@ -134,44 +135,30 @@ def _tet_cube(n: int) -> tuple[np.ndarray, np.ndarray]:
         local = np.where(flip, 1 - corners, corners) + np.array(c)
         for tet in base:
             pts += [local[v] for v in tet]
-    pts = np.array(pts)
-    return pts, np.arange(len(pts)).reshape(-1, 4)
+    nodes, tets = np.unique(np.array(pts), axis=0, return_inverse=True)
+    tets = tets.reshape(-1, 4)
+    e = nodes[tets[:, 1:]] - nodes[tets[:, [0]]]
+    negative = np.linalg.det(e) < 0
+    tets[negative] = tets[negative][:, [0, 2, 1, 3]]
+    return nodes, tets
 
 
 def test_picture_draws_the_outer_surface_only():
-    """pipeline.output.picture.boundary_surface on a cube of 5·n³ disconnected tets: the outer
-    surface of a cube split into tets has 2 triangles per face square, 12 n² in all,
-    whatever the split; the triangles use original nodes (by index, so each keeps its own
-    value). (numpy only: no VTK in this process, which cannot share one with DOLFINx.)"""
-    from pipeline.output.picture import boundary_surface
+    """pipeline.output.picture.outer_surface on a cube of 5·n³ tets: the outer surface of a
+    cube split into tets has 2 triangles per face square, 12 n² in all, whatever the split,
+    each on a face of the cube and facing out of it; the triangles number the nodes they
+    use, each once. (numpy only: no VTK in this process, which cannot share one with DOLFINx.)"""
+    from pipeline.output.picture import outer_surface
     n = 3
     pts, tets = _tet_cube(n)
-    used, tri = boundary_surface(pts, tets)
+    used, tri = outer_surface(tets)
     xyz = pts[used][tri]
     on_face = [np.all(np.isclose(xyz[:, :, k], v), axis=1) for k in range(3) for v in (0, n)]
     assert len(tri) == 12 * n ** 2
     assert int(np.sum(np.any(on_face, axis=0))) == len(tri)
     assert len(np.unique(used)) == len(used) and tri.max() == len(used) - 1
-
-
-def test_picture_numbers_equal_positions_alike(monkeypatch):
-    """pipeline.output.picture._position_numbers gives equal positions one number and different
-    positions different numbers, as numpy's unique rows do, on 4 000 rows drawn from 300
-    positions (with -0.0 beside 0.0); and still does when every position shares one sort
-    key (weights zero), which must send it to its exact three-column sort."""
-    from pipeline.output import picture
-    rng = np.random.default_rng(5)
-    positions = np.round(rng.normal(size=(300, 3)), 3)
-    positions[:20, 1] = 0.0
-    rows = positions[rng.integers(0, 300, 4000)]
-    rows[rows == 0.0] *= rng.choice([-1.0, 1.0], size=int(np.sum(rows == 0.0)))  # -0.0 and 0.0
-    _, expected = np.unique(rows + 0.0, axis=0, return_inverse=True)
-    for weights in (picture._KEY, (0.0, 0.0, 0.0)):
-        monkeypatch.setattr(picture, "_KEY", weights)
-        got = picture._position_numbers(rows)
-        # The same partition of the rows: a one-to-one map between the two numberings.
-        pairs = np.unique(np.c_[got, expected.ravel()], axis=0)
-        assert len(pairs) == len(np.unique(got)) == len(np.unique(expected))
+    normal = np.cross(xyz[:, 1] - xyz[:, 0], xyz[:, 2] - xyz[:, 0])
+    assert np.all(np.einsum("ij,ij->i", normal, xyz.mean(axis=1) - n / 2) > 0)
 
 
 def test_picture_colour_map_is_kept_as_matplotlib_made_it(tmp_path):
@@ -194,9 +181,9 @@ def test_picture_marks_a_peak_only_where_the_camera_sees_it():
     −x side a node of the −x face is seen, one of the +x face is not (the cube is in the
     way); mirrored (a quarter drawn whole), the +x peak's image in x on the −x face is
     marked instead, and an eye on the +x side marks the peak itself."""
-    from pipeline.output.picture import boundary_surface, mark_places, seen_from
+    from pipeline.output.picture import mark_places, outer_surface, seen_from
     pts, tets = _tet_cube(3)
-    used, tri = boundary_surface(pts - 1.5, tets)
+    used, tri = outer_surface(tets)
     surf = (pts - 1.5)[used]
     left, right = np.array([-10.0, 0.3, 0.2]), np.array([10.0, 0.3, 0.2])
     assert seen_from(surf, tri, np.array([-1.5, 0.5, 0.5]), left, 1e-3)

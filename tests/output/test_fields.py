@@ -12,7 +12,7 @@ from mpi4py import MPI
 
 from pipeline.fe.elasticity import Material
 from pipeline.output.fields import write_fields
-from pipeline.post.peaks import von_mises
+from pipeline.post.peaks import node_readings
 
 
 def field(x: np.ndarray) -> np.ndarray:
@@ -26,7 +26,7 @@ def test_field_file_holds_the_p2_field(tmp_path, whole):
     mesh = create_box(MPI.COMM_WORLD, [np.zeros(3), np.array([2.0, 1.0, 1.5])], [3, 2, 2], CellType.tetrahedron)
     u = fem.Function(fem.VectorFunctionSpace(mesh, ("CG", 2)))
     u.interpolate(field)
-    files = write_fields(tmp_path, u, von_mises(u, Material()), Material(), whole_part=whole)
+    files = write_fields(tmp_path, u, node_readings(u, Material(), None), Material(), whole_part=whole)
     n_nodes = u.function_space.dofmap.index_map.size_global
     n_cells = mesh.topology.index_map(3).size_global
     x0 = u.function_space.tabulate_dof_coordinates()
@@ -69,9 +69,8 @@ def test_vtu_file_reads_back_in_vtk_and_meshio(tmp_path, kind, k):
     points = rng.normal(size=(n, 3)) * 25.0
     cells = rng.integers(0, n, size=(9, k))
     data = {"von_mises_MPa": rng.random(n) * 100.0, "displacement_mm": rng.normal(size=(n, 3)).astype(np.float32)}
-    cell_data = {"von_mises_unaveraged_MPa": rng.random((9, 4)).astype(np.float32)}
     path = tmp_path / "grid.vtu"
-    write_vtu(path, points, cells, kind, data, cell_data)
+    write_vtu(path, points, cells, kind, data)
 
     m = meshio.read(path)
     np.testing.assert_array_equal(m.points, points)
@@ -92,9 +91,6 @@ def test_vtu_file_reads_back_in_vtk_and_meshio(tmp_path, kind, k):
         got = vtk_to_numpy(grid.GetPointData().GetArray(name))
         assert got.dtype == a.dtype
         np.testing.assert_array_equal(got, a)
-    for name, a in cell_data.items():
-        np.testing.assert_array_equal(vtk_to_numpy(grid.GetCellData().GetArray(name)), a)
-        np.testing.assert_array_equal(m.cell_data[name][0], a)
     assert b'compressor="vtkZLibDataCompressor"' in path.read_bytes()[:1000]
     assert b'type="Int32" Name="connectivity"' in path.read_bytes()[:2000]
 
@@ -150,7 +146,7 @@ def test_the_field_file_holds_a_uniform_stress_at_every_node(tmp_path):
     mesh = create_box(MPI.COMM_WORLD, [np.zeros(3), np.array([2.0, 1.0, 1.5])], [2, 2, 2], CellType.tetrahedron)
     u = fem.Function(fem.VectorFunctionSpace(mesh, ("CG", 2)))
     u.interpolate(lambda x: eps @ x)
-    files = write_fields(tmp_path, u, von_mises(u, Material(E, nu)), Material(E, nu))
+    files = write_fields(tmp_path, u, node_readings(u, Material(E, nu), lambda x: x[:, 0] > 1.0), Material(E, nu))
     if MPI.COMM_WORLD.rank != 0:
         return
     m = meshio.read(tmp_path / files["fields"])
@@ -163,5 +159,88 @@ def test_the_field_file_holds_a_uniform_stress_at_every_node(tmp_path):
     principal = np.linalg.eigvalsh(sigma)[::-1]
     for i in range(3):
         np.testing.assert_allclose(pd[f"principal_stress_{i + 1}_MPa"], principal[i], atol=tol)
-    # Each tet's own von Mises at its vertices: the same uniform value.
-    np.testing.assert_allclose(m.cell_data["von_mises_unaveraged_MPa"][0], np.sqrt(1.5 * np.sum(dev * dev)), atol=tol)
+    # The readings at the nodes, unaveraged and reported (the midpoint on half the box): the
+    # same uniform value; one component each, the reported one the active scalars.
+    for name in ("von_mises_unaveraged_MPa", "von_mises_reported_MPa"):
+        assert pd[name].ndim == 1
+        np.testing.assert_allclose(pd[name], np.sqrt(1.5 * np.sum(dev * dev)), rtol=1e-6)
+    assert not m.cell_data
+    assert b'<PointData Scalars="von_mises_reported_MPa">' in (tmp_path / files["fields"]).read_bytes()[:4000]
+
+
+def test_the_reported_array_is_the_reading_rule_at_every_node(tmp_path):
+    """u_x = a·max(x − 1, 0) on a box with a layer of vertices at x = 1, read with the midpoint
+    on x ≥ 1: every tet's stress is exact, zero left of x = 1 and uniaxial strain right of it
+    (von Mises |σ_xx − σ_yy| = 2μ·a). At each vertex the unaveraged reading is that value
+    where a tet of the right side has the vertex (x ≥ 1) and zero elsewhere; the reported one
+    is the midpoint of it and the file's averaged von Mises where x ≥ 1, the unaveraged one
+    elsewhere; at a mid-edge node the mean of its edge's two vertices (linear, as the
+    averaged stress). The array's largest value is the peak read from the same readings."""
+    from pipeline.post.peaks import node_peak
+    a = 1e-3
+    mat = Material(210_000.0, 0.3)
+    mu = mat.E / (2 * (1 + mat.nu))
+    right = 2 * mu * a
+    mesh = create_box(MPI.COMM_WORLD, [np.zeros(3), np.array([2.0, 1.0, 1.0])], [4, 2, 2], CellType.tetrahedron)
+    u = fem.Function(fem.VectorFunctionSpace(mesh, ("CG", 2)))
+    u.interpolate(lambda x: np.vstack([a * np.maximum(x[0] - 1.0, 0.0), 0 * x[0], 0 * x[0]]))
+    readings = node_readings(u, mat, lambda xyz: xyz[:, 0] >= 1.0 - 1e-9)
+    files = write_fields(tmp_path, u, readings, mat)
+    peak = node_peak(readings)
+    if MPI.COMM_WORLD.rank != 0:
+        return
+    m = meshio.read(tmp_path / files["fields"])
+    x, cells = m.points.astype(float), m.cells_dict["tetra10"]
+    pd = {k: v.astype(float) for k, v in m.point_data.items()}
+    vertices = np.unique(cells[:, :4])
+    xv = x[vertices, 0]
+    unaveraged = np.where(xv >= 1.0 - 1e-6, right, 0.0)
+    np.testing.assert_allclose(pd["von_mises_unaveraged_MPa"][vertices], unaveraged, atol=1e-6 * right)
+    expected = np.where(xv >= 1.0 - 1e-6, 0.5 * (unaveraged + pd["von_mises_averaged_MPa"][vertices]), unaveraged)
+    np.testing.assert_allclose(pd["von_mises_reported_MPa"][vertices], expected, atol=1e-6 * right)
+    on = np.abs(xv - 1.0) < 1e-6
+    assert np.all(pd["von_mises_reported_MPa"][vertices][on] < 0.99 * right)   # the midpoint differs there
+    reported = pd["von_mises_reported_MPa"]
+    for k, (i, j) in zip(range(4, 10), ((0, 1), (1, 2), (2, 0), (0, 3), (1, 3), (2, 3))):   # VTK's tet10 edges
+        np.testing.assert_allclose(reported[cells[:, k]], 0.5 * (reported[cells[:, i]] + reported[cells[:, j]]),
+                                   atol=1e-6 * right)
+    assert reported.max() == pytest.approx(peak.value_MPa, rel=1e-6) and peak.value_MPa == pytest.approx(right)
+
+
+def test_peaks_vtp_reads_back_in_vtk(tmp_path):
+    """write_peaks: each place with its distinct mirror images (a place in x = 0 is its own
+    image there), names, labels, values and bands as given (NaN where there is no band),
+    read back by VTK's own reader (ParaView's)."""
+    from vtkmodules.util.numpy_support import vtk_to_numpy
+    from vtkmodules.vtkIOXML import vtkXMLPolyDataReader
+
+    from pipeline.output.fields import write_peaks
+    fe = {"peak": {"value_MPa": 113.642, "location_mm": [23.16, 6.86, 4.87], "feature": "journal shoulder fillet",
+                   "error_estimate": {"band": 0.6}},
+          "critical": {"value_MPa": 66.224, "location_mm": [0.0, 10.5, 0.0], "feature": "bore edge (bottom face)",
+                       "error_estimate": None}}
+    assert write_peaks(tmp_path, fe, whole_part=True) == {"peaks": "peaks.vtp"}
+    reader = vtkXMLPolyDataReader()
+    reader.SetFileName(str(tmp_path / "peaks.vtp"))
+    reader.Update()
+    poly = reader.GetOutput()
+    pd = poly.GetPointData()
+
+    def strings(name):
+        a = pd.GetAbstractArray(name)
+        return [a.GetValue(i) for i in range(a.GetNumberOfValues())]
+    xyz = vtk_to_numpy(poly.GetPoints().GetData())
+    np.testing.assert_array_equal(xyz, [[23.16, 6.86, 4.87], [-23.16, 6.86, 4.87], [23.16, -6.86, 4.87],
+                                        [-23.16, -6.86, 4.87], [0.0, 10.5, 0.0], [0.0, -10.5, 0.0]])
+    assert strings("name") == ["global peak"] * 4 + ["critical peak"] * 2
+    assert strings("label") == ["global peak 113.64 ± 0.60 MPa"] * 4 + ["critical peak 66.22 MPa"] * 2
+    assert strings("feature") == ["journal shoulder fillet"] * 4 + ["bore edge (bottom face)"] * 2
+    np.testing.assert_array_equal(vtk_to_numpy(pd.GetArray("value_MPa")), [113.642] * 4 + [66.224] * 2)
+    band = vtk_to_numpy(pd.GetArray("band_MPa"))
+    assert list(band[:4]) == [0.6] * 4 and np.isnan(band[4:]).all()
+    assert list(vtk_to_numpy(pd.GetArray("mirror_image"))) == [0, 1, 1, 1, 0, 1]
+    assert poly.GetNumberOfVerts() == 6
+    write_peaks(tmp_path, fe, whole_part=False)
+    reader.Modified()
+    reader.Update()
+    assert reader.GetOutput().GetNumberOfPoints() == 2

@@ -44,45 +44,66 @@ def von_mises_exact(p: np.ndarray) -> np.ndarray:
 
 @pytest.mark.parametrize("order", [2, 3])
 def test_linear_stress_both_readings_exact(order):
+    """At every node both readings equal the closed form, so the reported value does, and
+    the peak is the closed form's maximum, at a corner of the box."""
     mesh = create_box(MPI.COMM_WORLD, [np.zeros(3), np.array([2.0, 1.0, 1.5])], [4, 3, 3],
                       CellType.tetrahedron)
     V = fem.VectorFunctionSpace(mesh, ("CG", order))
     u = fem.Function(V)
     u.interpolate(displacement)
-    vals, xyz = pp.averaged_von_mises(u, MAT)
-    exact = von_mises_exact(xyz)
-    assert np.max(np.abs(vals - exact)) <= 1e-9 * np.max(exact)
-    vm = pp.von_mises(u, MAT)
-    both = pp.nodal_peak(vm, (vals, xyz), pp.MIDPOINT)
+    r = pp.node_readings(u, MAT, lambda xyz: xyz[:, 0] > 1.0)   # the midpoint on half the box
+    exact = von_mises_exact(r.xyz)
+    for values in (r.averaged, r.unaveraged, r.reported):
+        assert np.max(np.abs(values - exact)) <= 1e-9 * np.max(exact)
+    both = pp.node_peak(r)
     corners = np.array([[i, j, k] for i in (0, 2.0) for j in (0, 1.0) for k in (0, 1.5)])
     top = von_mises_exact(corners).max()   # a convex function of a linear field peaks at a corner
     assert both.unaveraged.value_MPa == pytest.approx(top, rel=1e-9)
     assert both.averaged.value_MPa == pytest.approx(top, rel=1e-9)
     assert both.half_width_MPa <= 1e-9 * top
+    assert np.any(np.all(np.isclose(corners, both.location_mm), axis=1))
 
 
 def test_jump_between_elements_is_averaged():
     """u_x = A·max(x − 1, 0) on a mesh with a layer of vertices at x = 1: the stress is zero
     on x < 1 and constant on x > 1, exactly in every P2 element. A node inside either side
-    reads that side's value; a node on x = 1 averages cells of both sides, so its averaged
-    von Mises lies strictly between 0 and the right side's, while both peaks keep the
-    right side's value."""
+    reads that side's value both ways; a node on x = 1 has cells of both sides, so its
+    unaveraged reading (the largest element-node value) is the right side's and its averaged
+    von Mises lies strictly between 0 and the right side's."""
     mesh = create_box(MPI.COMM_WORLD, [np.zeros(3), np.array([2.0, 1.0, 1.0])], [4, 2, 2],
                       CellType.tetrahedron)
     V = fem.VectorFunctionSpace(mesh, ("CG", 2))
     u = fem.Function(V)
     u.interpolate(lambda x: np.vstack([A * np.maximum(x[0] - 1.0, 0.0), 0 * x[0], 0 * x[0]]))
-    vals, xyz = pp.averaged_von_mises(u, MAT)
+    r = pp.node_readings(u, MAT, None)
+    vals, xyz = r.averaged, r.xyz
     s_xx, s_yy = (2 * MU + LAM) * A, LAM * A
     right = abs(s_xx - s_yy)                      # uniaxial strain: von Mises = |σ_xx − σ_yy|
     on, inside_right = np.abs(xyz[:, 0] - 1.0) < 1e-12, xyz[:, 0] > 1.0 + 1e-12
     assert np.allclose(vals[inside_right], right, rtol=1e-9)
     assert np.allclose(vals[~on & ~inside_right], 0.0, atol=1e-9 * right)
+    assert np.allclose(r.unaveraged[inside_right | on], right, rtol=1e-9)
+    assert np.allclose(r.unaveraged[~on & ~inside_right], 0.0, atol=1e-9 * right)
     if on.any():
         assert np.all((vals[on] > 0.01 * right) & (vals[on] < 0.99 * right)), vals[on] / right
-    both = pp.nodal_peak(pp.von_mises(u, MAT), (vals, xyz), pp.MIDPOINT)
+    both = pp.node_peak(r)
     assert both.unaveraged.value_MPa == pytest.approx(right, rel=1e-9)
     assert both.averaged.value_MPa == pytest.approx(right, rel=1e-9)
+
+
+def test_p1_unaveraged_reading_is_the_largest_cell_value_at_the_node():
+    """P1: each cell's stress is one constant (DG0); a node's unaveraged reading is the
+    largest constant of the cells that have the node. The jump of the test above, in P1:
+    the nodes on x = 1 read the right side's value, those left of it zero."""
+    mesh = create_box(MPI.COMM_WORLD, [np.zeros(3), np.array([2.0, 1.0, 1.0])], [4, 2, 2],
+                      CellType.tetrahedron)
+    u = fem.Function(fem.VectorFunctionSpace(mesh, ("CG", 1)))
+    u.interpolate(lambda x: np.vstack([A * np.maximum(x[0] - 1.0, 0.0), 0 * x[0], 0 * x[0]]))
+    r = pp.node_readings(u, MAT, None)
+    right = abs((2 * MU + LAM) * A - LAM * A)
+    left = r.xyz[:, 0] < 1.0 - 1e-12
+    assert np.allclose(r.unaveraged[~left], right, rtol=1e-9)
+    assert np.allclose(r.unaveraged[left], 0.0, atol=1e-9 * right)
 
 
 def _estimate(band):
@@ -104,7 +125,7 @@ def test_no_band_stays_no_band():
 
 
 def test_rules():
-    a, b = pp.Peak(110.0, (1.0, 2.0, 3.0)), pp.Peak(106.0, (1.1, 2.0, 3.0))
+    a, b = pp.Peak(110.0, (1.0, 2.0, 3.0)), pp.Peak(106.0, (1.0, 2.0, 3.0))
     assert pp.NodalPeak(a, b, pp.MIDPOINT).value_MPa == 108.0
     assert pp.NodalPeak(a, b, pp.UNAVERAGED).value_MPa == 110.0
     assert pp.NodalPeak(a, b).half_width_MPa == 2.0

@@ -11,7 +11,8 @@ from pathlib import Path
 
 import pytest
 
-from pipeline.study.screening import MARGIN, SCREENED, screen_case, screening_of, screened_rows, undecided
+from pipeline.study.screening import (FULL, MARGIN, NEXT_STEPS, SCREENED, STEPS, TWO_MESH_FACTOR, screen_case,
+                                      screening_of, screened_rows, undecided)
 from pipeline.output import flat
 from pipeline.study.plan import read_study
 from pipeline.study.table import crossings, escalations, with_verdicts
@@ -24,6 +25,7 @@ def _res(peak, critical, mesh_factor=2.2):
     fe = {"peak_MPa": peak[0], "critical_peak_MPa": critical[0]}
     for block, (_, un, av) in (("peak", peak), ("critical", critical)):
         fe[block] = {"unaveraged_MPa": un, "averaged_MPa": av}
+    fe["levels"] = [{"mesh_factor": mesh_factor, "peak_MPa": peak[0], "critical_peak_MPa": critical[0]}]
     return {"fe": fe, "case": {"mesh_factor": mesh_factor}}
 
 
@@ -55,18 +57,35 @@ def test_a_screened_row_carries_the_same_fraction_at_every_load():
     assert {r["peak_status"] for r in rows} == {SCREENED}
 
 
-def test_straddling_bands_and_the_neighbours_of_a_crossing_get_the_full_error_bar():
+def test_the_neighbours_of_a_crossing_get_the_full_error_bar_and_straddling_bands_the_next_steps():
     # rf 1..4 at 150, 130, 110, 90 MPa, each ±10 %; allowable 120: 130 ± 13 and 110 ± 11
-    # hold it, and they are also the crossing's neighbours; 150 ± 15 fails, 90 ± 9 passes.
+    # hold it, and they are also the crossing's neighbours: the full error bar at once.
     rows = [_row(k, rf, v, 0.1 * v) for k, rf, v in (("a", 1.0, 150.0), ("b", 2.0, 130.0), ("c", 3.0, 110.0),
                                                       ("d", 4.0, 90.0))]
     why = escalations(rows, ["dims.rf"], 120.0)
-    assert set(why) == {"b", "c"} and why["b"].startswith("its band holds")
+    assert set(why) == {"b", "c"} and {w[1] for w in why.values()} == {FULL}
     # At 100 MPa: 110 ± 11 holds it; 90 ± 9 (81..99) passes but borders the crossing.
     why = escalations(rows, ["dims.rf"], 100.0)
     assert set(why) == {"c", "d"}
-    assert why["d"] == "it borders a crossing of the global peak along rf"
+    assert why["d"] == ("it borders a crossing of the global peak along rf", FULL)
     assert not undecided(rows[0], 100.0)
+    # 150, 125, 140 at 120: no crossing; 125 ± 12.5 holds it and takes the next steps alone.
+    rows = [_row(k, rf, v, 0.1 * v) for k, rf, v in (("a", 1.0, 150.0), ("b", 2.0, 125.0), ("c", 3.0, 140.0))]
+    assert escalations(rows, ["dims.rf"], 120.0) == {"b": ("its band holds the allowable 120 MPa", NEXT_STEPS)}
+
+
+def test_the_two_mesh_band_is_the_trend_times_its_factor_or_the_margin():
+    """Two meshes, ×1.3 then ×1.69: the band is the larger of the finer mesh's half
+    bracket plus TWO_MESH_FACTOR × their difference and the step's fraction of the value."""
+    two = next(s for s in STEPS if s.levels == 2)
+    res = _res((100.0, 100.4, 99.6), (60.0, 60.1, 59.9), mesh_factor=1.0)
+    res["fe"]["levels"] = [{"mesh_factor": 1.3, "peak_MPa": 100.0, "critical_peak_MPa": 60.0},
+                           {"mesh_factor": 1.69, "peak_MPa": 101.5, "critical_peak_MPa": 60.05}]
+    s = screening_of(res, two)
+    # The bracket 0.4 plus 3 × |100 − 101.5| = 4.9, against the step's fraction of 100.
+    assert s["peaks"]["peak"]["band_MPa"] == pytest.approx(max(0.4 + TWO_MESH_FACTOR * 1.5, two.margin["peak"] * 100))
+    assert s["peaks"]["critical"]["band_MPa"] == pytest.approx(max(two.margin["critical"] * 60.0, 0.1 + 3 * 0.05))
+    assert s["meshes"] == [1.3, 1.69] and s["step"] == two.name
 
 
 def test_a_singular_peak_is_left_to_the_full_analysis():
@@ -177,3 +196,48 @@ def test_a_real_screened_study_decides_as_the_full_one_and_its_summary_names_the
     line = next(ln for ln in md.splitlines()
                 if ln.startswith("- Decided by full error bar (it borders a crossing of the global peak along rf): "))
     assert "No. 05 (rf = 1 mm" in line and "No. 05 (rf = 2 mm" in line  # in the order of the variants' keys
+
+
+def _stepping(monkeypatch, tmp_path, allowable: float, full_reading: float = 126.0):
+    """A screened variant sent to the next steps, with runs replaced by made-up readings
+    (global peak 130 MPa on the ×1.69 mesh, 126 on ×1.3, ``full_reading`` on ×1, each with
+    a ±0.2 MPa bracket; critical 60 MPa everywhere): the meshes each step asked for, and
+    the variant's screening.json."""
+    from pipeline.study import sweep as sweep_module
+    from pipeline.study.plan import Study, plan
+    by_factor = {1.69: 130.0, 1.3: 126.0, 1.0: full_reading}
+    asked: list[list[float]] = []
+
+    def write_run(case, options, folder, ctx):
+        factors = [round(f / case.mesh_factor, 2) for f in options.factors(case)]
+        asked.append(factors)
+        levels = [{"mesh_factor": f, "peak_MPa": by_factor[f], "critical_peak_MPa": 60.0} for f in factors]
+        res = _res((by_factor[factors[0]], by_factor[factors[0]] + 0.2, by_factor[factors[0]] - 0.2),
+                   (60.0, 60.1, 59.9), mesh_factor=factors[0])
+        res["fe"]["levels"] = levels
+        folder.mkdir(parents=True, exist_ok=True)
+        (folder / "results.json").write_text(json.dumps(res))
+        return res
+
+    def rows(res):
+        return [_row("a", 1.0, res["fe"]["peak_MPa"], None, critical=60.0, critical_band=None)]
+
+    monkeypatch.setattr(sweep_module, "write_run", write_run)
+    monkeypatch.setattr(sweep_module.flat, "rows", rows)
+    study = Study("05", None, {"allowable_MPa": allowable}, {"dims.rf": [1.2]}, [], screen=True)
+    task = plan(study)[0]
+    sweep_module.run_task(task, tmp_path, study, escalation=("its band holds the allowable", NEXT_STEPS))
+    kept = json.loads((sweep_module.variant_folder(tmp_path, task.key) / "screening.json").read_text())
+    return asked, kept
+
+
+def test_an_undecided_variant_stops_at_the_first_step_that_decides_it(monkeypatch, tmp_path):
+    # At 120 MPa: one mesh, 130 ± 5 % (123.5..136.5) fails clear of it: no more meshes.
+    asked, kept = _stepping(monkeypatch, tmp_path, 120.0)
+    assert asked == [[1.69]]
+    assert kept["step"] == "one mesh" and kept["full_error_bar"] is False
+    assert [s["step"] for s in kept["steps"]] == ["one mesh"]
+    # At 128 MPa: 130 ± 6.5 holds it; two meshes, 126 ± 3 × 4 = 12 still do; the full error bar.
+    asked, kept = _stepping(monkeypatch, tmp_path, 128.0)
+    assert asked == [[1.69], [1.3, 1.69], [1.0, 1.3, 1.69]]
+    assert kept["full_error_bar"] is True and [s["step"] for s in kept["steps"]] == ["one mesh", "two meshes"]

@@ -180,7 +180,7 @@ def test_a_variant_changed_while_its_study_runs_is_analysed_again_before_the_sum
     from pipeline.study import sweep as sweep_module
     runs: list[str] = []
 
-    def run_task(task, out, study, screen=False, why_full=None):
+    def run_task(task, out, study, screen=False, escalation=None):
         runs.append(task.key)
         folder = a_variant(out, task.key, {"run": len(runs)})
         if len(runs) == 1:  # changed after its checksums: by hand, or by another program

@@ -4,13 +4,13 @@ Formula baselines: the paper (Imrak et al. 2007 §5) and docs/design.md §6.
 
 FE baselines: an independent solution of the same model with P3 elements and MUMPS
 (another element order and solver than the P2 + p-multigrid default), on its own
-pilot-refined mesh (357 645 DOFs), made with
+pilot-refined mesh (388 650 DOFs), made with
 
     python -m pipeline run --size 05 --order 3 --mesh-factor 1.3 --levels 1 --solver mumps --no-fields
 
 on the 2-core development machine (Debian 12, gmsh 4.8.0, DOLFINx 0.5.2): global peak
-113.79 MPa (journal shoulder fillet), critical peak 66.27 MPa (bore edge). The same
-command at --mesh-factor 1.69 gives 114.10 and 66.27 MPa.
+113.72 MPa (journal shoulder fillet), critical peak 66.27 MPa (66.265, bore edge). The
+same command at --mesh-factor 1.69 gives 113.83 and 66.26 MPa (66.263).
 
 The global peak's baseline is the fillet reference of `make reference`
 (bench/fillet_reference.py, docs/fillet-reference.md): 113.82 ± 0.10 MPa, from P3 and P4
@@ -18,8 +18,8 @@ on meshes refined only at the fillet, the peak sampled on the exact torus.
 
 Tolerances come from measured errors and the project's target, no tighter:
 - global: 1 % of the reference (the project's accuracy target, docs/design.md §6). The
-  default mesh reads 113.77 MPa (−0.05 %, `make run`); at mesh factors 0.8 … 1.3 `make
-  run` reads within −0.34 … +0.55 % (docs/accuracy.md). The run's error bar must cover
+  default mesh reads 113.64 MPa (−0.16 %, `make run`); at mesh factors 0.8 … 1.3 `make
+  run` reads within −0.47 … +0.23 % (docs/accuracy.md). The run's error bar must cover
   the reference.
 - critical: 0.2 MPa (0.3 %). The levels of `make converge` lie within 66.22 … 66.25 MPa
   and both P3 solutions at 66.27; the tolerance is ten times that spread so that gmsh's
@@ -103,7 +103,7 @@ OTHER_PARTS = [
 def test_default_run_error_bar_covers_other_parts_references(size, dims, reference):
     """The default path's three meshes on parts other than No. 05's row: the global peak's
     band covers the part's own independent reference and the value lies within 1 % of it
-    (measured: +0.33 %, −0.09 %, +0.14 %; before the pilot's threshold followed the midpoint
+    (measured: +0.14 %, −0.28 %, −0.14 %; before the pilot's threshold followed the midpoint
     No. 1.6 read +3.1 % and rf = 0.3 mm +4.0 %)."""
     case = resolve(size, overrides=dims)
     levels = run(case, ERROR_BAR).levels
