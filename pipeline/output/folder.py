@@ -63,14 +63,29 @@ def write_run(case: Case, options: RunOptions, out_dir: Path, ctx: RunContext = 
 
 def _write_files(result: RunResult, stage: Path, early: "EarlyOutput", t_all: float) -> dict:
     """The files of a complete result: mesh.msh, the plots (the drawing ends), peaks.vtp,
-    results.json once, then the report from it, printed to report.pdf beside the tables
-    (meshes.csv, sensitivity.csv); returns results.json's content."""
+    results.json once, then the report and the tables (meshes.csv, sensitivity.csv) from it,
+    and report.html printed to report.pdf by a browser started at the outset (rank 0, with
+    fields, where one is installed); returns results.json's content."""
+    comm, outputs = early.comm, result.options.outputs
+    exe = pdf.browser() if outputs.fields and comm.rank == 0 else None
+    # Started now, so that it is up when report.html is written: its start-up overlaps the plots.
+    browser = pdf.Browser(exe) if exe else None
+    with on_stop(browser.kill) if browser else contextlib.nullcontext():
+        try:
+            return _write_result(result, stage, early, t_all, browser)
+        finally:
+            if browser is not None:
+                browser.kill()
+
+
+def _write_result(result: RunResult, stage: Path, early: "EarlyOutput", t_all: float,
+                  browser: "pdf.Browser | None") -> dict:
+    """:func:`_write_files` with the browser that prints report.pdf (None: no PDF)."""
     comm, outputs = early.comm, result.options.outputs
     files = {"results": "results.json", **({"mesh": "mesh.msh"} if outputs.mesh else {}), **early.files}
-    exe = pdf.browser() if outputs.fields and comm.rank == 0 else None
     if outputs.fields:
         files.update(peaks="peaks.vtp", picture="von_mises.png", report="report.md", report_html="report.html",
-                     **({"report_pdf": "report.pdf"} if exe else {}), meshes_table="meshes.csv",
+                     **({"report_pdf": "report.pdf"} if browser else {}), meshes_table="meshes.csv",
                      **({"sensitivity_table": "sensitivity.csv"} if result.sensitivity is not None else {}))
     if outputs.mesh and comm.rank == 0 and result.requested.msh is not None:
         (stage / "mesh.msh").write_bytes(result.requested.msh)
@@ -90,15 +105,13 @@ def _write_files(result: RunResult, stage: Path, early: "EarlyOutput", t_all: fl
     if (outputs.fields or result.convergence is not None) and comm.rank == 0:
         write_report(stage)
     if outputs.fields and comm.rank == 0:
-        printing = pdf.start_print(stage / "report.html", stage / "report.pdf", exe) if exe else None
-        with on_stop(printing.kill) if printing else contextlib.nullcontext():
-            write_tables(stage, res)  # beside the print
-            if printing is not None:
-                early.t_pdf, why = printing.finish()
-                if why is not None:  # the run stands without its PDF: results.json says so
-                    early.say(f"report.pdf: not printed, {why}")
-                    del res["files"]["report_pdf"]
-                    write_json(stage / "results.json", res, comm.rank)
+        write_tables(stage, res)
+    if browser is not None:
+        early.t_pdf, why = browser.print_pdf(stage / "report.html", stage / "report.pdf")
+        if why is not None:  # the run stands without its PDF: results.json says so
+            early.say(f"report.pdf: not printed, {why}")
+            del res["files"]["report_pdf"]
+            write_json(stage / "results.json", res, comm.rank)
     return res
 
 
