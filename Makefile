@@ -5,7 +5,8 @@
 SHELL := /bin/bash
 PY := .venv/bin/python
 SETUP := .venv/.setup-done
-# run and converge use every core (MPI ranks through pipeline.runtime.launch); RANKS=1 runs without MPI.
+# run, converge, sizes and each size use every core (MPI ranks through pipeline.runtime.launch);
+# RANKS=1 runs without MPI.
 RANKS ?= $(shell nproc 2>/dev/null || echo 1)
 CROSSHEAD := .venv/bin/crosshead
 RUN := $(if $(filter 1,$(RANKS)),$(CROSSHEAD),$(PY) -m pipeline.runtime.launch $(RANKS))
@@ -89,8 +90,9 @@ setup: $(SETUP)
 $(SETUP): tools/setup.sh requirements.txt constraints.txt pyproject.toml
 	bash tools/setup.sh
 
+# One size, on every core as make run (RANKS=1: without MPI).
 $(SIZES): $(SETUP)
-	$(CROSSHEAD) run --size $@ --out results/$@
+	$(RUN) run --size $@ --out results/$@
 
 # Every size as one sweep over the MPI ranks (dynamic: a slow size holds one rank; a re-run
 # skips finished sizes), then the batch summary in results/summary/.

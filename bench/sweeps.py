@@ -18,16 +18,16 @@ Each study is a fresh process into a fresh folder with the run cache off:
   screened study's steps between the cheap level and the full error bar at work.
 
 A ``*-full`` study runs the code of the checkout ``--base`` names (the same .venv; its
-own launcher), else this code without ``--screen``. The configurations take turns (each
-repeat runs every one) so that a drift of the machine's speed touches all alike; the
-figures are medians over ``--repeats``. A screened study is compared with its full study
-of the same repeat: its decisions (each row's verdict per peak, the crossings of the
-allowable) must be identical, and each variant's band must hold the full study's value
-with its band, at every step it took; and from the full study's three readings of each
-variant, the smallest band each step short of the full error bar would need
-(needed_margins). The targets: 19 sizes <= 60 s, 24 variants <= 90 s, 2 ranks >= 1.8x
-the throughput of 1, a screened study >= 3x faster than its full one (medians). Writes
-sweeps.json and prints a table.
+own launcher), else this code without ``--screen``. The configurations take turns (each repeat
+runs every one) so that a drift of the machine's speed touches all alike; the figures are
+medians over ``--repeats``. A screened study is compared with its full study of the same
+repeat: its decisions (each row's verdict per peak, the crossings of the allowable) must
+be identical, and each variant's cheap band must hold the full study's value with its
+band, at every step it took; and from the full study's three readings of each variant, the
+smallest band each step short of the full error bar would need (needed_margins). The
+targets: 19 sizes <= 60 s, 24 variants <= 90 s, 2 ranks >= 1.8x the throughput of 1, a
+screened study >= 3x faster than its full one (medians). Writes sweeps.json and prints a
+table.
 """
 from __future__ import annotations
 

@@ -12,6 +12,8 @@ from pipeline.runtime.environment import configure  # noqa: E402
 
 configure()  # the same form cache, BLAS threads and PETSc options as the command line
 os.environ.setdefault("CROSSHEAD_NO_CACHE", "1")  # tests exercise the mesher and the pilot themselves
+os.environ["CROSSHEAD_DOCUMENT"] = ""  # no title-block defaults file of the user's: the tests' own inputs only
+os.environ.setdefault("CROSSHEAD_NO_PDF", "1")  # report.pdf only where a test asks for it (tests/output/test_report.py)
 
 import gmsh  # noqa: E402
 import pytest  # noqa: E402

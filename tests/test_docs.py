@@ -27,7 +27,7 @@ REPO_PATH = re.compile(r"^(?:docs|pipeline|geometry|bench|tests|tools|cases)/[\w
 # A dotted name in one of the Python packages: pipeline.fe.solve, geometry.curved, ...
 MODULE_NAME = re.compile(r"(?<![\w./-])((?:pipeline|geometry|bench)(?:\.[A-Za-z_]\w*)+)")
 # A file name, not a module: results/bench/bench.json, bench.png.
-FILE_NAME = re.compile(r"\.(?:csv|png|jsonl?|md|py|msh|vtu|vtp|toml|html|txt|sh|inp)$")
+FILE_NAME = re.compile(r"\.(?:csv|png|jsonl?|md|py|msh|vtu|vtp|toml|html|pdf|txt|sh|inp)$")
 # A module's short name and one of its names: errorbar.verdict_against, meshing.Mesher.
 SHORT_NAME = re.compile(r"^([a-z_][a-z0-9_]*)\.([A-Za-z_]\w*)")
 # Dotted names of other libraries, objects and results.json keys, not of this repository.

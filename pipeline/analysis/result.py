@@ -22,14 +22,17 @@ from pipeline.post.peaks import NodalPeak
 class PeakAnswer:
     """One peak as the run reports it: its reading on the requested mesh (MPa, mm), where it
     sits in words, its error estimate as reported (None on one mesh, or no finite value),
-    the singular feature it sits at (None: it has a finite value) and, for a peak the run
-    was not asked for (want), why it is shown for orientation only."""
+    the singular feature it sits at (None: it has a finite value), for a peak the run was
+    not asked for (want) why it is shown for orientation only, and its status in the words
+    every output uses (pipeline.analysis.words: within tolerance, above tolerance, single
+    mesh, singular, not asked)."""
 
     reading: NodalPeak
     feature: str
     estimate: Estimate | None
     singular: str | None
     not_wanted: str | None
+    status: str
 
     @property
     def value_MPa(self) -> float:
@@ -57,8 +60,9 @@ class SafetyFactor:
 class Verdict:
     """One checked stress against the allowable (MPa): its value and band, pass / fail /
     undecided (the band straddles the allowable) / none (no finite or wanted value, ``why``
-    says which), the margin (%), the hook load at which it reaches the allowable (N) and
-    that load's range over the band."""
+    says which), the margin (%), the hook load at which it reaches the allowable (N),
+    that load's range over the band, and the safety factor allowable / value (None
+    without a verdict)."""
 
     value_MPa: float
     band_MPa: float | None
@@ -67,6 +71,7 @@ class Verdict:
     capacity_N: float | None
     capacity_range_N: list[float] | None
     why: str | None
+    safety_factor: float | None = None
 
     def as_dict(self) -> dict:
         return asdict(self)

@@ -21,6 +21,7 @@ from pipeline.analysis.sensitivity import LOAD_MESH_RATIO, analyse_sensitivity
 from pipeline.analysis.tolerance import solve_to_tolerance
 from pipeline.analysis.verdicts import (SAFETY_KEYS, checked_stresses, load_rows, loads_verdict, safety_factor,
                                         sensitivity_answer, sentence_over_loads, verdicts)
+from pipeline.analysis.words import coarse_mesh_note, peak_status
 from pipeline.inputs.case import Case
 from pipeline.inputs.options import RunOptions
 from pipeline.post import formulas
@@ -68,7 +69,7 @@ def run(case: Case, options: RunOptions, ctx: RunContext = RunContext()) -> RunR
         hand=hand, safety={SAFETY_KEYS[k]: safety_factor(case.allowable_MPa, p) for k, p in peaks.items()},
         verdicts=judged, comparison_pct=comparison_pct(meshes.levels[0], hand), accuracy=meshes.accuracy,
         load_rows=rows, sensitivity=sens, loads_verdict=loads_verdict(rows) if rows else None,
-        notes=[], timings=stage_timings(meshes.levels, meshes.places, sens and sens.analysis.time_s, t0),
+        notes=run_notes(case), timings=stage_timings(meshes.levels, meshes.places, sens and sens.analysis.time_s, t0),
         mpi_ranks=ctx.comm.size, convergence=convergence(case, meshes.levels, peaks) if options.convergence else None)
 
 
@@ -83,7 +84,15 @@ def peak_answer(case: Case, levels: list[Level], key: str) -> PeakAnswer:
     return PeakAnswer(reading=reading, feature=describe_location(case, reading.location_mm), estimate=est,
                       singular=singular,
                       not_wanted=None if wanted else (f"want = {case.want}: the run did not refine for the {name} "
-                                                      "peak; shown for orientation only"))
+                                                      "peak; shown for orientation only"),
+                      status=peak_status(case.tolerance_pct, reading.value_MPa, None if est is None else est.band,
+                                         singular, wanted))
+
+
+def run_notes(case: Case) -> list[str]:
+    """What a reader must know beside the numbers, in the words every output prints them
+    (pipeline.analysis.words): a mesh too coarse for the fillet."""
+    return [n for n in (coarse_mesh_note(case),) if n]
 
 
 def pct(a: float, b: float) -> float:

@@ -50,11 +50,12 @@ def checked_stresses(peaks: dict[str, PeakAnswer], sections: dict | None
 def verdicts(allowable_MPa: float, load_N: float, checks: dict[str, tuple[float, PeakAnswer | None]],
              k: float = 1.0) -> dict[str, Verdict]:
     """Pass or fail of each checked stress against the allowable (MPa), with its margin and
-    error bar, and the hook load (N) that would bring it to the allowable (linear scaling:
-    the part's capacity at that allowable). A peak at a singular feature, or not asked for,
-    gets no verdict; a band that straddles the allowable gives "undecided". ``k``: the
-    checked stresses and their bands are those of the case's load × k, ``load_N`` (a load
-    of the run's list: every stress scales with the load, the capacity does not)."""
+    error bar, the hook load (N) that would bring it to the allowable (linear scaling:
+    the part's capacity at that allowable) and the safety factor allowable / value. A peak
+    at a singular feature, or not asked for, gets no verdict; a band that straddles the
+    allowable gives "undecided". ``k``: the checked stresses and their bands are those of
+    the case's load × k, ``load_N`` (a load of the run's list: every stress scales with the
+    load, the capacity does not)."""
     out = {}
     for name, (value, peak) in checks.items():
         value = k * value
@@ -69,7 +70,7 @@ def verdicts(allowable_MPa: float, load_N: float, checks: dict[str, tuple[float,
         out[name] = Verdict(value, band, verdict_against(value, band, allowable_MPa),
                             100 * (allowable_MPa / value - 1), load_N * allowable_MPa / value,
                             [load_N * allowable_MPa / hi, load_N * allowable_MPa / lo]
-                            if band is not None and lo > 0 else None, None)
+                            if band is not None and lo > 0 else None, None, allowable_MPa / value)
     return out
 
 

@@ -5,6 +5,51 @@ from __future__ import annotations
 
 import re
 
+# A peak's status: how far its error bar can be trusted, in the words every output uses
+# (results.json's fe.peak.status and fe.critical.status, the terminal, the plots' titles,
+# the report, the tables' peak_status and critical_status columns), decided once by
+# peak_status below when the run builds its answer (pipeline.analysis.run.peak_answer).
+WITHIN_TOLERANCE = "within tolerance"  # its band is at most the tolerance asked (% of the value)
+ABOVE_TOLERANCE = "above tolerance"    # its band is wider than the tolerance asked
+SINGLE_MESH = "single mesh"            # read on one mesh (--levels 1): no error bar
+SINGULAR = "singular"                  # at a singular feature: no finite value, no verdict
+NOT_ASKED = "not asked"                # the run did not refine for it (--want): no value, no verdict
+PEAK_STATUSES = {
+    WITHIN_TOLERANCE: "its error bar is at most the tolerance asked (case tolerance_pct, % of the value)",
+    ABOVE_TOLERANCE: "its error bar is wider than the tolerance asked: a finer --mesh-factor narrows it",
+    SINGLE_MESH: "read on one mesh (--levels 1): no error bar",
+    SINGULAR: "it sits at a singular feature and grows under refinement: no finite value, no verdict",
+    NOT_ASKED: "the run was asked for the other peak only (--want) and did not refine for this one: "
+               "no value, no verdict",
+}
+
+
+def peak_status(tolerance_pct: float, value_MPa: float, band_MPa: float | None, singular: str | None,
+                wanted: bool) -> str:
+    """A peak's status (the words above), decided once for every output: not asked
+    for (not ``wanted``), at a ``singular`` feature, read on a single mesh (no band), else
+    whether its band (MPa) is within ``tolerance_pct`` (% of ``value_MPa``), the same test
+    as the run's accuracy (tolerance.within)."""
+    if not wanted:
+        return NOT_ASKED
+    if singular is not None:
+        return SINGULAR
+    if band_MPa is None:
+        return SINGLE_MESH
+    return WITHIN_TOLERANCE if 100.0 * band_MPa / max(abs(value_MPa), 1e-300) <= tolerance_pct else ABOVE_TOLERANCE
+
+
+# A verdict (results.json's fe.verdict.*.verdict) as a person reads it, on the terminal,
+# in the report and in the plots.
+VERDICT_WORDS = {"pass": "PASS", "fail": "FAIL", "undecided": "UNDECIDED", "none": "no verdict"}
+
+
+def verdict_word(verdict: str) -> str:
+    """A verdict for a person: 'PASS', 'FAIL', 'UNDECIDED' (the band holds the allowable) or
+    'no verdict'."""
+    return VERDICT_WORDS.get(verdict, verdict)
+
+
 # The stresses a verdict is given for, by results.json's verdict names.
 STRESS_NAMES = {"global_peak": "global peak", "critical_peak": "critical peak",
                 "critical_section_nominal": "critical-section nominal stress",

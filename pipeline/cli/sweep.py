@@ -8,9 +8,10 @@ from pathlib import Path
 
 from geometry.table import load_table
 from pipeline.cli.options import CASE_KEYS, add_case_options, integer, number
-from pipeline.cli.terminal import progress, quiet, show
+from pipeline.cli.terminal import progress, quiet
+from pipeline.cli.terminal import say as say_wrapped
 from pipeline.errors import InputError, given_twice
-from pipeline.inputs.case import given_keys, read_case_file
+from pipeline.inputs.case import given_keys
 from pipeline.inputs.valuelist import MOST_DIM_VALUES, parse_loads, parse_values
 from pipeline.runtime.folders import default_out
 from pipeline.study.plan import Study, read_study
@@ -20,7 +21,7 @@ from pipeline.study.plan import Study, read_study
 SWEEP_DEFAULTS = {"levels": 3, "ratio": 1.3}
 EPILOG = """\
 examples:
-  crosshead sweep --size 05 --dim rf=0.5:2.5:5              the fillet radius from 0.5 to 2.5 mm
+  crosshead sweep --size 05 --dim rf=0.5:2:4                the fillet radius from 0.5 to 2 mm
   crosshead sweep --size 05 --dim rf=1,2 --dim dj=16,18,20   a grid of six variants
   crosshead sweep --study cases/sweep-rf.toml
   python -m pipeline.runtime.launch 2 sweep --size 05 --dim rf=1:2:3         variants spread over 2 ranks
@@ -50,8 +51,8 @@ def add_parser(sub, description: str, epilog: str) -> None:
     sweep.add_argument("--ratio", type=number, help="mesh-size ratio between them (default 1.3)")
     sweep.add_argument("--screen", action="store_true",
                        help="decide each variant with the least work: one coarse mesh first, the full error bar only "
-                            "where its band holds the allowable or the variant borders a crossing; needs an allowable "
-                            "(--allowable or the case file's)")
+                            "where its band holds the allowable (--allowable, the case file's, or the run's default "
+                            "80 MPa) or the variant borders a crossing")
     sweep.add_argument("--sensitivity", action="store_true",
                        help="each variant also varies its assumed inputs (dj, rf, seat, bearing load model) over "
                             "their ranges, and the table says which verdicts depend on one (about doubles a variant's "
@@ -107,10 +108,6 @@ def execute(args: argparse.Namespace, rank0: bool, stack: contextlib.ExitStack) 
         raise InputError("dim: a sweep needs at least one --dim NAME=VALUES, several loads or --sizes")
     out = args.out or (Path(study["out"]) if "out" in study else default_out(f"sweep-{size or Path(case_file).stem}"))
     screen = args.screen or bool(study.get("screen", False))
-    if screen and "allowable_MPa" not in base and not (
-            case_file is not None and "allowable_MPa" in read_case_file(case_file)):
-        raise InputError("screen: a screened study decides against an allowable; give --allowable MPa "
-                         "(or allowable_MPa in the case file), or leave screening off for the full analysis")
     say = quiet if args.quiet else progress
     if screen and args.sensitivity:
         raise InputError("sensitivity: a screened study decides most variants on one coarse mesh, without the "
@@ -125,7 +122,10 @@ def execute(args: argparse.Namespace, rank0: bool, stack: contextlib.ExitStack) 
         # With several loads a row is a case (a variant at one load), and the counts are of cases.
         n = sum(c.values())
         cases = f"{n} cases ({n // len(loads)} variants at {len(loads)} loads): " if len(loads) > 1 else ""
-        show(f"sweep: {cases}{c['done']} done, {c['invalid']} invalid, {c['failed']} failed; "
-             f"{passing_count(res['rows'])} of {c['done']} pass {res['allowable_MPa']:g} MPa with every peak; "
-             f"{len(res['crossings'])} crossing(s) of the allowable; written to {out}/ (sweep.csv, sweep.json, report.md)")
+        for note in res.get("notes") or []:
+            say_wrapped(f"note: {note}")
+        say_wrapped(f"sweep: {cases}{c['done']} done, {c['invalid']} invalid, {c['failed']} failed; "
+                    f"{passing_count(res['rows'])} of {c['done']} pass {res['allowable_MPa']:g} MPa with every peak; "
+                    f"{len(res['crossings'])} crossing(s) of the allowable; written to {out}/ (report.html, "
+                    "report.md, sweep.csv, sweep.json)")
     return 0

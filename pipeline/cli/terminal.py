@@ -5,12 +5,14 @@ from __future__ import annotations
 
 import contextlib
 import sys
+import textwrap
 import threading
 import time
 
 from pipeline.runtime.streams import closed_at_start, silence_stdout
 
 T_START = time.perf_counter()
+WIDTH = 100  # the longest line the closing lines print (characters)
 
 
 class StdoutError(Exception):
@@ -57,3 +59,15 @@ def show(line: str) -> None:
             return  # the meshing heartbeat's: the main thread's next line meets the failure and reports it
         silence_stdout()
         raise StdoutError(f"stdout: cannot write ({exc.strerror or exc})") from None
+
+
+def wrapped(text: str) -> list[str]:
+    """``text`` as lines of at most WIDTH characters, the continuations indented by two
+    spaces; a word longer than a line (a long path) is kept whole on a line of its own."""
+    return textwrap.wrap(text, WIDTH, subsequent_indent="  ", break_long_words=False, break_on_hyphens=False)
+
+
+def say(text: str) -> None:
+    """Print ``text`` (:func:`show`) wrapped to WIDTH: a closing line a person scans."""
+    for line in wrapped(text):
+        show(line)

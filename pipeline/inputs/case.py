@@ -15,6 +15,7 @@ from geometry.meshspec import MeshSpec
 from geometry.table import Dimensions, InputError, lookup, paper_spans, validate
 
 from pipeline.inputs.choices import BEARING_AT, BEARING_SHAPES, MODELS, SOLVERS, SUPPORTS, WANTS
+from pipeline.inputs.document import KEYS as DOCUMENT_FIELDS, document_defaults
 from pipeline.inputs.tomlfile import read_toml
 
 DIMENSION_KEYS = tuple(f.name for f in fields(Dimensions))
@@ -22,7 +23,7 @@ DIMENSION_KEYS = tuple(f.name for f in fields(Dimensions))
 SENSITIVITY_KEYS = ("dj", "rf", "seat_inner", "seat_outer", "bearing_centre_mm", "bearing_length_mm")
 # The report's title block ([document] in a case file): what the part is, its drawing or
 # document number, revision, who made and who checked the calculation.
-DOCUMENT_KEYS = ("part", "number", "revision", "author", "checker")
+DOCUMENT_KEYS = DOCUMENT_FIELDS
 # The sensitivity ranges of the journal load model's choices (support "bearing" only).
 LOAD_MODEL_KEYS = ("bearing_centre_mm", "bearing_length_mm")
 
@@ -278,9 +279,11 @@ def resolve(size: str | None = None, case_file: Path | None = None,
             overrides: dict[str, Any] | None = None) -> Case:
     """Build and check a Case from a size, a case file and overrides (same keys as the file).
 
-    Overrides use Case field names, or 'dims.<name>' for a dimension.
+    Overrides use Case field names, or 'dims.<name>' for a dimension. The report's title
+    block starts from its defaults file (pipeline.inputs.document), which the case file's
+    [document] and the overrides' document fields override.
     """
-    values: dict[str, Any] = {}
+    values: dict[str, Any] = document_defaults()  # the title block's defaults file, below the case file
     given = {k: v for k, v in (overrides or {}).items() if v is not None}
     if case_file is not None:
         values.update(read_case_file(case_file))

@@ -2,11 +2,13 @@
 replaces the output folder only when complete, each file written once (mm, N, MPa).
 
 What a run writes: results.json (always), mesh.msh (``outputs.mesh``) and, with
-``outputs.fields``, fields.vtu, peaks.vtp, the pictures and plots, report.md and
-report.html. The field file is written as soon as the requested mesh is solved, so that the
-drawing processes start beside the error-bar solves; peaks.vtp (the reported places with
-their bands) and results.json are written when the result is complete and the drawings
-have ended, and the report reads only results.json.
+``outputs.fields``, fields.vtu, peaks.vtp, the pictures and plots, report.md, report.html,
+report.pdf (where a headless Chromium is installed: pipeline/output/pdf.py) and the tables
+meshes.csv and sensitivity.csv. The field file is written as soon as the requested mesh is
+solved, so that the drawing processes start beside the error-bar solves; peaks.vtp (the
+reported places with their bands) and results.json are written when the result is complete
+and the drawings have ended, and the report and the tables read only results.json; the PDF
+is printed beside the tables, the run's last work.
 """
 from __future__ import annotations
 
@@ -14,6 +16,7 @@ import contextlib
 import time
 from dataclasses import dataclass, field, replace
 from pathlib import Path
+from typing import Callable
 
 from mpi4py import MPI
 
@@ -25,7 +28,7 @@ from pipeline.analysis.run import run
 from pipeline.fe.elasticity import Material
 from pipeline.inputs.case import Case
 from pipeline.inputs.options import RunOptions
-from pipeline.output import drawing
+from pipeline.output import drawing, flat, pdf
 from pipeline.output.fields import write_fields, write_peaks
 from pipeline.output.jsonio import write_json
 from pipeline.output.plots import convergence_plot
@@ -45,7 +48,7 @@ def write_run(case: Case, options: RunOptions, out_dir: Path, ctx: RunContext = 
     an earlier one as it was); returns results.json's content."""
     t_all = time.perf_counter()
     with staged_dir(out_dir, ctx.comm, ctx.say) as stage, contextlib.ExitStack() as stack:
-        early = EarlyOutput(case, options, stage, ctx.comm, stack)
+        early = EarlyOutput(case, options, stage, ctx.comm, stack, say=ctx.say)
         try:
             result = run(case, options, replace(ctx, on_requested=early.requested))
         except BaseException:
@@ -53,18 +56,37 @@ def write_run(case: Case, options: RunOptions, out_dir: Path, ctx: RunContext = 
             raise
         res = _write_files(result, stage, early, t_all)
         ctx.say(f"output: {', '.join(res['files'].values())} ({res['timings_s']['output']:.2f} s"
-                + (f"; picture {res['timings_s']['picture']:.2f} s, beside the error-bar solves)"
-                   if early.drawing else ")"))
+                + (f"; picture {res['timings_s']['picture']:.2f} s, beside the error-bar solves" if early.drawing else "")
+                + (f"; report.pdf {early.t_pdf:.2f} s" if early.t_pdf is not None else "") + ")")
     return res
 
 
 def _write_files(result: RunResult, stage: Path, early: "EarlyOutput", t_all: float) -> dict:
     """The files of a complete result: mesh.msh, the plots (the drawing ends), peaks.vtp,
-    results.json once, then the report from it; returns results.json's content."""
+    results.json once, then the report and the tables (meshes.csv, sensitivity.csv) from it,
+    and report.html printed to report.pdf by a browser started at the outset (rank 0, with
+    fields, where one is installed); returns results.json's content."""
+    comm, outputs = early.comm, result.options.outputs
+    exe = pdf.browser() if outputs.fields and comm.rank == 0 else None
+    # Started now, so that it is up when report.html is written: its start-up overlaps the plots.
+    browser = pdf.Browser(exe) if exe else None
+    with on_stop(browser.kill) if browser else contextlib.nullcontext():
+        try:
+            return _write_result(result, stage, early, t_all, browser)
+        finally:
+            if browser is not None:
+                browser.kill()
+
+
+def _write_result(result: RunResult, stage: Path, early: "EarlyOutput", t_all: float,
+                  browser: "pdf.Browser | None") -> dict:
+    """:func:`_write_files` with the browser that prints report.pdf (None: no PDF)."""
     comm, outputs = early.comm, result.options.outputs
     files = {"results": "results.json", **({"mesh": "mesh.msh"} if outputs.mesh else {}), **early.files}
     if outputs.fields:
-        files.update(peaks="peaks.vtp", picture="von_mises.png", report="report.md", report_html="report.html")
+        files.update(peaks="peaks.vtp", picture="von_mises.png", report="report.md", report_html="report.html",
+                     **({"report_pdf": "report.pdf"} if browser else {}), meshes_table="meshes.csv",
+                     **({"sensitivity_table": "sensitivity.csv"} if result.sensitivity is not None else {}))
     if outputs.mesh and comm.rank == 0 and result.requested.msh is not None:
         (stage / "mesh.msh").write_bytes(result.requested.msh)
     timings = {"output": early.t_output}
@@ -82,7 +104,24 @@ def _write_files(result: RunResult, stage: Path, early: "EarlyOutput", t_all: fl
     write_json(stage / "results.json", res, comm.rank)
     if (outputs.fields or result.convergence is not None) and comm.rank == 0:
         write_report(stage)
+    if outputs.fields and comm.rank == 0:
+        write_tables(stage, res)
+    if browser is not None:
+        early.t_pdf, why = browser.print_pdf(stage / "report.html", stage / "report.pdf")
+        if why is not None:  # the run stands without its PDF: results.json says so
+            early.say(f"report.pdf: not printed, {why}")
+            del res["files"]["report_pdf"]
+            write_json(stage / "results.json", res, comm.rank)
     return res
+
+
+def write_tables(folder: Path, res: dict) -> None:
+    """A run's tables from its results.json content ``res`` (pipeline/output/flat.py):
+    meshes.csv, and sensitivity.csv when the run has a sensitivity section."""
+    (folder / "meshes.csv").write_text(flat.csv_text(flat.MESH_COLUMNS, flat.mesh_rows(res)), encoding="utf-8")
+    if res.get("sensitivity"):
+        (folder / "sensitivity.csv").write_text(flat.csv_text(flat.SENSITIVITY_COLUMNS, flat.sensitivity_rows(res)),
+                                                encoding="utf-8")
 
 
 @dataclass
@@ -101,6 +140,8 @@ class EarlyOutput:
     drawing: drawing.Drawing | None = None
     t_output: float = 0.0
     whole_part: bool = False   # the field file holds a quarter model mirrored to the whole part
+    t_pdf: float | None = None  # the print of report.pdf (s), when the run made one
+    say: Callable[[str], None] = print
 
     def requested(self, fine: Level, places: Pilot) -> None:
         """The run's ``on_requested``: write the field file of the requested mesh's level and

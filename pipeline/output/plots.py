@@ -36,7 +36,7 @@ def convergence_figure(conv: dict, size: str):
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     levels = conv["levels"]  # finest first, as est["h"] and est["values"]
-    fig, axes = plt.subplots(1, 2, figsize=(11, 4.2))
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4.9))
     for ax, key, label in ((axes[0], "peak", "global peak"), (axes[1], "critical", "critical-region peak")):
         est = conv[key]
         asked = key not in conv.get("not_wanted", {})
@@ -58,9 +58,10 @@ def convergence_figure(conv: dict, size: str):
         ax.set_xlim(left=-0.03 * max(h))  # h = 0 (the limit) just inside the frame
         ax.set_xlabel("representative mesh size h = DOFs^(-1/3)")
         ax.set_ylabel("von Mises (MPa)")
-        ax.set_title(f"No. {size}: {label} [{est['status'] if asked else NOT_ASKED}]")
+        ax.set_title(f"No. {size}: {label}\ntrend over the meshes: {est['status'] if asked else NOT_ASKED}",
+                     fontsize=11)
         ax.grid(alpha=0.3)
-        ax.legend(fontsize=8)
+        ax.legend(fontsize=8, loc="upper center", bbox_to_anchor=(0.5, -0.16), ncol=2, frameon=False)
     fig.tight_layout()
     return fig
 
@@ -104,9 +105,10 @@ def sections_plot(path: Path, sections: dict, analytic: dict, h_mm: float) -> bo
 
 def peaks_plot(path: Path, res: dict) -> bool:
     """Each peak (MPa) against the DOFs of the run's meshes: both nodal readings, the value
-    reported, and the error bar of the requested (finest) mesh."""
-    levels = res["fe"]["levels"]
-    if len(levels) < 2:
+    reported, and the error bar of the requested (finest) mesh; each panel's title says the
+    peak's status and verdict in the run's words (results.json), and the legend sits below
+    the panels, off the data."""
+    if len(res["fe"]["levels"]) < 2:
         return False
     try:
         import matplotlib
@@ -114,8 +116,22 @@ def peaks_plot(path: Path, res: dict) -> bool:
         import matplotlib.pyplot as plt
     except ImportError:
         return False
+    fig = peaks_figure(res)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return True
+
+
+def peaks_figure(res: dict):
+    """The figure of :func:`peaks_plot` (matplotlib must be importable)."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from pipeline.output.texts import PEAK_KEYS, status_text, verdict_text
+    levels = res["fe"]["levels"]
     dofs = [lv["dofs"] for lv in levels]
-    fig, axes = plt.subplots(1, 2, figsize=(11, 4.2))
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4.7))
     for ax, key, prefix, value_key, label in ((axes[0], "peak", "peak", "peak_MPa", "global peak"),
                                               (axes[1], "critical", "critical", "critical_peak_MPa",
                                                "critical-region peak")):
@@ -134,23 +150,40 @@ def peaks_plot(path: Path, res: dict) -> bool:
         ax.set_xscale("log")
         ax.set_xlabel("degrees of freedom")
         ax.set_ylabel("von Mises (MPa)")
-        ax.set_title(f"No. {res['case']['size']}: {label} [{est.get('status', 'no estimate') if asked else NOT_ASKED}]")
+        # The peak's status and verdict in the run's words (a results.json older than the
+        # status names the trend instead).
+        verdict = (res["fe"].get("verdict") or {}).get(PEAK_KEYS[key][0])
+        status = status_text(block) if "status" in block else (est.get("status", "no estimate") if asked else NOT_ASKED)
+        ax.set_title(f"No. {res['case']['size']}: {label}\n{status}"
+                     + (f", {verdict_text(verdict)}" if verdict and verdict["verdict"] != "none" else ""), fontsize=11)
         ax.grid(alpha=0.3, which="both")
-        ax.legend(fontsize=8)
-    # Fixed margins for the reason given in sections_plot (tight_layout chose 0.064 here).
-    fig.subplots_adjust(left=0.075, right=0.985, bottom=0.15, top=0.91, wspace=0.22)
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return True
+        # Below the panel: inside, it covered the coarser meshes' readings.
+        ax.legend(fontsize=8, loc="upper center", bbox_to_anchor=(0.5, -0.16), ncol=2, frameon=False)
+    # Fixed margins for the reason given in sections_plot; the bottom one holds the legends.
+    fig.subplots_adjust(left=0.075, right=0.985, bottom=0.27, top=0.885, wspace=0.22)
+    return fig
+
+
+def _tornado_limits(ax, base: float, allowable: float) -> tuple[float, float, bool]:
+    """The x range of a tornado panel (MPa): the data's, at least ±5 % of the run's value
+    ``base`` (a change of 1 % must not fill the panel), widened to take in the allowable
+    when it lies within half the run's value of it; and whether the allowable is inside."""
+    lo, hi = ax.get_xlim()
+    lo, hi = min(lo, 0.95 * base), max(hi, 1.05 * base)
+    if abs(allowable - base) <= 0.5 * base:
+        pad = 0.03 * (max(hi, allowable) - min(lo, allowable))
+        lo, hi = min(lo, allowable - pad), max(hi, allowable + pad)
+    return lo, hi, lo <= allowable <= hi
 
 
 def tornado_plot(path: Path, res: dict) -> bool:
     """The tornado chart of the sensitivity analysis: for each varied input, the global and
     the critical peak (MPa) at the low and the high end of its range as bars from the run's
-    value, the inputs ordered by the global peak's swing; the allowable and the single-mesh
-    noise drawn beside them. False (nothing drawn) without a sensitivity list."""
-    entries = res.get("sensitivity")
-    if not entries:
+    value, the inputs ordered by the global peak's swing; the allowable drawn in each panel
+    (its axis widened to take it in) or, when it lies far off, named in the panel's title;
+    the single-mesh noise beside the bars; one legend below both panels. False (nothing
+    drawn) without a sensitivity list."""
+    if not res.get("sensitivity"):
         return False
     try:
         import matplotlib
@@ -158,7 +191,21 @@ def tornado_plot(path: Path, res: dict) -> bool:
         import matplotlib.pyplot as plt
     except ImportError:
         return False
+    fig = tornado_figure(res)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return True
+
+
+def tornado_figure(res: dict):
+    """The figure of :func:`tornado_plot` (matplotlib must be importable; ``res`` has a
+    sensitivity list)."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
     from pipeline.analysis.words import range_text
+    entries = res["sensitivity"]
     fe, summ = res["fe"], res.get("sensitivity_summary") or {}
     noise = summ.get("noise_MPa") or {}
     allowable = float(res["case"]["allowable_MPa"])
@@ -166,7 +213,9 @@ def tornado_plot(path: Path, res: dict) -> bool:
     def swing(e: dict) -> float:
         return max((abs(v - fe["peak_MPa"]) for v in e["peak_MPa"] if v is not None), default=0.0)
     order = sorted(entries, key=swing)  # the largest swing on top
-    fig, axes = plt.subplots(1, 2, figsize=(11, 2.6 + 0.5 * len(order)))
+    height = 2.6 + 0.38 * len(order)
+    fig, axes = plt.subplots(1, 2, figsize=(11, height))
+    handles: dict[str, object] = {}
     for ax, key, label, nkey in ((axes[0], "peak_MPa", "global peak", "global_peak"),
                                  (axes[1], "critical_peak_MPa", "critical-region peak", "critical_peak")):
         base = fe[key]
@@ -176,29 +225,32 @@ def tornado_plot(path: Path, res: dict) -> bool:
                     ax.text(base, i, "  invalid" if end == "high" else "invalid  ", va="center",
                             ha="left" if end == "high" else "right", fontsize=8, color="0.4")
                     continue
-                ax.barh(i, v - base, left=base, height=0.6, color=colour, alpha=0.8,
-                        label=f"{end} end of the range" if i == 0 else None)
-        ax.axvline(base, color="k", lw=1, label=f"this run {base:.1f} MPa")
+                bar = ax.barh(i, v - base, left=base, height=0.6, color=colour, alpha=0.8)
+                handles.setdefault(f"{end} end of the range", bar)
+        handles.setdefault("this run's value", ax.axvline(base, color="k", lw=1))
+        title = f"No. {res['case']['size']}: {label}\nthis run {base:.1f} MPa"
         if noise.get(nkey):
-            ax.axvspan(base - noise[nkey], base + noise[nkey], color="0.85", zorder=0,
-                       label=f"single-mesh noise ±{noise[nkey]:.2g} MPa")
-        # At least ±5 % of the run's value: a change of 1 % must not fill the panel.
-        lo, hi = ax.get_xlim()
-        lo, hi = min(lo, 0.95 * base), max(hi, 1.05 * base)
+            title += f", noise ±{noise[nkey]:.2g} MPa"
+            handles.setdefault("single-mesh noise",
+                               ax.axvspan(base - noise[nkey], base + noise[nkey], color="0.85", zorder=0))
+        lo, hi, inside = _tornado_limits(ax, base, allowable)
         ax.set_xlim(lo, hi)
-        if lo <= allowable <= hi or abs(allowable - base) < 0.5 * base:
-            ax.axvline(allowable, color="C1", ls="--", lw=1.5, label=f"allowable {allowable:g} MPa")
+        if inside:
+            handles.setdefault(f"allowable {allowable:g} MPa",
+                               ax.axvline(allowable, color="C1", ls="--", lw=1.5))
+        else:
+            title += f"\nallowable {allowable:g} MPa: off the axis, {'left' if allowable < lo else 'right'}"
         ax.set_yticks(range(len(order)))
         ax.set_yticklabels([f"{e['input']} {range_text(e['range'], e['unit'])}" for e in order], fontsize=9)
         ax.set_xlabel("von Mises (MPa)")
-        ax.set_title(f"No. {res['case']['size']}: {label}")
+        ax.set_title(title, fontsize=9.5)
         ax.grid(alpha=0.3, axis="x")
-        # Below the axes: inside, the legend hid the bars of the widest swing.
-        ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.16), ncol=2, frameon=False)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return True
+    # One legend for both panels, below them: inside a panel it hid the bars of the widest
+    # swing, and one under each panel ran off the figure's right edge.
+    fig.legend(list(handles.values()), list(handles), loc="lower center", ncol=len(handles), fontsize=8,
+               frameon=False)
+    fig.tight_layout(rect=(0, 0.4 / height, 1, 1))
+    return fig
 
 
 def draw_plots(folder: Path, res: dict) -> None:

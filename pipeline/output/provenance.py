@@ -18,7 +18,7 @@ SCHEMA_VERSION = 1
 # sensitivity section, a convergence study's block.
 OPTIONAL_KEYS = ("load_sweep", "load_sweep_verdict", "sensitivity", "sensitivity_summary", "convergence")
 # The order of the top-level keys in every results.json.
-KEY_ORDER = ("about", "units", "case", "analytic", "fe", "comparison_pct", "timings_s", "files", *OPTIONAL_KEYS,
+KEY_ORDER = ("about", "units", "case", "analytic", "fe", "comparison_pct", "timings_s", "files", "notes", *OPTIONAL_KEYS,
              "summary")
 
 

@@ -38,6 +38,7 @@ def results_json(result: RunResult, files: dict[str, str], timings_s: dict[str, 
         "comparison_pct": dict(r.comparison_pct),
         "timings_s": {**{k: v for k, v in r.timings.items() if k != "analysis"}, **timings_s},
         "files": dict(files),
+        "notes": list(r.notes),
     }
     if r.load_rows is not None:
         res["load_sweep"] = [row.as_dict() for row in r.load_rows]
@@ -52,14 +53,15 @@ def results_json(result: RunResult, files: dict[str, str], timings_s: dict[str, 
 
 def peak_block(p: PeakAnswer) -> dict:
     """One peak's block (MPa, mm): value, place, how it is read, its error estimate, the
-    singular feature it sits at (then no converged value) and why it is not wanted."""
+    singular feature it sits at (then no converged value), why it is not wanted and its
+    status (pipeline.analysis.words)."""
     rd = p.reading
     return {"value_MPa": rd.value_MPa, "location_mm": list(rd.location_mm), "feature": p.feature,
             "definition": DEFINITION[rd.rule], "error_bar_method": METHOD_TEXT[rd.rule],
             "unaveraged_MPa": rd.unaveraged.value_MPa, "averaged_MPa": rd.averaged.value_MPa,
             "averaged_location_mm": list(rd.averaged.location_mm),
             "error_estimate": None if p.estimate is None else p.estimate.as_dict(),
-            "singular_feature": p.singular, "not_wanted": p.not_wanted}
+            "singular_feature": p.singular, "not_wanted": p.not_wanted, "status": p.status}
 
 
 def fe_block(r: RunResult) -> dict:

@@ -23,7 +23,7 @@ REPOSITORY = Path(__file__).resolve().parents[2]
 # as the tool's.
 RUN_FILES = frozenset({"results.json", "report.md", "report.html", "mesh.msh", "displacement.pvd",
                        "displacement.vtu", "von_mises.vtu", "fields.vtu", "von_mises.png", "convergence.png",
-                       "sections.png", "peaks.png"})
+                       "sections.png", "peaks.png", "report.pdf", "meshes.csv", "sensitivity.csv"})
 
 
 
@@ -180,7 +180,7 @@ def refusal(out: Path, own: frozenset[str], not_mine: Callable[[Path], str | Non
 
 # What a design study and a size summary write besides their marker (pipeline/study/):
 # the names `make clean` may remove from such a folder; a variant's folder is a run's.
-STUDY_FILES = frozenset({"sweep.csv", "sweep.json", "report.md", "variants", ".claims"})
+STUDY_FILES = frozenset({"sweep.csv", "sweep.json", "report.md", "report.html", "variants", ".claims"})
 SUMMARY_FILES = frozenset({"summary.md", "summary.csv", "summary.png"})  # as pipeline/study/summary.py's
 
 

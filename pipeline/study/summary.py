@@ -10,8 +10,6 @@ output folder. ``make sizes`` runs it after every size target.
 from __future__ import annotations
 
 import argparse
-import csv
-import io
 import json
 import math
 import re
@@ -22,10 +20,10 @@ from pathlib import Path
 
 from geometry.table import is_scaled_row
 
+from pipeline.analysis.words import PEAK_STATUSES
 from pipeline.errors import OneLineParser
 from pipeline.output import flat
 from pipeline.output.flat import NOT_ASKED, PEAKS, SINGULAR
-from pipeline.post.errorbar import SETTLED, SETTLED_BAND
 from pipeline.runtime.interrupts import EXIT_FOR, NOTHING_WRITTEN, STOPPED
 from pipeline.runtime.streams import silence_stdout
 
@@ -196,13 +194,9 @@ def _fe_cell(r: dict, key: str) -> str:
 
 
 def csv_text(rows: list[dict]) -> str:
-    """summary.csv: one line per row, CSV_COLUMNS (N, MPa, s; empty where there is no value)."""
-    fh = io.StringIO(newline="")
-    w = csv.DictWriter(fh, fieldnames=CSV_COLUMNS, extrasaction="ignore")
-    w.writeheader()
-    for r in rows:
-        w.writerow({k: ("" if r[k] is None else r[k]) for k in CSV_COLUMNS})
-    return fh.getvalue()
+    """summary.csv: one line per row, CSV_COLUMNS (N, MPa, s; empty where there is no value;
+    the size as its label 'No. 05', text to any reader)."""
+    return flat.csv_text(CSV_COLUMNS, rows)
 
 
 def markdown(rows: list[dict], skipped: list[str], png_name: str | None) -> str:
@@ -261,8 +255,8 @@ def _table_lines(rows: list[dict]) -> list[str]:
         "whole part (global) and over the ligaments beside the bore (critical, |x| ≤ d2/2); at the "
         "fillet the midpoint of the unaveraged and averaged nodal readings, elsewhere the "
         "unaveraged element-node value. ± the peak's error bar: the band of the mesh-refinement "
-        "study (its status in the next column, explained below) or, for a fillet peak, half the "
-        "gap between its two readings when that is larger. Safety factor = allowable / FE peak.",
+        "study or, for a fillet peak, half the gap between its two readings when that is larger; "
+        "its status in the next column (explained below). Safety factor = allowable / FE peak.",
         "",
         "| No. | dimensions | load (N) | approx. (MPa) | exact (MPa) | FE global peak (MPa) | status "
         "| FE critical peak (MPa) | status | SF global | SF critical | DOFs | time (s) |",
@@ -273,7 +267,7 @@ def _table_lines(rows: list[dict]) -> list[str]:
             else f"scaled ×{r['scale_s']:.3f} (not DIN)"
         if r["changed_dims"]:
             dims += f"; changed: {r['changed_dims']}"
-        flag = " ⚠" if r.get("warnings") else ""
+        flag = " ⚠" if _flagged(r) else ""
         lines.append(
             f"| {r['size']}{flag} | {dims} | {r['load_N']:.0f} | {_n(r['approximate_MPa'])} | "
             f"{_n(r['exact_MPa'])} | {_fe_cell(r, 'peak')} | "
@@ -284,17 +278,29 @@ def _table_lines(rows: list[dict]) -> list[str]:
     return lines
 
 
+def _flagged(r: dict) -> bool:
+    """Whether a row is marked for a look first: it has warnings (:func:`warnings_of`) or its
+    run's notes (a mesh too coarse for the fillet, as the run said)."""
+    return bool(r.get("warnings") or r.get("notes"))
+
+
 def _warning_lines(rows: list[dict]) -> list[str]:
     """The rows whose FE numbers need a look first (see :func:`warnings_of`), each with
-    its reasons, after what the thresholds mean; nothing when no row has warnings."""
-    warned = [r for r in rows if r.get("warnings")]
-    if not warned:
+    its reasons, after what the thresholds mean; then the runs' notes, each once with the
+    rows it is of; nothing when no row is flagged."""
+    if not any(_flagged(r) for r in rows):
         return []
     lines = [f"**⚠ Check these rows before using their FE numbers** (a curved tet with det J "
              f"ratio below {JACOBIAN_SUSPECT:g} can carry a spurious peak; an error bar above "
              f"{100 * BAND_TOO_WIDE:.0f} % of the value means one of the meshes disagrees wildly: "
              "look at its levels in results.json, rerun finer or with another --mesh-factor):", ""]
-    lines += [f"- No. {r['size']}: {r['warnings']}." for r in warned]
+    lines += [f"- No. {r['size']}: {r['warnings']}." for r in rows if r.get("warnings")]
+    by_note: dict[str, list[str]] = {}
+    for r in rows:
+        if r.get("notes"):
+            by_note.setdefault(r["notes"], []).append(r["size"])
+    lines += [f"- {'Every row' if len(sizes) == len(rows) else 'No. ' + ', '.join(sizes)}: {note}."
+              for note, sizes in by_note.items()]
     lines.append("")
     return lines
 
@@ -333,16 +339,11 @@ def _peak_places(rows: list[dict], column: str) -> str:
 
 
 def _status_notes(rows: list[dict]) -> list[str]:
-    """What each error-bar status that occurs in the rows means for its bar."""
+    """What each peak status that occurs in the rows means (pipeline.analysis.words, the
+    words of every run's report and results.json)."""
     notes = []
     statuses = {r[p.status] for r in rows for p in PEAKS.values()}
-    if "oscillatory" in statuses:
-        notes.append("*oscillatory*: the peak moved up and down between the meshes; the "
-                     "bar is the largest change, not a Richardson estimate.")
-    if "scattered" in statuses:
-        notes.append("*scattered*: the peak scatters between meshes (unstructured meshes move nodal "
-                     "peaks by ~1 %); the bar is from a least-squares fit over the meshes with safety "
-                     "factor 3.")
+    notes += [f"*{word}*: {what}." for word, what in PEAK_STATUSES.items() if word in statuses and word != SINGULAR]
     singular = [r[p.last_change] is None for r in rows for p in PEAKS.values() if r[p.status] == SINGULAR]
     if not all(singular):  # read on several meshes
         notes.append("*singular*: the peak grows under refinement by 0.5 % or more at every step (observed "
@@ -352,15 +353,6 @@ def _status_notes(rows: list[dict]) -> list[str]:
         notes.append("*singular* on one mesh: the peak sits at a singular feature found by its place (a "
                      "re-entrant corner, a rigid support's edge), has no finite value and is not a number "
                      "to design with.")
-    if "settled" in statuses:
-        notes.append(f"*settled*: the peak is the same on every mesh to within {100 * SETTLED:g} %; the bar is "
-                     f"{100 * SETTLED_BAND:g} %, what such nodal readings are still off by; no order is fitted.")
-    if NOT_ASKED in statuses:
-        notes.append(f"*{NOT_ASKED}*: the run was asked for the other peak only (--want) and did not refine "
-                     "for this one; it has no value here.")
-    if "unsettled" in statuses:
-        notes.append("*unsettled*: the peak still falls between the meshes without a steady rate "
-                     "(not in the asymptotic range); the bar is the largest change, no extrapolation.")
     return notes
 
 
@@ -445,7 +437,7 @@ def plot(rows: list[dict], path: Path) -> bool:
         a = allow.pop()
         ax.axhline(a, color="0.4", ls=":", label=f"allowable {a:g} MPa")
     ax.set_xticks(x)
-    ax.set_xticklabels([("! " if r.get("warnings") else "") + f"{r['size']}\n{r['load_N'] / 1000:.3g}"
+    ax.set_xticklabels([("! " if _flagged(r) else "") + f"{r['size']}\n{r['load_N'] / 1000:.3g}"
                         + ("" if r["dimensions"].startswith("table row") else "*") for r in rows], fontsize=8)
     ax.set_xlabel("hook No. (categorical axis) and load in kN\n* = dimensions scaled from No. 05, not DIN; "
                   "! = see the warnings in summary.md")

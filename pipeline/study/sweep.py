@@ -31,6 +31,7 @@ from mpi4py import MPI
 
 from geometry.part import GeometryError
 from pipeline.analysis.context import RunContext
+from pipeline.analysis.words import coarse_mesh_note
 from pipeline.output import flat
 from pipeline.study.screening import (FILE, FULL, NEXT_STEPS, STEPS, screen_case, screened_rows, screening_of,
                                       undecided)
@@ -403,6 +404,8 @@ def execute_sweep(study: Study, out: Path, say: Progress, comm: MPI.Comm = MPI.C
     each = f" at {len(study.loads)} loads each" if len(study.loads) > 1 else ""
     say(f"sweep: {_count(len(tasks), 'variant')}{each} ({valid} valid, {len(tasks) - valid} invalid), "
         f"{before} already done, {comm.size} rank(s)")
+    for note in dict.fromkeys(n for t in tasks if t.case is not None and (n := coarse_mesh_note(t.case))):
+        say(f"note: {note}")  # as a run says it before its work (pipeline/cli/preflight.py)
     with contextlib.ExitStack() as stack:
         if lock is not None:  # a stop ends the process with os._exit: the finally below never runs
             stack.enter_context(on_stop(lock.release))

@@ -1,24 +1,26 @@
 """A design study's results (mm, N, MPa), built only from the files its variants wrote:
 one row per variant and load (sweep.csv, sweep.json), where each peak crosses the
-allowable along each swept parameter, one plot per peak and parameter, and report.md.
+allowable along each swept parameter, one plot per peak and parameter, the variants'
+notes (as each run says them), and report.md with report.html.
 """
 from __future__ import annotations
 
-import csv
 import json
 from collections.abc import Iterable
 from pathlib import Path
 
 from pipeline.output import flat
-from pipeline.runtime.atomicfile import replacing, write_text
+from pipeline.runtime.atomicfile import write_text
 from pipeline.post.errorbar import verdict_against
-from pipeline.output.report import pm
+from pipeline.output.report import html_document
+from pipeline.output.texts import pm
 from pipeline.study.manifest import VariantFault, read_failure, read_results
 from pipeline.study.plan import Task, failure_file, variant_folder
 
 # The study's own columns; the rest are those of a run's row (pipeline.output.flat).
 OWN_COLUMNS = {
-    "variant": "the variant's key: its folder variants/<key>/",
+    "variant": "the variant's key, its folder variants/<key>/ (in sweep.csv written as that folder, "
+               "'variants/1f0c...', text to any reader)",
     "status": "done, invalid (breaks a rule of the size table: not analysed), failed, or not run",
     "parameters": "the variant's swept inputs as JSON (mm; size as text)",
     "verdict": "the global peak against the allowable, its error bar included: pass, fail, undecided; "
@@ -28,9 +30,10 @@ OWN_COLUMNS = {
     "decided_by": "a screened study's evidence for the row: the cheap level (one coarse mesh, its bands) or "
                   "the full error bar and why the cheap level was not enough; empty when not screened",
 }
-COLUMNS = ("variant", "status", "parameters", *flat.COLUMNS, "verdict", "critical_verdict", "note", "decided_by")
-# Each peak's verdict column (pass, fail or undecided against the allowable).
-VERDICT_OF = {"peak": "verdict", "critical": "critical_verdict"}
+# Each peak's verdict column (pass, fail or undecided against the allowable), named as in a
+# run's sensitivity.csv (flat.VERDICT_COLUMNS).
+VERDICT_OF = {"peak": flat.VERDICT_COLUMNS["global_peak"], "critical": flat.VERDICT_COLUMNS["critical_peak"]}
+COLUMNS = ("variant", "status", "parameters", *flat.COLUMNS, *VERDICT_OF.values(), "note", "decided_by")
 # Per peak: (value, band, name) and (value, band, verdict) columns of a row.
 PEAKS = tuple((p.value, p.band, p.name) for p in flat.PEAKS.values())
 VERDICT_KEYS = tuple((p.value, p.band, VERDICT_OF[b]) for b, p in flat.PEAKS.items())
@@ -226,20 +229,18 @@ def swept_axes(axes: dict[str, list[float]]) -> list[str]:
 
 
 def write_outputs(tasks: list[Task], out: Path, axes: dict[str, list[float]], allowable: float) -> dict:
-    """sweep.csv, sweep.json, plots and report.md from the variants' results (rank 0)."""
+    """sweep.csv, sweep.json, plots, report.md and report.html from the variants' results (rank 0)."""
     rows = with_verdicts(rows_of(tasks, out), allowable)
     names = [n for n in axes]
     cols = list(COLUMNS) + [n for n in names if n not in COLUMNS]
-    with replacing(out / "sweep.csv", "w", newline="", encoding="utf-8") as f:
-        w = csv.DictWriter(f, fieldnames=cols, extrasaction="ignore")
-        w.writeheader()
-        w.writerows(rows)
+    # Sizes as 'No. 05' and keys as their folders: text to any reader (a key of digits alone read as a number).
+    write_text(out / "sweep.csv", flat.csv_text(cols, [dict(r, variant=f"variants/{r['variant']}") for r in rows]))
     swept = swept_axes(axes)
     cross = [c for n in swept for c in crossings(rows, n, allowable)]
     first = next((t.case for t in tasks if t.case is not None), None)
     summary = {"units": {"length": "mm", "force": "N", "stress": "MPa"}, "allowable_MPa": allowable,
                "mesh_factor": None if first is None else first.mesh_factor,
-               "axes": axes, "rows": rows, "crossings": cross,
+               "notes": notes_of(rows), "axes": axes, "rows": rows, "crossings": cross,
                "counts": {s: sum(r["status"] == s for r in rows) for s in ("done", "invalid", "failed", "not run")}}
     write_text(out / "sweep.json", json.dumps(summary, indent=2, default=str) + "\n")
     plots = [p for n in swept for p in _plots(rows, n, allowable, out)]
@@ -248,8 +249,16 @@ def write_outputs(tasks: list[Task], out: Path, axes: dict[str, list[float]], al
     for old in [*out.glob("peak_vs_*.png"), *out.glob("critical_peak_vs_*.png")]:
         if old.name not in plots:
             old.unlink(missing_ok=True)
-    write_text(out / "report.md", _report(summary, swept, plots))
+    text = _report(summary, swept, plots)
+    write_text(out / "report.md", text)
+    write_text(out / "report.html", html_document(text, out, "Design study"))
     return summary
+
+
+def notes_of(rows: list[dict]) -> list[str]:
+    """The notes of the study's finished variants (each run's own, as its terminal and
+    report say them; a row's notes together), each once, in the order first met."""
+    return list(dict.fromkeys(r["notes"] for r in rows if r.get("status") == "done" and r.get("notes")))
 
 
 def _plots(rows: list[dict], axis: str, allowable: float, out: Path) -> list[str]:
@@ -267,7 +276,7 @@ def _plots(rows: list[dict], axis: str, allowable: float, out: Path) -> list[str
     for key, band_key, label in PEAKS:
         if not any(r.get(key) is not None for g in lines.values() for r in g):
             continue  # a peak no variant was asked for (--want): no plot
-        fig, ax = plt.subplots(figsize=(6.5, 4))
+        fig, ax = plt.subplots(figsize=(6.5, 4.8))
         colors = {}
         for fixed, g in lines.items():
             g = [r for r in g if r.get(key) is not None]
@@ -287,7 +296,8 @@ def _plots(rows: list[dict], axis: str, allowable: float, out: Path) -> list[str
             ax.set_title(common, fontsize=10)
         ax.set_xlabel("load (N)" if axis == "load_N" else f"{axis.replace('dims.', '')} (mm)")
         ax.set_ylabel(f"{label} von Mises (MPa)")
-        ax.legend(fontsize=8)
+        # Below the axes: inside, a legend of several lines covered their points.
+        ax.legend(fontsize=8, loc="upper center", bbox_to_anchor=(0.5, -0.15), ncol=2, frameon=False)
         fig.tight_layout()
         name = f"{key.replace('_MPa', '')}_vs_{axis.replace('dims.', '')}.png"
         fig.savefig(out / name, dpi=100)
@@ -466,10 +476,8 @@ def _report(summary: dict, swept: list[str], plots: list[str]) -> str:
          f"Allowable {summary['allowable_MPa']:g} MPa.\n"]
     mf = summary.get("mesh_factor")
     if mf is not None:
-        has_global = any(r.get("peak_MPa") is not None for r in summary["rows"])
-        L.append(f"Every variant at mesh factor {mf:g}"
-                 + (": coarser than 1.3, so the global (fillet) peak is not resolved (README, Known limits); "
-                    "its values, crossings and verdicts are rough.\n" if mf > 1.3 and has_global else ".\n"))
+        L.append(f"Every variant at mesh factor {mf:g}.\n")
+    L += [f"> **Note:** {n}.\n" for n in summary.get("notes") or []]
     L.append(f"## Against the allowable ({summary['allowable_MPa']:g} MPa)\n")
     L += _side_lines(summary)
     L += _passing_lines(summary)

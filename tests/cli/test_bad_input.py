@@ -733,15 +733,14 @@ def test_singular_peak_has_no_safety_factor():
     """verdicts.safety_factor: a peak at a singular feature gets None and a note; others
     allowable / peak (arithmetic checked by hand: 80 / 40 = 2)."""
     from pipeline.analysis.verdicts import safety_factor
-    from pipeline.output.report import safety_text
+    from pipeline.output.texts import safety_text
     singular = safety_factor(80.0, answer(812.0, singular="edge of the rigid patch"))
     plain = safety_factor(80.0, answer(40.0))
     assert singular.value is None and "singular" in singular.note
     assert plain.value == 2.0 and plain.note is None
     fe = {"safety_factor": singular.value, "safety_factor_note": singular.note,
           "critical_safety_factor": plain.value, "critical_safety_factor_note": plain.note}
-    assert safety_text(fe, "safety_factor").startswith("**none**")
-    assert safety_text(fe, "critical_safety_factor") == "**2.00**"
+    assert safety_text(fe["safety_factor"]) == "none" and safety_text(fe["critical_safety_factor"]) == "2.00"
 
 
 def test_verdict_pass_fail_undecided_and_capacity():
@@ -777,8 +776,10 @@ def test_rigid_support_run_gives_no_global_safety_factor(tmp_path):
     assert fe["peak"].get("singular_feature") and fe["safety_factor"] is None
     assert fe["verdict"]["global_peak"]["verdict"] == "none"
     assert "singular" in fe["verdict"]["global_peak"]["why"]
-    assert "none (singular peak) (global)" in p.stdout
-    assert "**none**" in (out / "report.md").read_text()
+    line = next(ln for ln in p.stdout.splitlines() if ln.startswith("global peak"))
+    assert "  singular  no verdict  SF none  " in line
+    row = next(ln for ln in (out / "report.md").read_text().splitlines() if ln.startswith("| global peak"))
+    assert "| singular |" in row and "| **no verdict** |" in row and "| 0." not in row  # no safety factor
 
 
 def test_zero_fillet_peak_is_named_the_journal_root():

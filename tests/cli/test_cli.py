@@ -69,8 +69,31 @@ def test_report_mentions_inputs_formulas_and_units(coarse_run):
     out, _ = coarse_run
     rep = (out / "report.md").read_text()
     # 43.8 and 37.76 MPa: the two formulas worked by hand (docs/design.md §4, §6)
-    for s in ("mm", "MPa", "assumed", "43.8", "37.76", "Safety factor", "Timings", "von_mises.png"):
+    for s in ("mm", "MPa", "assumed", "43.8", "37.76", "safety factor", "Timings", "von_mises.png"):
         assert s in rep, s
+
+
+@pytest.mark.slow
+def test_the_closing_lines_are_short_and_say_each_peak_as_results_json_does(coarse_run):
+    """At most 100 characters a line (the summary printed 293); one line per peak with its
+    value ± band, its status, PASS/FAIL, safety factor and where it sits, each word the one
+    results.json holds (fe.<peak>.status, fe.verdict, the feature)."""
+    from pipeline.analysis.words import verdict_word
+    out, p = coarse_run
+    res = json.loads((out / "results.json").read_text())
+    lines = p.stdout.splitlines()
+    assert lines and max(len(ln) for ln in lines) <= 100, max(lines, key=len)
+    fe = res["fe"]
+    for name, key, verdict, sf in (("global peak", "peak", "global_peak", "safety_factor"),
+                                   ("critical peak", "critical", "critical_peak", "critical_safety_factor")):
+        line = next(ln for ln in lines if ln.startswith(name))
+        block = fe[key]
+        assert f"{block['value_MPa']:.2f} ± {block['error_estimate']['band']:.2f} MPa" in line
+        assert f"  {block['status']} (" in line and block["status"] in ("within tolerance", "above tolerance")
+        assert f"  {verdict_word(fe['verdict'][verdict]['verdict'])}  " in line
+        assert f"SF {fe[sf]:.2f}" in line and line.endswith(block["feature"])
+    # The notes a run carries are said in its closing lines too (once on stderr before the work).
+    assert res["notes"] and all(f"note: {n}" in " ".join(p.stdout.split()) for n in res["notes"])
 
 
 @pytest.mark.slow
@@ -216,7 +239,7 @@ def test_a_load_sweep_matches_a_direct_solve_and_scales_its_error_bars(tmp_path)
         assert at10[f"{'peak' if key == 'peak' else 'critical'}_band_MPa"] == pytest.approx(band, rel=1e-6)
     row = next(ln for ln in (tmp_path / "swept" / "report.md").read_text().splitlines() if ln.startswith("| 10 000 |"))
     assert f"{at10['peak_MPa']:.2f} ± {at10['peak_band_MPa']:.2f}" in row
-    assert f"10000 N {at10['peak_MPa']:.2f} ± {at10['peak_band_MPa']:.2f}" in swept.stdout
+    assert f"10000 N {at10['peak_MPa']:.2f} ± {at10['peak_band_MPa']:.2f}" in " ".join(swept.stdout.split())
 
 
 @pytest.mark.slow
@@ -227,7 +250,11 @@ def test_a_long_load_sweep_keeps_the_terminal_line_readable(tmp_path):
                         "--no-fields", "--load", "1000:20000:20", "--out", str(tmp_path / "many")],
                        cwd=ROOT, capture_output=True, text=True, timeout=600)
     assert p.returncode == 0, p.stderr
-    line = next(ln for ln in p.stdout.splitlines() if ln.startswith("the lines above"))
+    assert max(len(ln) for ln in p.stdout.splitlines()) <= 100
+    lines = p.stdout.splitlines()
+    start = next(i for i, ln in enumerate(lines) if ln.startswith("the lines above"))
+    end = next(i for i in range(start + 1, len(lines) + 1) if i == len(lines) or not lines[i].startswith("  "))
+    line = " ".join(" ".join(lines[start:end]).split())  # its lines wrapped at 100 characters, joined
     assert "20 loads" in line and "… 14 more in results.json …" in line and line.count(" N ") == 6, line
     assert "MPa): 1000 N " in line and line.split("; ")[-1].startswith("20000 N ")  # the ends
     assert len(json.loads((tmp_path / "many" / "results.json").read_text())["load_sweep"]) == 20

@@ -3,6 +3,7 @@ factors, the sensitivity section): a value (MPa), its error bar and where it sit
 from __future__ import annotations
 
 from pipeline.analysis.result import PeakAnswer
+from pipeline.analysis.words import peak_status
 from pipeline.post.errorbar import Estimate
 from pipeline.post.peaks import UNAVERAGED, NodalPeak, Peak
 
@@ -12,7 +13,8 @@ def answer(value: float, band: float | None = None, singular: str | None = None)
     band), at the singular feature ``singular`` (None: a finite value)."""
     at = (0.0, 0.0, 0.0)
     est = None if band is None else Estimate((value,), (1.0,), "converged", None, None, value, None, band, None)
-    return PeakAnswer(NodalPeak(Peak(value, at), Peak(value, at), UNAVERAGED), "somewhere", est, singular, None)
+    status = peak_status(1.0, value, band, singular, True)
+    return PeakAnswer(NodalPeak(Peak(value, at), Peak(value, at), UNAVERAGED), "somewhere", est, singular, None, status)
 
 
 def run_verdicts(case, peak: float = 100.0, band: float = 1.0, critical: float = 60.0,

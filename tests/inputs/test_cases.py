@@ -49,6 +49,10 @@ def test_case_runs_with_its_inputs(case, tmp_path):
         assert c["dims"][key] == value and key not in c["assumed"]
     fe = res["fe"]
     assert abs(fe["equilibrium_error_N"]) <= 1e-6 * c["load_N"]
+    # The title block the file gives is the report's (results.json's about.document); a
+    # field it leaves out is blank, never invented.
+    doc = spec.get("document", {})
+    assert res["about"]["document"] == {k: doc.get(k) for k in ("part", "number", "revision", "author", "checker")}
 
 
 @pytest.mark.slow

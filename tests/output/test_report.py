@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import datetime
 import json
+import os
 import re
 import shutil
 import subprocess
@@ -98,7 +99,8 @@ def run_folder(tmp_path_factory):
     out = base / "05"
     day = datetime.datetime.now(datetime.timezone.utc).date().isoformat()
     p = subprocess.run([sys.executable, "-m", "pipeline", "run", "--case", str(case), "--mesh-factor", "3",
-                        "--out", str(out), "--quiet"], cwd=ROOT, capture_output=True, text=True, timeout=600)
+                        "--out", str(out), "--quiet"], cwd=ROOT, capture_output=True, text=True, timeout=600,
+                       env=dict(os.environ, CROSSHEAD_NO_PDF=""))  # the run prints its report.pdf
     assert p.returncode == 0, p.stderr
     out.joinpath(".day").write_text(day)  # the UTC day the run started (the date in the title block)
     return out
@@ -260,10 +262,14 @@ def test_a_peak_not_asked_for_gets_no_band_or_limit_in_the_convergence_study():
 
 
 def _title_block(md: str) -> dict[str, str]:
-    """The title block's rows of report.md (label → cell text), from its first table."""
-    table = md.split("| Calculation note | |", 1)[1].split("\n\n", 1)[0]
-    rows = [ln.strip("|").split(" | ", 1) for ln in table.strip().splitlines()[1:]]
-    return {label.strip(): value.strip() for label, value in rows}
+    """The title block's rows of report.md (label → cell text), from its first table (two
+    label-cell pairs a row)."""
+    table = md.split("| Calculation note |", 1)[1].split("\n\n", 1)[0]
+    rows = {}
+    for ln in table.strip().splitlines()[2:]:
+        cells = [c.strip() for c in ln.strip().strip("|").split(" | ")]
+        rows.update({cells[i]: cells[i + 1] for i in range(0, len(cells) - 1, 2) if cells[i]})
+    return rows
 
 
 @pytest.mark.slow
@@ -307,24 +313,46 @@ def _pdf_pages(pdf: bytes) -> int:
     return len(re.findall(rb"/Type\s*/Page(?![s\w])", pdf))
 
 
+def page_fills(pdf: Path, top_mm: float = 14.0, bottom_mm: float = 16.0, dpi: int = 30) -> list[float]:
+    """Each page's share of its printable height (A4 less the print style's margins) down to
+    its lowest printed pixel, the footer left out (poppler's pdftoppm, grey levels)."""
+    import tempfile
+    with tempfile.TemporaryDirectory() as tmp:
+        subprocess.run(["pdftoppm", "-gray", "-r", str(dpi), str(pdf), f"{tmp}/p"], check=True)
+        fills = []
+        for f in sorted(Path(tmp).glob("p-*.pgm"), key=lambda q: int(q.stem.rsplit("-", 1)[1])):
+            head, dims, _, data = f.read_bytes().split(b"\n", 3)
+            w, h = map(int, dims.split())
+            img = np.frombuffer(data[:w * h], np.uint8).reshape(h, w)
+            mm = h / 297.0
+            body = img[int(top_mm * mm):int(h - bottom_mm * mm)]
+            dark = np.where((body < 200).any(axis=1))[0]
+            fills.append(0.0 if len(dark) == 0 else (dark[-1] + 1) / body.shape[0])
+        return fills
+
+
+def _squashed(text: str) -> str:
+    """``text`` without white space: a PDF's text wraps where the page does."""
+    return "".join(text.split())
+
+
 @pytest.mark.slow
-@pytest.mark.skipif(shutil.which("chromium") is None,
-                    reason="no chromium: tools/setup.sh installs it (Debian's chromium package)")
-def test_a_headless_browser_prints_the_report_with_page_numbers_and_title_block(run_folder, tmp_path):
-    """Chromium prints report.html to a PDF that opens (pages > 0); with poppler's pdftotext
-    (installed with it) each page's footer reads "page k of N" and the first page holds
-    the title block."""
-    pdf = tmp_path / "report.pdf"
-    p = subprocess.run(["chromium", "--headless", "--no-sandbox", "--disable-gpu", "--no-pdf-header-footer",
-                        f"--print-to-pdf={pdf}", (run_folder / "report.html").as_uri()],
-                       capture_output=True, text=True, timeout=180)
-    assert p.returncode == 0 and pdf.exists(), p.stderr[-2000:]
+@pytest.mark.skipif(shutil.which("chromium") is None or shutil.which("pdftoppm") is None,
+                    reason="no chromium or poppler-utils: tools/setup.sh installs them")
+def test_the_run_prints_a_note_whose_first_page_answers(run_folder):
+    """The run's own report.pdf (headless Chromium): at most 6 A4 pages, none nearly empty
+    (each filled to a third of its height or more: the last page too), a footer "page k of
+    N" on each; page 1 holds the title block, every checked stress with its verdict,
+    margin, safety factor and capacity, both peaks with their bands and where they sit, and
+    the sensitivity sentence, each as results.json says it."""
+    pdf = run_folder / "report.pdf"
     data = pdf.read_bytes()
     assert data.startswith(b"%PDF-")
     n = _pdf_pages(data)
-    assert n > 0
-    if shutil.which("pdftotext") is None:
-        pytest.skip("no pdftotext (poppler-utils): the page count is checked, not the text")
+    assert 0 < n <= 6
+    assert min(page_fills(pdf)) >= 1 / 3, page_fills(pdf)
+    res = json.loads((run_folder / "results.json").read_text())
+    assert res["files"]["report_pdf"] == "report.pdf"
     pages = subprocess.run(["pdftotext", "-layout", str(pdf), "-"], capture_output=True, text=True,
                            check=True).stdout.split("\f")
     pages = [pg for pg in pages if pg.strip()]
@@ -333,6 +361,42 @@ def test_a_headless_browser_prints_the_report_with_page_numbers_and_title_block(
         assert f"page {k} of {n}" in page
     first = " ".join(pages[0].split())
     assert "Document number CN-0815" in first and "Revision B" in first and "Checked by" in first
+    text = subprocess.run(["pdftotext", "-l", "1", str(pdf), "-"], capture_output=True, text=True,
+                          check=True).stdout
+    plain, words = _squashed(text), set(re.findall(r"[\w.+-]+", text))
+    from pipeline.analysis.words import verdict_word
+    from pipeline.output.texts import VERDICT_NAMES
+    for name, row in res["fe"]["verdict"].items():  # a table's cells wrap: its words, its numbers
+        assert set(re.findall(r"[\w.+-]+", VERDICT_NAMES[name])) <= words, name
+        assert f"{row['value_MPa']:.2f}" in plain and f"{row['margin_pct']:+.1f}" in plain, name
+        assert f"{row['safety_factor']:.2f}" in plain, name
+        assert f"{row['capacity_N']:,.0f}".replace(",", "") in plain, name
+    assert plain.count(verdict_word("pass")) + plain.count(verdict_word("fail")) >= len(res["fe"]["verdict"])
+    for key in ("peak", "critical"):
+        block = res["fe"][key]
+        band = block["error_estimate"]["band"]
+        assert f"{block['value_MPa']:.2f}±{band:.2f}" in plain, key
+        assert _squashed(block["feature"]) in plain and _squashed(block["status"]) in plain
+    assert _squashed(res["sensitivity_summary"]["sentence"]) in plain
+
+
+@pytest.mark.slow
+def test_a_run_writes_its_meshes_and_sensitivity_tables(run_folder):
+    """meshes.csv: one row per mesh of the error bar with results.json's fe.levels values;
+    sensitivity.csv: two rows per varied input with its sensitivity list's values."""
+    import csv
+    res = json.loads((run_folder / "results.json").read_text())
+    meshes = list(csv.DictReader((run_folder / "meshes.csv").open()))
+    assert [float(r["peak_averaged_MPa"]) for r in meshes] == [lv["peak_averaged_MPa"] for lv in res["fe"]["levels"]]
+    assert [int(r["dofs"]) for r in meshes] == [lv["dofs"] for lv in res["fe"]["levels"]]
+    assert {r["size"] for r in meshes} == {"No. 05"}
+    ends = list(csv.DictReader((run_folder / "sensitivity.csv").open()))
+    assert len(ends) == 2 * len(res["sensitivity"])
+    for e, (lo, hi) in zip(res["sensitivity"], zip(ends[::2], ends[1::2])):
+        assert lo["input"] == hi["input"] == e["input"] and (lo["end"], hi["end"]) == ("low", "high")
+        assert [float(lo["peak_MPa"]), float(hi["peak_MPa"])] == e["peak_MPa"]
+        assert lo["verdict"] == e["verdicts"][0]["global_peak"]
+    assert res["files"]["meshes_table"] == "meshes.csv" and res["files"]["sensitivity_table"] == "sensitivity.csv"
 
 
 @pytest.mark.slow

@@ -11,8 +11,8 @@ from pathlib import Path
 
 import pytest
 
-from pipeline.study.screening import (FULL, MARGIN, NEXT_STEPS, SCREENED, STEPS, TWO_MESH_FACTOR, screening_of,
-                                      screened_rows, undecided)
+from pipeline.study.screening import (FULL, MARGIN, NEXT_STEPS, SCREENED, STEPS, TWO_MESH_FACTOR, screen_case,
+                                      screening_of, screened_rows, undecided)
 from pipeline.output import flat
 from pipeline.study.plan import read_study
 from pipeline.study.table import crossings, escalations, with_verdicts
@@ -139,13 +139,32 @@ def test_a_study_file_asks_for_screening_with_true_only(tmp_path):
         read_study(bad)
 
 
-def test_screening_without_an_allowable_is_refused_before_any_work(tmp_path):
+@pytest.mark.slow
+def test_a_screened_study_behaves_like_a_run_without_an_allowable_or_a_fine_mesh(tmp_path):
+    """`sweep --screen` without --allowable was refused although a run takes its default
+    allowable, 80 MPa (README, docs/design.md §7: the case's default); a study at a mesh
+    factor above 1.3 said nothing of the fillet while a run says so. Now the screened study
+    decides against 80 MPa, prints the run's coarse-mesh note before its work (stderr) and
+    in its closing lines (stdout, each at most 100 characters), writes it into its report,
+    and writes report.html beside report.md."""
+    from pipeline.analysis.words import coarse_mesh_note
+    from pipeline.inputs.case import resolve
     out = tmp_path / "study"
     p = subprocess.run([sys.executable, "-m", "pipeline", "sweep", "--size", "05", "--dim", "rf=1,2", "--screen",
-                        "--out", str(out)], cwd=ROOT, capture_output=True, text=True, timeout=300,
-                       env=dict(os.environ))
-    assert p.returncode == 2 and p.stderr.count("\n") == 1 and "screen:" in p.stderr and "--allowable" in p.stderr
-    assert not out.exists()
+                        "--mesh-factor", "2", "--out", str(out)], cwd=ROOT, capture_output=True, text=True,
+                       timeout=900, env=dict(os.environ, CROSSHEAD_NO_CACHE="1"))
+    assert p.returncode == 0, p.stderr
+    assert json.loads((out / "sweep.json").read_text())["allowable_MPa"] == 80.0
+    case = resolve("05", overrides={"mesh_factor": 2.0})
+    note = coarse_mesh_note(case)
+    assert note and f"note: {note}" in p.stderr
+    # Both variants were decided on the cheap level, ×2.2 coarser: their runs' notes say so.
+    cheap = coarse_mesh_note(screen_case(case))
+    assert f"note: {cheap}" in " ".join(p.stdout.split())  # wrapped on the terminal
+    assert max(len(ln) for ln in p.stdout.splitlines()) <= 100
+    assert cheap in (out / "report.md").read_text(encoding="utf-8")
+    html = (out / "report.html").read_text(encoding="utf-8")
+    assert html.startswith("<!DOCTYPE html>") and "data:image/png;base64," in html  # the plots embedded
 
 
 def _sweep(out: Path, *extra: str) -> subprocess.CompletedProcess:

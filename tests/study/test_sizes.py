@@ -149,12 +149,17 @@ def test_makefile_has_a_target_per_row_and_sizes_sweeps_then_summarises():
     # Run as a top-level make even under `make test`: the parent's MAKEFLAGS/MAKELEVEL
     # would add "make[1]: Entering/Leaving directory" lines.
     env = {k: v for k, v in os.environ.items() if not k.startswith("MAKE")}
-    def dry(target: str) -> list[str]:
-        return [ln for ln in subprocess.run(["make", "--no-print-directory", "-n", "-B", target], cwd=ROOT,
+    def dry(target: str, *more: str) -> list[str]:
+        return [ln for ln in subprocess.run(["make", "--no-print-directory", "-n", "-B", target, *more], cwd=ROOT,
                                             capture_output=True, text=True, check=True, env=env).stdout.splitlines()
                 if not ln.startswith("make") and "setup" not in ln]
-    for size in TABLE:
-        assert any(f"crosshead run --size {size} --out results/{size}" in ln for ln in dry(size)), size
+    # Each size runs as make run does, on every core (RANKS ranks through the launcher; one
+    # rank without MPI): make 1.6 ran on one rank while make run used both.
+    for ranks in ("1", "2"):
+        runner = dry("run", f"RANKS={ranks}")[-1].split(" run --size 05 ")[0]
+        assert ("pipeline.runtime.launch 2" in runner) == (ranks == "2")
+        for size in TABLE:
+            assert f"{runner} run --size {size} --out results/{size}" in dry(size, f"RANKS={ranks}"), (ranks, size)
     out = dry("sizes")
     assert "sweep --sizes all --out results/sizes" in out[-2]
     assert "-m pipeline.study.summary results/sizes/variants --all --out results/summary" in out[-1]
