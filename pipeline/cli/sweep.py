@@ -52,7 +52,7 @@ def add_parser(sub, description: str, epilog: str) -> None:
     sweep.add_argument("--screen", action="store_true",
                        help="decide each variant with the least work: one coarse mesh first, the full error bar only "
                             "where its band holds the allowable (--allowable, the case file's, or the run's default "
-                            "80 MPa) or the variant borders a crossing")
+                            "80 MPa) or the variant borders a crossing; at mesh factor 1 or finer, where its bands were measured")
     sweep.add_argument("--sensitivity", action="store_true",
                        help="each variant also varies its assumed inputs (dj, rf, seat, bearing load model) over "
                             "their ranges, and the table says which verdicts depend on one (about doubles a variant's "

@@ -18,6 +18,7 @@ from pipeline.inputs.options import Outputs, RunOptions, check_options
 from pipeline.inputs.tomlfile import read_toml
 from pipeline.cache.codekey import code_key
 from pipeline.errors import InputError
+from pipeline.study.screening import SCREEN_MAX_MESH_FACTOR
 
 # A study file's [sweep] keys and their TOML types.
 TOML_NAMES = {str: "a string", int: "an integer", float: "a number", dict: "a table", list: "an array of numbers",
@@ -102,6 +103,10 @@ def plan(study: Study) -> list[Task]:
             raise InputError(tasks[0].note)
         raise InputError(f"sweep: every variant is invalid; the first: {tasks[0].note}")
     check_options(valid[0], variant_options(study, tuple(study.loads)), "sweep", study.given)
+    if study.screen and valid[0].mesh_factor > SCREEN_MAX_MESH_FACTOR:
+        raise InputError(f"screen: screening's bands were measured at mesh factor {SCREEN_MAX_MESH_FACTOR:g} or finer "
+                         f"and do not hold at {valid[0].mesh_factor:g}; give --mesh-factor "
+                         f"{SCREEN_MAX_MESH_FACTOR:g} or leave screening off")
     return tasks
 
 

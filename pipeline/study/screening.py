@@ -40,6 +40,10 @@ TWO_MESH_FACTOR = 3.0  # × the two meshes' difference: Roache's Fs for unconfir
 SCREENED = "screened"  # a peak's status on a step short of the full error bar (its band is the step's)
 NEXT_STEPS, FULL = "next steps", "full error bar"  # how far a screened variant goes next
 FILE = "screening.json"  # beside a screened variant's results.json
+# The coarsest case mesh factor a screened study accepts: the bands above were measured on
+# the default mesh (factor 1); at factor 2 the cheap level (×4.4) misreads No. 05's global
+# peak by more than its band (docs/accuracy.md, *The screening level*).
+SCREEN_MAX_MESH_FACTOR = 1.0
 
 
 @dataclass(frozen=True)

@@ -93,18 +93,23 @@ def test_a_case_file_is_refused_alike(tmp_path):
 # --------------------------------------------------------------------------- the refusal measured
 
 
-def _estimate(case, levels: int, which: str = "critical"):
-    """(value, band) of a peak (MPa) of ``case`` solved on ``levels`` meshes (no checks:
-    the case may be one the command line refuses)."""
+def _reading(case, levels: int, which: str = "critical"):
+    """(value, estimate) of a peak (MPa) of ``case`` solved on ``levels`` meshes (no checks:
+    the case may be one the command line refuses); the estimate is None below three meshes."""
     from pipeline.analysis.context import RunContext
     from pipeline.api import RunOptions, run
     from pipeline.post.errorbar import estimate_levels
     options = RunOptions(levels=levels, ratio=1.3, to_tolerance=False, sensitivity=False)
     lv = run(case, options, RunContext(comm=MPI.COMM_SELF)).levels
-    value = getattr(lv[0], "peak" if which == "global" else "critical").value_MPa
-    if levels < 3:
-        return value, None
-    return value, estimate_levels(lv, case.order, "peak" if which == "global" else which).band
+    key = "peak" if which == "global" else "critical"
+    value = getattr(lv[0], key).value_MPa
+    return value, (estimate_levels(lv, case.order, key) if levels >= 3 else None)
+
+
+def _estimate(case, levels: int, which: str = "critical"):
+    """(value, band) of a peak (MPa): :func:`_reading`'s, the band None without one."""
+    value, est = _reading(case, levels, which)
+    return value, None if est is None else est.band
 
 
 @pytest.mark.slow
@@ -112,7 +117,10 @@ def _estimate(case, levels: int, which: str = "critical"):
 def test_p1_band_misses_the_p3_value_and_p2_covers_it(nu):
     """About 15 s per Poisson's ratio: P1 and P2 (MUMPS) on three coarse meshes, P3 (MUMPS)
     on the finest of them as the reference. Both peaks: P1's band misses P3's value (the
-    refusal is warranted); P2's covers it (the refusal's advice gives a covered answer)."""
+    refusal is warranted); P2's covers it (the refusal's advice gives a covered answer), or,
+    for the global peak, P2 gives no band at all: at nu = 0.49 its readings 117.3, 118.0,
+    123.4 MPa (coarsest first) grow under refinement away from P3's 114.5, and the estimator
+    calls them singular (docs/accuracy.md, the table): named, never a band that misses."""
     base = resolve("05", overrides={"mesh_factor": 3.0, "solver": "mumps"})
     p3 = replace(base, order=3, nu=nu)
     p2 = replace(base, order=2, nu=nu)
@@ -122,9 +130,12 @@ def test_p1_band_misses_the_p3_value_and_p2_covers_it(nu):
     for which in ("critical", "global"):
         ref, _ = _estimate(p3, 1, which)
         v1, band1 = _estimate(p1, 3, which)
-        v2, band2 = _estimate(p2, 3, which)
+        v2, est2 = _reading(p2, 3, which)
         assert abs(v1 - ref) > (band1 or 0.0), (which, nu, v1, band1, ref)
-        assert band2 is not None and abs(v2 - ref) <= band2, (which, nu, v2, band2, ref)
+        if est2.band is None:  # no error bar: the readings' trend is named instead
+            assert which == "global" and est2.status == "singular", (which, nu, est2)
+        else:
+            assert abs(v2 - ref) <= est2.band, (which, nu, v2, est2.band, ref)
 
 
 @pytest.mark.slow

@@ -7,14 +7,16 @@ import json
 import os
 import subprocess
 import sys
+from dataclasses import replace
 from pathlib import Path
 
 import pytest
 
 from pipeline.study.screening import (FULL, MARGIN, NEXT_STEPS, SCREENED, STEPS, TWO_MESH_FACTOR, screen_case,
                                       screening_of, screened_rows, undecided)
+from pipeline.errors import InputError
 from pipeline.output import flat
-from pipeline.study.plan import read_study
+from pipeline.study.plan import Study, plan, read_study
 from pipeline.study.table import crossings, escalations, with_verdicts
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -134,49 +136,72 @@ def test_a_study_file_asks_for_screening_with_true_only(tmp_path):
     assert read_study(good)["screen"] is True
     bad = tmp_path / "b.toml"
     bad.write_text('[sweep]\nsize = "05"\ndims = { rf = "1,2" }\nscreen = "yes"\n')
-    from pipeline.errors import InputError
     with pytest.raises(InputError, match="sweep.screen: expected true or false"):
         read_study(bad)
 
 
+def test_a_screened_study_is_refused_on_a_mesh_coarser_than_its_bands_were_measured_on():
+    """At mesh factor 2 the cheap level (×4.4) read No. 05's global peak at rf = 1 mm as
+    134.9 ± 13.5 MPa against the full study's 126.1 ± 5.0: its band does not hold the full
+    value (docs/accuracy.md, *The screening level*). A screened study coarser than the mesh
+    its bands were measured on is refused before any work, with the line saying why."""
+    from pipeline.study.screening import SCREEN_MAX_MESH_FACTOR
+    coarse = Study("05", None, {"mesh_factor": 2.0}, {"dims.rf": [1.0, 2.0]}, [], screen=True)
+    with pytest.raises(InputError, match=r"^screen: .* do not hold at 2; give --mesh-factor 1 "):
+        plan(coarse)
+    assert SCREEN_MAX_MESH_FACTOR == 1.0
+    assert len(plan(replace(coarse, base={"mesh_factor": 1.0}))) == 2    # at the bands' own mesh: accepted
+    assert len(plan(replace(coarse, screen=False))) == 2                 # unscreened, any mesh factor
+
+
 @pytest.mark.slow
-def test_a_screened_study_behaves_like_a_run_without_an_allowable_or_a_fine_mesh(tmp_path):
+def test_a_screened_study_behaves_like_a_run_without_an_allowable(tmp_path):
     """`sweep --screen` without --allowable was refused although a run takes its default
-    allowable, 80 MPa (README, docs/design.md §7: the case's default); a study at a mesh
-    factor above 1.3 said nothing of the fillet while a run says so. Now the screened study
-    decides against 80 MPa, prints the run's coarse-mesh note before its work (stderr) and
-    in its closing lines (stdout, each at most 100 characters), writes it into its report,
-    and writes report.html beside report.md."""
+    allowable, 80 MPa (README, docs/design.md §7: the case's default). Now the screened
+    study decides against 80 MPa; its variants, decided on the cheap level (×2.2 coarser),
+    say the run's coarse-mesh note in its closing lines (stdout, each at most 100
+    characters) and its report, and it writes report.html beside report.md."""
     from pipeline.analysis.words import coarse_mesh_note
     from pipeline.inputs.case import resolve
     out = tmp_path / "study"
     p = subprocess.run([sys.executable, "-m", "pipeline", "sweep", "--size", "05", "--dim", "rf=1,2", "--screen",
-                        "--mesh-factor", "2", "--out", str(out)], cwd=ROOT, capture_output=True, text=True,
+                        "--out", str(out)], cwd=ROOT, capture_output=True, text=True,
                        timeout=900, env=dict(os.environ, CROSSHEAD_NO_CACHE="1"))
     assert p.returncode == 0, p.stderr
     assert json.loads((out / "sweep.json").read_text())["allowable_MPa"] == 80.0
-    case = resolve("05", overrides={"mesh_factor": 2.0})
-    note = coarse_mesh_note(case)
-    assert note and f"note: {note}" in p.stderr
-    # Both variants were decided on the cheap level, ×2.2 coarser: their runs' notes say so.
-    cheap = coarse_mesh_note(screen_case(case))
-    assert f"note: {cheap}" in " ".join(p.stdout.split())  # wrapped on the terminal
+    cheap = coarse_mesh_note(screen_case(resolve("05")))
+    assert cheap and f"note: {cheap}" in " ".join(p.stdout.split())  # wrapped on the terminal
     assert max(len(ln) for ln in p.stdout.splitlines()) <= 100
     assert cheap in (out / "report.md").read_text(encoding="utf-8")
     html = (out / "report.html").read_text(encoding="utf-8")
     assert html.startswith("<!DOCTYPE html>") and "data:image/png;base64," in html  # the plots embedded
 
 
+@pytest.mark.slow
+def test_a_study_on_a_coarse_mesh_says_the_run_s_note(tmp_path):
+    """A study at a mesh factor above 1.3 said nothing of the fillet while a run says so:
+    it now prints the run's coarse-mesh note before its work (stderr)."""
+    from pipeline.analysis.words import coarse_mesh_note
+    from pipeline.inputs.case import resolve
+    p = subprocess.run([sys.executable, "-m", "pipeline", "sweep", "--size", "05", "--dim", "rf=1,2", "--levels", "1",
+                        "--mesh-factor", "2", "--out", str(tmp_path / "study")], cwd=ROOT, capture_output=True,
+                       text=True, timeout=900, env=dict(os.environ, CROSSHEAD_NO_CACHE="1"))
+    assert p.returncode == 0, p.stderr
+    note = coarse_mesh_note(resolve("05", overrides={"mesh_factor": 2.0}))
+    assert note and f"note: {note}" in p.stderr
+
+
 def _sweep(out: Path, *extra: str) -> subprocess.CompletedProcess:
     return subprocess.run([sys.executable, "-m", "pipeline", "sweep", "--size", "05", "--dim", "rf=1,2",
-                           "--mesh-factor", "2", "--out", str(out), "--quiet", *extra], cwd=ROOT,
+                           "--out", str(out), "--quiet", *extra], cwd=ROOT,
                           capture_output=True, text=True, timeout=900,
                           env=dict(os.environ, CROSSHEAD_NO_CACHE="1"))
 
 
 @pytest.mark.slow
 def test_a_real_screened_study_decides_as_the_full_one_and_its_summary_names_the_evidence(tmp_path):
-    """rf = 1 and 2 mm of No. 05 at 125 MPa: the global peak falls below it between them, so
+    """rf = 1 and 2 mm of No. 05 at 125 MPa (their global peaks 134.7 ± 1.0 and 101.2 ± 1.8 MPa
+    in a full study on the default mesh): the global peak falls below it between them, so
     both border the crossing and get the full error bar; their verdicts and the crossing
     are the full study's (the same variants without --screen). The size summary of the
     screened study's variants reads them and says how each was decided."""
