@@ -10,6 +10,8 @@ displacements with (Q/Q0)·(E0/E), and nothing moves where it sits):
 - the pilot's refined places (:func:`places`): load, E and the allowable do not move them;
 - each mesh (:class:`CachedMesher`): gmsh's output for the same part and spec;
 - each mesh's solution (:func:`level`): scaled, and checked against this mesh's system;
+- a sensitivity variant's solution on its moved mesh (:func:`resolved`): scaled and
+  checked alike;
 - an error-bar mesh's numbers (:func:`error_bar_level`): its peaks and forces scaled by
   Q/Q0, without importing the mesh, once its readings are read again from the mesh and
   solution entries they derive from (pipeline/cache/levels.py).
@@ -189,6 +191,27 @@ def solve_or_scale(case: Case, prob: Problem, reuse: bool = True, more: Sequence
     sol.more = found[1:]
     timings["solve"] += t_key
     sol.timings = timings
+    return sol
+
+
+def resolved(case: Case, prob: Problem, solve: Callable[[], Solution], V) -> Solution:
+    """The displacement of ``case`` on a mesh of the sensitivity section as its nodes now
+    are (the nominal mesh, or it moved onto a variant's dimensions; space ``V``): an
+    earlier run's solve of the same case on the same nodes, scaled to this load and E and
+    checked against this mesh's system (pipeline/cache/solutions.py), or else ``solve()``
+    (the set-up Resolver's), then kept. A changed-load re-run thus solves no variant again."""
+    m = prob.mesh
+    ids = solvecache.node_ids(V, m) if runcache.enabled() else None
+    if ids is None:
+        return solve()
+    name = solvecache.key(case, m, V)
+    entry = solvecache.earlier(name, m.mesh.comm)
+    found = None if entry is None else solvecache.scaled(entry, solvecache.Target(m, V, ids), prob.loads, case,
+                                                         prob.material, name)
+    if found is not None:
+        return found
+    sol = solve()
+    solvecache.store(name, sol, ids, case)
     return sol
 
 

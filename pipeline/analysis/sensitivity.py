@@ -262,9 +262,10 @@ def _moved_reading(v: Case, nominal: Problem, mover: Mover, solver: Resolver) ->
 
 def _solved_reading(case: Case, prob: Problem, solver: Resolver) -> Reading:
     """The reading of ``case`` on its problem as the mesh's nodes now are, solved by the
-    set-up ``solver``; loads checked to balance to 1e-6·Q."""
+    set-up ``solver`` (or an earlier run's solve scaled, pipeline.analysis.reuse.resolved);
+    loads checked to balance to 1e-6·Q."""
     try:
-        sol = solver.solve(prob.loads.tractions)
+        sol = reuse.resolved(case, prob, lambda: solver.solve(prob.loads.tractions), solver.V)
     except NumericalError as exc:
         return Reading(failed=" ".join(str(exc).split()))
     _, eq_err, point_r = equilibrium(prob.loads, sol.reactions)

@@ -399,3 +399,33 @@ def test_a_load_model_variant_on_the_runs_operator_is_its_own_solve():
         assert crit.value_MPa == pytest.approx(own.critical.value_MPa, rel=1e-6)
         assert sec["critical_section"]["nominal_MPa"] == pytest.approx(own.sections["critical_section"]["nominal_MPa"],
                                                                       rel=1e-6)
+
+
+def test_a_changed_load_re_run_scales_the_moved_variants_instead_of_solving_them(tmp_path, monkeypatch):
+    """Linear elasticity with traction loads (docs/design.md §8): every stress is × Q/Q0 and
+    independent of E. The section's nominal mesh and its moves onto rf's two ends, solved at
+    10 kN with the run cache on, read at 12.5 kN and E = 70 GPa with no CG solve at all,
+    each peak and section stress 1.25× the first (to the rounding of the scaled field),
+    every field checked against its moved mesh's system first (pipeline/cache/solutions.py)."""
+    import pipeline.cache.runs as rc
+    from dataclasses import replace
+    from pipeline.analysis.sensitivity import moved_readings
+    from pipeline.fe.resolve import Resolver
+    monkeypatch.setenv("CROSSHEAD_NO_CACHE", "0")
+    monkeypatch.setattr(rc, "ROOT", tmp_path / "runs")
+    case = resolve("05", overrides={"mesh_factor": 3.0, "rtol": 1e-5})
+    rf = next(r for r in ranges_of(case)[0] if r.input == "rf")
+    variants = [rf.variant(case, rf.low), rf.variant(case, rf.high)]
+    first = moved_readings(case, 6.6, variants, with_nominal=True)
+    solves = []
+    real = Resolver.solve
+    monkeypatch.setattr(Resolver, "solve", lambda self, *a, **k: solves.append(1) or real(self, *a, **k))
+    k = 1.25
+    again = moved_readings(replace(case, load_N=k * case.load_N, E_MPa=70_000.0), 6.6,
+                           [replace(v, load_N=k * v.load_N, E_MPa=70_000.0) for v in variants], with_nominal=True)
+    assert solves == []
+    for a, b in zip(first, again, strict=True):
+        assert a.ok and b.ok
+        for name in ("peak_MPa", "critical_MPa", "section_MPa"):
+            assert getattr(b, name) == pytest.approx(k * getattr(a, name), rel=1e-9), name
+    assert first[1].peak_MPa > first[0].peak_MPa > first[2].peak_MPa  # a smaller fillet, a higher peak
