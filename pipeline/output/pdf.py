@@ -52,6 +52,10 @@ class Browser:
 
     def __init__(self, exe: str):
         self.profile = tempfile.mkdtemp(prefix="crosshead-chromium-")
+        # Chromium leaves a folder of its own (org.chromium.Chromium.*, its singleton
+        # socket) in TMPDIR when it is killed: give it one inside the profile, removed with it.
+        tmp = os.path.join(self.profile, "tmp")
+        os.mkdir(tmp)
         self._buffer, self._id, self.session = b"", 0, None
         to_browser, self._to = os.pipe()
         self._from, from_browser = os.pipe()
@@ -63,7 +67,8 @@ class Browser:
         self.failed: str | None = None  # why the browser could not be started
         try:
             self.proc = subprocess.Popen(["sh", "-c", PIPE_SHELL, "sh", *args], stdin=to_browser,
-                                         stdout=from_browser, stderr=subprocess.DEVNULL, start_new_session=True)
+                                         stdout=from_browser, stderr=subprocess.DEVNULL, start_new_session=True,
+                                         env=dict(os.environ, TMPDIR=tmp))
         except OSError as exc:
             self.failed = f"the browser could not be started ({exc.strerror or exc})"
         finally:

@@ -18,6 +18,10 @@ STAND_IN = '''#!{python}
 """A stand-in browser: answers each command read from descriptor 3 on descriptor 4 ({mode})."""
 import base64, json, os, subprocess, sys, time
 MODE = "{mode}"
+# As Chromium does: a folder of its own in the temporary folder it is given (its singleton
+# socket's), which a killed browser never removes; and where that was, for the test.
+os.makedirs(os.path.join(os.environ.get("TMPDIR", "/tmp"), "org.chromium.Chromium.standin"), exist_ok=True)
+open("{helper}.tmpdir", "w").write(os.environ.get("TMPDIR", ""))
 if MODE == "hang":
     helper = subprocess.Popen(["sleep", "60"])
     open("{helper}", "w").write(str(helper.pid))
@@ -81,6 +85,9 @@ def test_a_print_the_browser_answers_is_written(tmp_path):
     browser, out, why = _print(tmp_path, "ok")
     assert why is None and out.read_bytes() == b"%PDF-1.4 stand-in"
     assert not Path(browser.profile).exists() and not _running(browser.proc.pid)
+    # The browser's own temporary folders went inside its profile, and with it.
+    tmp = Path((tmp_path / "helper.pid.tmpdir").read_text())
+    assert tmp.is_relative_to(browser.profile) and not tmp.exists()
 
 
 @pytest.mark.parametrize("mode,words", [("error", "Page.printToPDF: Printing failed"),
