@@ -1,6 +1,6 @@
 # crosshead: two commands do everything on a fresh Debian 12 machine, set-up included.
 #   make run    hook No. 05, default mesh, all outputs in results/05/
-#   make test   the linter and the test suite (coarse meshes; a few minutes); make test-fast: under a minute
+#   make test   the linter and the test suite (coarse meshes; about 20 minutes); make test-fast: about a minute
 # Longer studies: make converge, make bench, make sizes (one target per size: make 05, make 1.6, ...)
 SHELL := /bin/bash
 PY := .venv/bin/python
