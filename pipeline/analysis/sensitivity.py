@@ -189,9 +189,10 @@ def _movable(case: Case, variant: Case) -> bool:
 def spread(jobs: Sequence[Job], ranks: int) -> list[int]:
     """The rank that analyses each job: the nominal on rank 0, then the others, the dearest
     first, each to the rank that would finish it soonest; a rank's first moved variant also
-    pays for holding the nominal mesh (FRESH_COST, MOVED_COST, BASE_COST)."""
+    pays for holding the nominal mesh (FRESH_COST, MOVED_COST, BASE_COST), and the nominal
+    job is solved on that set-up as a moved variant is."""
     load, holds, out = [0.0] * ranks, [False] * ranks, [0] * len(jobs)
-    cost = {FRESH: FRESH_COST, MOVED: MOVED_COST}
+    cost = {FRESH: FRESH_COST, MOVED: MOVED_COST, NOMINAL: MOVED_COST}
     for k in sorted(range(len(jobs)), key=lambda k: (jobs[k].how != NOMINAL, -cost.get(jobs[k].how, 0.0), k)):
         how = jobs[k].how
 
