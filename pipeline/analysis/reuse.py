@@ -168,13 +168,9 @@ def solve_or_scale(case: Case, prob: Problem, reuse: bool = True, more: Sequence
     # tolerance (level.more_rtol).
     cases = [case] + [replace(case, rtol=more_rtol(case))] * len(more)
 
-    def earlier(name: str, lc_k, case_k: Case) -> Solution | None:
-        entry = solvecache.earlier(name, m.mesh.comm)
-        return None if entry is None else solvecache.scaled(entry, target, lc_k, case_k, prob.material, name)
-
     names = [solvecache.key(case, m, V)] + [solvecache.key(cases[1], m, V, model) for model, _ in more]
     loads = [lc] + [lc_k for _, lc_k in more]
-    found = [earlier(n, lc_k, c) for n, lc_k, c in zip(names, loads, cases)]
+    found = [_earlier(n, target, lc_k, c, prob.material) for n, lc_k, c in zip(names, loads, cases)]
     t_key = time.perf_counter() - t0
     missing = [k for k, s in enumerate(found) if s is None]
     timings = {"assemble": 0.0, "solve": 0.0}
@@ -205,14 +201,19 @@ def resolved(case: Case, prob: Problem, solve: Callable[[], Solution], V) -> Sol
     if ids is None:
         return solve()
     name = solvecache.key(case, m, V)
-    entry = solvecache.earlier(name, m.mesh.comm)
-    found = None if entry is None else solvecache.scaled(entry, solvecache.Target(m, V, ids), prob.loads, case,
-                                                         prob.material, name)
+    found = _earlier(name, solvecache.Target(m, V, ids), prob.loads, case, prob.material)
     if found is not None:
         return found
     sol = solve()
     solvecache.store(name, sol, ids, case)
     return sol
+
+
+def _earlier(name: str, target: solvecache.Target, lc, case: Case, material) -> Solution | None:
+    """The stored solution ``name`` scaled to ``case``'s load and E on ``target`` and checked
+    against its system under loads ``lc`` (pipeline/cache/solutions.py), or None."""
+    entry = solvecache.earlier(name, target.m.mesh.comm)
+    return None if entry is None else solvecache.scaled(entry, target, lc, case, material, name)
 
 
 def _solve_loads(case: Case, prob: Problem, V, loads: list) -> Solution:

@@ -217,7 +217,7 @@ def derivation_problem(m: dict, case: Case) -> str | None:
     u = np.full((len(x), 3), np.nan)
     u[sol.node_ids] = sol.u_mm
     arrays = MeshArrays(x, cells[:, _gmsh_to_dolfinx(cells.shape[1])])
-    k = m["load_N"] / sol.load_N  # stresses scale with the load; E does not change them
+    k = stress_factor(m["load_N"], sol.load_N)  # stresses scale with the load; E does not change them
     for which in ("peak", "critical"):
         p = _peak(m[which])
         read = readings_at(arrays, u, sol.E_MPa, case.nu, p.unaveraged.location_mm, p.averaged.location_mm,

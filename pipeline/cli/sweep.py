@@ -113,7 +113,7 @@ def execute(args: argparse.Namespace, rank0: bool, stack: contextlib.ExitStack) 
         raise InputError("sensitivity: a screened study decides most variants on one coarse mesh, without the "
                          "sensitivity section, so --sensitivity would vary only some of them; give --screen or "
                          "--sensitivity, not both")
-    given = frozenset(given_keys(case_file, base) | {"ratio"} if args.ratio is not None else given_keys(case_file, base))
+    given = frozenset(given_keys(case_file, base) | ({"ratio"} if args.ratio is not None else set()))
     study = Study(size, case_file, base, axes, loads, levels, ratio, sizes, args.sensitivity, screen, args.memory_limit,
                   given)
     res = execute_sweep(study, out, say)

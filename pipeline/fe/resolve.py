@@ -222,14 +222,6 @@ class Resolver:
                                  "solve": t["coarse matrix, preconditioner set-up"] + t["CG iterations"]})
 
 
-def extrapolated(u_nominal: np.ndarray, u_end: np.ndarray, nominal: float, end: float, other: float) -> np.ndarray:
-    """A first guess (mm) for the other end of a range from the nominal solution and one
-    end's, on the same moved mesh: the straight line through them at ``other`` (the varied
-    input's values nominal, end, other in its unit). The change of the displacement with the
-    input is smooth, so this starts closer than the nominal solution alone."""
-    return u_nominal + (u_nominal - u_end) * ((other - nominal) / (nominal - end))
-
-
 class _Clock:
     """Wall-time and CPU-time laps (s) by name, summed when a name comes again."""
 

@@ -13,6 +13,7 @@ import math
 from dataclasses import asdict, dataclass
 
 from pipeline.analysis.words import NOT_ASKED, PEAK_STATUSES, SINGLE_MESH, SINGULAR, peak_status  # noqa: F401
+from pipeline.fe.linearity import stress_factor
 
 SHOWN_ONLY = "; shown for orientation only"  # the end of results.json's not_wanted text
 
@@ -112,7 +113,7 @@ def rows(res: dict) -> list[dict]:
     q0 = res["case"]["load_N"]
     out = []
     for entry in sweep:
-        k = entry["load_N"] / q0  # linear elasticity: every stress scales with the load
+        k = stress_factor(entry["load_N"], q0)  # linear elasticity: every stress scales with the load
         row = dict(own, **{c: None if own[c] is None else k * own[c] for c in _LINEAR})
         row.update({c: entry.get(c) for c in _PER_LOAD})
         if "sensitivity_sentence" in entry:  # what that load's verdict rests on, said at that load
