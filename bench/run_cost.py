@@ -48,7 +48,7 @@ ROOT = Path(__file__).resolve().parents[1]
 BASE = "83d9271"  # the round before the sensitivity section (docs/performance.md, `make run`)
 OWN_FILES = frozenset({"run_cost.json", "work"})
 CONFIGS = ("with", "without", "base", "reload", "scene")
-# Issue 49's targets: `make run` wall and CPU against version 0.6's (at most), the
+# The speed targets: `make run` wall and CPU against version 0.6's (at most), the
 # changed-load re-run against version 0.6's cold `make run` (at most), the scene and a
 # screened study against their peers (at least).
 TARGETS = {"wall": 1.2, "cpu": 1.5, "reload": 0.30, "scene": 3.0, "screen": 3.0}

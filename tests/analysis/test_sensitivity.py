@@ -140,7 +140,7 @@ def test_verdict_flips_on_the_input_that_crosses_the_allowable():
 
 def test_a_range_the_part_does_not_allow_is_refused():
     """rf up to 3 mm with dj 20 on h 25: dj/2 + rf = 13 > 12.5 breaks a rule of the part, so
-    the range is refused with that rule before any work (issue 50): an end outside the part
+    the range is refused with that rule before any work: an end outside the part
     would be analysed as nothing."""
     with pytest.raises(InputError, match=r"^sensitivity\.rf: the high end, 3 mm, .*dj/2 \+ rf = 13 mm"):
         _seats_given(**{"sensitivity.rf": [1.0, 3.0]})
@@ -173,8 +173,8 @@ def test_an_end_not_analysed_is_named_and_not_claimed():
 
 def test_a_range_with_neither_end_analysed_is_not_in_the_holds_list():
     """Both ends of dj and of rf not analysed (each breaks a rule): nothing is claimed; the
-    sentence says that what the verdict rests on is not known (issue 50: "holds over every
-    range (... 10–40 mm ...)" when neither end could be analysed)."""
+    sentence says that what the verdict rests on is not known, never "holds over every
+    range" with that range in it."""
     case = _unchecked(_seats_given(allowable_MPa=200.0), dj=(30.0, 40.0), rf=(4.0, 5.0))
     res = _decided(case, analyse_sensitivity(case, ALONE, analyse_one=_closed_form))
     said = res["sensitivity_summary"]["sentence"]
@@ -312,7 +312,7 @@ def test_study_tables_name_the_verdicts_that_depend_on_an_assumption():
 def test_every_load_of_a_load_list_gets_its_verdicts_and_sentence():
     """A run at 5000 and 10000 N whose global peak is 50 ± 1 MPa at 5000 N (100 ± 2 at
     10000 N) against 80 MPa: it passes at 5000 N and fails at 10000 N, and the sentence
-    names both loads (issue 50: the verdicts spoke for the first load only). The stand-in's
+    names both loads, not the first one alone. The stand-in's
     rf 1.2 mm end reads 50·(1.5/1.2)^0.5 = 55.9 MPa at 5000 N (pass) and 111.8 MPa at
     10000 N (fail): the verdict holds at each load, on its own side."""
     from pipeline.analysis.verdicts import load_rows, loads_verdict, sentence_over_loads

@@ -255,8 +255,8 @@ def _solution_changed(e: rc.Entry) -> None:
 def test_a_level_is_checked_against_the_mesh_and_solution_it_derives_from(cache, reference, tmp_path, capfd,
                                                                             change, why):
     """An error-bar mesh's stored readings are read again from the mesh and solution entries
-    they derive from before reuse (issue 50: peaks × 1.2 with a rewritten checksum passed
-    every check, and the error bars grew from 16.8 / 0.72 to 41.8 / 13.0 MPa). Each of these
+    they derive from before reuse: a checksum proves an entry whole, not true (peaks × 1.2
+    with a rewritten checksum would pass it and widen the error bars). Each of these
     is refused with one line, and the run's answer, error bars included, is the reference's
     to the last bit (its mesh solved again)."""
     path = entry_of(cache, "level", largest=False)

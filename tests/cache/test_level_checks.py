@@ -70,8 +70,7 @@ def test_a_reused_result_is_scaled_by_q_over_q0(monkeypatch):
 
 def test_a_result_that_names_nothing_it_derives_from_is_refused(monkeypatch):
     """A stored result without the mesh and solution entries it derives from cannot be
-    checked against them: refused, and one that would be stored without them is not kept
-    (issue 50)."""
+    checked against them: refused, and one that would be stored without them is not kept."""
     assert cl.derivation_problem(stored(), CASE) == "it names no mesh and solution it derives from"
     kept = []
     monkeypatch.setattr(rc, "store", lambda name, entry: kept.append(name))

@@ -296,7 +296,7 @@ CORPUS = [
      '[sweep]\nsize = "05"\ndims = { rf = "1,2" }\n[material]\nE_MPa = 1\n', ("study", "material", "case file")),
     ("study-mesh-factor-a-string", ["sweep", "--study", "{case}"],
      '[sweep]\nsize = "05"\ndims = { rf = "1,2" }\nmesh_factor = "3"\n', ("sweep.mesh_factor", "a number")),
-    # numbers as an engineer writes them (issue 50): Python's float() and int() read "1_0" as 10
+    # numbers as an engineer writes them: Python's float() and int() read "1_0" as 10
     ("load-underscore", RUN + ["--load", "1_0000"], None, ("--load", "not a number")),
     ("bearing-length-underscore", RUN + ["--bearing-length", "1_0"], None, ("--bearing-length", "not a number")),
     ("levels-underscore", RUN + ["--levels", "1_0"], None, ("--levels", "invalid integer")),

@@ -1,4 +1,4 @@
-"""The command line as a property (hypothesis; issue 50, item 8): every option of run,
+"""The command line as a property (hypothesis): every option of run,
 converge and sweep, with values drawn from each option's domain, its edges and just
 outside it, alone and in combination (a case file, a study file, an option given twice).
 Whatever the arguments:

@@ -93,7 +93,7 @@ TEXT = st.one_of(st.sampled_from(HOSTILE),
 def test_user_text_is_text_in_the_report(tmp_path_factory, doc, name):
     """Whatever a case file's [document] fields and name hold, report.html shows them as that
     very text: no link (a javascript: URL least of all), image, script or other element comes
-    of them, and each table cell and the name's code span read back as typed (issue 50)."""
+    of them, and each table cell and the name's code span read back as typed."""
     about = {"tool": "crosshead", "tool_version": "9.9", "created_utc": "2030-01-02T03:04:05+00:00",
              "software": {}, "document": doc}
     md = "\n".join([f"# Crosshead stress report: hook No. 05 (case {code_span(name)})\n",
@@ -109,8 +109,8 @@ def test_user_text_is_text_in_the_report(tmp_path_factory, doc, name):
 
 
 def test_a_javascript_link_in_a_field_stays_text(tmp_path):
-    """The example of issue 50: a Markdown link to a javascript: URL in a title-block field
-    became a live link in report.html; it is now the characters typed, in report.md too."""
+    """A Markdown link to a javascript: URL in a title-block field is the characters typed
+    in report.html, never a live link, and in report.md too."""
     assert md_text("[click](javascript:alert(1))") == "\\[click\\](javascript:alert(1))"
     page = _Page()
     table = "| field | value |\n|---|---|\n| Part | " + md_text("[click](javascript:alert(1))") + " |\n"

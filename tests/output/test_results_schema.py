@@ -92,8 +92,8 @@ def test_the_summary_is_the_run_s_own_row(written):
 def test_a_peak_not_asked_for_is_not_in_the_answer(written):
     """--want critical: fe.peak_MPa, the field a program reads as the global peak, is null;
     the unrefined reading is kept under peak_unresolved_MPa (the global block's value), and
-    the summary row keeps it as the reading, with no value (issue 50: fe.peak_MPa held an
-    unrefined value 14 % low). A run for both peaks has no unresolved reading."""
+    the summary row keeps it as the reading, with no value: an unrefined value (14 % low on
+    No. 05) is never the answer a program reads. A run for both peaks has no unresolved reading."""
     fe = written["load sweep, critical peak only"]["fe"]
     assert fe["peak_MPa"] is None and fe["peak_unresolved_MPa"] == fe["peak"]["value_MPa"]
     assert fe["critical_peak_MPa"] == fe["critical"]["value_MPa"] and fe["critical_peak_unresolved_MPa"] is None

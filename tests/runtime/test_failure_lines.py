@@ -146,7 +146,7 @@ def test_a_cache_failure_names_the_cache(tmp_path, earlier, monkeypatch, capsys)
 def test_a_closed_stdout_still_writes_the_result(tmp_path, quiet):
     """No traceback (sys.stdout is None when descriptor 1 is closed at start), exit 0, the
     result written; the closing lines that stdout could not take are said to be lost, once,
-    on stderr (issue 50: lost in silence). --quiet shows none, so says none."""
+    on stderr. --quiet shows none, so says none."""
     from pipeline.cli.terminal import CLOSED_STDOUT
     out = tmp_path / "res"
     proc = shell(">&-", FAST + quiet + ["--out", out])
@@ -234,7 +234,7 @@ def no_leftovers(folder: Path) -> list[str]:
 def test_memory_running_out_mid_run_is_one_line_and_nothing_left(tmp_path, monkeypatch, capsys):
     """A MemoryError while computing (what an estimate that let the run start can meet):
     exit 3, one line saying memory ran out and that nothing was written; no staging folder,
-    no lock, no output folder (issue 50: a traceback, or exit 139 with .partial and .lock)."""
+    no lock, no output folder."""
     import pipeline.output.folder
     from pipeline.cli import main
 
@@ -260,8 +260,7 @@ def test_a_thread_or_library_that_cannot_be_had_is_out_of_memory():
 
 def test_a_drawing_process_s_failure_is_its_error_line_not_a_warning():
     """The drawing process's stderr ends in VTK's coloured warnings: the line names its error,
-    without escapes, and a memory error is OutOfMemory (issue 50: the line was a warning
-    about the X server, with its escape codes)."""
+    without escapes (not a warning about the X server), and a memory error is OutOfMemory."""
     from pipeline.errors import OutOfMemory
     from pipeline.output.drawing import failure
     warn = "\x1b[0m\x1b[33m2026 vtkXOpenGLRenderWindow.:1452 WARN| bad X server connection.\x1b[0m"
@@ -289,8 +288,8 @@ def _limited(gib: float):
 ])
 def test_a_run_under_an_address_space_limit_is_refused_before_any_work(tmp_path, gib, says):
     """Under ``ulimit -v``: exit 2, one line naming the limit and what the run needs, and
-    nothing written: no output folder, no staging folder, no lock (issue 50: tracebacks,
-    exit 139, .partial and .lock left, or a process that never ended). No. 05's default
+    nothing written: no output folder, no staging folder, no lock, no traceback, no exit
+    139 and no process left running. No. 05's default
     run needs 1.03 GiB (VmPeak measured) and the picture's process 1.15 GiB."""
     proc = subprocess.run([PY, "-m", "pipeline", "run", "--size", "05", "--out", str(tmp_path / "res")], cwd=ROOT,
                           env=ENV, capture_output=True, text=True, timeout=300, preexec_fn=_limited(gib))

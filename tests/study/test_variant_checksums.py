@@ -130,8 +130,7 @@ def test_a_user_s_file_in_a_damaged_variant_stays_and_is_named(tmp_path):
     """discard_damaged on a variant whose results.json was edited and beside which a user
     put notes.txt and a folder: the variant's own files go, the user's stay, named in the
     line; the folder stays the tool's (a marker that lists none of them), so that the next
-    run of the variant replaces it and carries them over (issue 50: the study deleted
-    them with the folder)."""
+    run of the variant replaces it and carries them over, never deleting them with it."""
     from pipeline.runtime.folders import MARKER, marker_data, user_names
     bad = a_variant(tmp_path, "bad", {"x": 1})
     (bad / "results.json").write_text('{"x": 2}\n')
@@ -151,7 +150,7 @@ def test_a_user_s_file_in_a_damaged_variant_stays_and_is_named(tmp_path):
 def test_the_summary_of_a_study_names_a_variant_whatever_is_missing(tmp_path):
     """python -m pipeline.study.summary on a study's variants/: a variant whose results.json
     is deleted, and one whose whole folder is gone while sweep.json lists it as analysed,
-    are each named, not dropped in silence (issue 50)."""
+    are each named, not dropped in silence."""
     from pipeline.runtime.folders import MARKER
     from pipeline.study.summary import collect
     out = tmp_path / "study"
@@ -193,7 +192,7 @@ def test_an_edited_or_truncated_variant_is_analysed_again_and_never_summarised(t
     cut.write_bytes(cut.read_bytes()[:cut.stat().st_size // 2])
     (edited.parent / "notes.txt").write_text("mine")  # a user's file beside the edited results
     again = sweep(out, *STUDY)
-    # Issue 50: the user's file stays (it was deleted with the variant's folder), named.
+    # The user's file stays, named, when the variant's folder is replaced.
     assert (edited.parent / "notes.txt").read_text() == "mine"
     assert f"kept {by_rf[1.0]}/notes.txt (not the study's)" in again.stdout + again.stderr
     for rf, text in ((1.0, "rf = 1 mm"), (1.5, "rf = 1.5 mm")):
@@ -216,7 +215,7 @@ def test_an_edited_or_truncated_variant_is_analysed_again_and_never_summarised(t
         next(r["peak_MPa"] for r in first if r["dims.rf"] == 1.5))
     md = (out / "summary" / "summary.md").read_text(encoding="utf-8")
     assert f"{by_rf[1.0]} (results.json does not match its checksum; not summarised)" in md
-    # Issue 50: a variant whose results.json is deleted is named too, not dropped in silence.
+    # A variant whose results.json is deleted is named too, not dropped in silence.
     edited.write_text(as_written)
     cut.unlink()
     p = subprocess.run([sys.executable, "-m", "pipeline.study.summary", str(out / "variants"), "--all"], cwd=ROOT,
