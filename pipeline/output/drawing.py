@@ -23,7 +23,7 @@ from pathlib import Path
 from pipeline.output.closeup import render_closeup
 from pipeline.output.jsonio import json_safe
 from pipeline.output.picture import render_folder
-from pipeline.output.plots import draw_plots
+from pipeline.output.plots import draw_plots, load_matplotlib
 
 @dataclass
 class Drawing:
@@ -103,6 +103,7 @@ def draw(folder: Path) -> None:
     scene = json.loads(sys.stdin.readline())
     render_folder(folder, scene)
     render_closeup(folder, scene)
+    load_matplotlib()  # while the run goes on: the plots are the last thing it waits for
     line = sys.stdin.readline()
     if line.strip():  # none: the run ended without results (it was stopped)
         draw_plots(folder, json.loads(line))

@@ -14,6 +14,20 @@ from pathlib import Path
 NOT_ASKED = "not asked for (--want): not resolved"  # a peak's title when the run skipped its refinement
 
 
+def load_matplotlib() -> bool:
+    """Import matplotlib with its Agg backend now, and say whether it is installed.
+
+    Why: the import takes about 0.4 s; the drawing process does it while it waits for the
+    run's results, so that the plots, the last thing a run waits for, start at once."""
+    try:
+        import matplotlib
+        matplotlib.use("Agg")
+        import matplotlib.pyplot  # noqa: F401
+    except ImportError:
+        return False
+    return True
+
+
 def convergence_plot(path: Path, conv: dict, case) -> bool:
     """Each peak (MPa) against the representative mesh size N^(-1/3) of the study's meshes:
     both nodal readings, the value reported, the finest mesh's error bar and, where the

@@ -8,8 +8,12 @@ arrays are written in this machine's byte order, which the header names.
 """
 from __future__ import annotations
 
+import contextlib
+import os
 import sys
 import zlib
+from concurrent.futures import ThreadPoolExecutor
+from typing import Iterator
 from pathlib import Path
 from xml.sax.saxutils import quoteattr
 
@@ -27,10 +31,37 @@ def _index_dtype(largest: int) -> np.dtype:
     return np.dtype(np.int32) if largest < 2 ** 31 - 1 else np.dtype(np.int64)
 
 
-def _compressed(data: bytes) -> bytes:
-    """``data`` as one appended block in VTK's zlib layout (UInt64 header)."""
+@contextlib.contextmanager
+def _machine_wide_pool() -> Iterator[ThreadPoolExecutor]:
+    """A pool of one thread per core of the machine (at most 4), whatever core this
+    thread is bound to.
+
+    Why: mpirun binds each rank to one core and a new thread inherits its creator's
+    binding, so a rank's pool would share its one core. This thread may run anywhere while
+    the pool lives (it only waits for the pool), and its binding is put back after."""
+    bound = None
+    with contextlib.suppress(AttributeError, OSError):  # no affinity outside Linux
+        bound = os.sched_getaffinity(0)
+        os.sched_setaffinity(0, range(os.cpu_count() or 1))
+    try:
+        with ThreadPoolExecutor(max_workers=min(os.cpu_count() or 1, 4)) as pool:
+            yield pool
+    finally:
+        if bound is not None:
+            with contextlib.suppress(OSError):
+                os.sched_setaffinity(0, bound)
+
+
+def _deflate(chunk: bytes) -> bytes:
+    return zlib.compress(chunk, ZLIB_LEVEL)
+
+
+def _compressed(data: bytes, pool: ThreadPoolExecutor | None = None) -> bytes:
+    """``data`` as one appended block in VTK's zlib layout (UInt64 header), its chunks
+    compressed by ``pool``'s threads when given (zlib lets go of the interpreter lock while
+    it compresses, so the chunks compress side by side on the cores that are free)."""
     chunks = [data[i:i + CHUNK_BYTES] for i in range(0, len(data), CHUNK_BYTES)] or [b""]
-    packed = [zlib.compress(c, ZLIB_LEVEL) for c in chunks]
+    packed = list(pool.map(_deflate, chunks)) if pool is not None else [_deflate(c) for c in chunks]
     header = np.array([len(chunks), CHUNK_BYTES if len(chunks) > 1 else len(chunks[0]), len(chunks[-1]),
                        *(len(p) for p in packed)], dtype=np.uint64)
     return header.tobytes() + b"".join(packed)
@@ -69,7 +100,8 @@ def write_vtu(path: Path, points: np.ndarray, cells: np.ndarray, cell_type: str,
             raise ValueError(f"point array {name!r} has {len(a)} rows for {n} points")
         blocks.append((name, a))
     n_point = 4 + len(point_data)
-    payloads = [_compressed(a.tobytes()) for _, a in blocks]
+    with _machine_wide_pool() as pool:
+        payloads = [_compressed(a.tobytes(), pool) for _, a in blocks]
     offsets = np.concatenate([[0], np.cumsum([len(p) for p in payloads])[:-1]]).astype(int)
     tags = [_data_array(name, a, off) for (name, a), off in zip(blocks, offsets)]
     order = "LittleEndian" if sys.byteorder == "little" else "BigEndian"

@@ -99,3 +99,10 @@ def test_the_peaks_legends_sit_below_the_data_and_the_titles_say_the_status():
         assert all(_inside(ax.title.get_window_extent(renderer), box) for ax in fig.axes)
     finally:
         plt.close(fig)
+
+
+def test_matplotlib_is_loaded_ahead_with_the_backend_the_plots_use():
+    from pipeline.output.plots import load_matplotlib
+    assert load_matplotlib()
+    import matplotlib
+    assert matplotlib.get_backend().lower() == "agg"
