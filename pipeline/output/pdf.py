@@ -31,6 +31,8 @@ NO_PDF_ENV = "CROSSHEAD_NO_PDF"  # set (to anything but empty or 0): no report.p
 # The browser's end of the pipes: the protocol reads its commands from descriptor 3 and
 # writes its answers to 4 (--remote-debugging-pipe), each a JSON text ended by a NUL byte.
 PIPE_SHELL = 'exec 3<&0 4>&1 0</dev/null 1>/dev/null; exec "$@"'
+PR_SET_CHILD_SUBREAPER = 36  # Linux prctl(2)
+REAP_S = 1.0  # how long a killed browser's helpers are waited for (s); SIGKILL ends them in milliseconds
 
 
 def browser() -> str | None:
@@ -39,6 +41,35 @@ def browser() -> str | None:
     if os.environ.get(NO_PDF_ENV, "") not in ("", "0"):
         return None
     return next((p for p in map(shutil.which, BROWSERS) if p), None)
+
+
+def adopt_orphans() -> bool:
+    """Make this process the reaper of its descendants' orphans (Linux; False elsewhere).
+
+    Why: the browser's helpers are its children; killed with it, they are orphans, and
+    their new parent would be init, which reaps them and keeps their CPU time. Adopted
+    here, they are reaped by :meth:`Browser.kill`: the run's CPU time (what ``time`` and
+    the bench count, the processes it started) includes them, and none is left over."""
+    import ctypes
+    try:
+        return ctypes.CDLL(None, use_errno=True).prctl(PR_SET_CHILD_SUBREAPER, 1, 0, 0, 0) == 0
+    except (OSError, AttributeError):
+        return False
+
+
+def reap_group(pgid: int, wait_s: float = REAP_S) -> None:
+    """Reap this process's children in process group ``pgid`` (a killed browser's helpers,
+    adopted: :func:`adopt_orphans`) until none is left or ``wait_s`` has passed."""
+    deadline = time.monotonic() + wait_s
+    while True:
+        try:
+            pid, _ = os.waitpid(-pgid, os.WNOHANG)
+        except ChildProcessError:
+            return  # none of the group is this process's child any more
+        if pid == 0:
+            if time.monotonic() > deadline:
+                return
+            time.sleep(0.005)
 
 
 class PrintError(Exception):
@@ -59,6 +90,7 @@ class Browser:
         self._buffer, self._id, self.session = b"", 0, None
         to_browser, self._to = os.pipe()
         self._from, from_browser = os.pipe()
+        adopt_orphans()
         args = [exe, "--headless", "--disable-gpu", "--no-first-run", "--disable-extensions",
                 "--remote-debugging-pipe", f"--user-data-dir={self.profile}", "about:blank"]
         if os.geteuid() == 0:  # Chromium refuses to run as root with its sandbox
@@ -106,13 +138,14 @@ class Browser:
         return time.perf_counter() - t0, why
 
     def kill(self) -> None:
-        """Stop the browser and its helpers (its process group), reap it and remove its
+        """Stop the browser and its helpers (its process group), reap them and remove its
         profile: a stopped or failed run prints nothing and leaves no temporary folder."""
         if self.proc is not None:
             with contextlib.suppress(OSError):
                 os.killpg(self.proc.pid, 9)
             with contextlib.suppress(subprocess.TimeoutExpired):
                 self.proc.wait(timeout=5)
+            reap_group(self.proc.pid)
         for fd in (self._to, self._from):
             with contextlib.suppress(OSError):
                 os.close(fd)

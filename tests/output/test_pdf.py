@@ -25,6 +25,10 @@ open("{helper}.tmpdir", "w").write(os.environ.get("TMPDIR", ""))
 if MODE == "hang":
     helper = subprocess.Popen(["sleep", "60"])
     open("{helper}", "w").write(str(helper.pid))
+if MODE == "burn":  # a helper that works for 0.5 s of CPU, says so, then idles as Chromium's do
+    helper = subprocess.Popen([sys.executable, "-c", "import time\\nt = time.process_time()\\n"
+                               "while time.process_time() - t < 0.5: pass\\n"
+                               "open('{helper}', 'w').write('done')\\ntime.sleep(60)"])
 buf = b""
 while True:
     chunk = os.read(3, 65536)
@@ -40,6 +44,8 @@ while True:
         elif method == "Target.attachToTarget":
             out["result"] = {{"sessionId": "S1"}}
         elif method == "Page.printToPDF":
+            while MODE == "burn" and not os.path.exists("{helper}"):
+                time.sleep(0.01)
             if MODE == "hang":
                 time.sleep(60)
             if MODE == "die":
@@ -104,6 +110,33 @@ def test_a_print_that_hangs_is_stopped_with_its_helpers(tmp_path):
     time.sleep(0.2)
     assert not _running(int((tmp_path / "helper.pid").read_text()))  # its process group is stopped whole
     assert not Path(browser.profile).exists()
+
+
+BURN = """
+import resource, sys
+from pathlib import Path
+from pipeline.output import pdf
+tmp = Path(sys.argv[1])
+(tmp / "report.html").write_text("<p>x</p>")
+browser = pdf.Browser(sys.argv[2])
+try:
+    _, why = browser.print_pdf(tmp / "report.html", tmp / "report.pdf", 30.0)
+finally:
+    browser.kill()
+r = resource.getrusage(resource.RUSAGE_CHILDREN)
+print(why, r.ru_utime + r.ru_stime)
+"""
+
+
+def test_the_browser_s_helpers_are_reaped_by_the_run_and_their_cpu_counted(tmp_path):
+    """A helper the browser started and the kill orphaned is the run's child when it dies:
+    its CPU time is in the run's (the processes it started), not init's."""
+    import subprocess
+    out = subprocess.run([sys.executable, "-c", BURN, str(tmp_path), _browser(tmp_path, "burn")],
+                         capture_output=True, text=True, cwd=Path(pdf.__file__).resolve().parents[2], timeout=60)
+    why, cpu = out.stdout.split()
+    assert why == "None" and (tmp_path / "helper.pid").read_text() == "done"
+    assert float(cpu) >= 0.45  # the helper's 0.5 s of work, less the clock's grain
 
 
 def test_a_browser_that_cannot_start_is_said_not_raised(tmp_path):
