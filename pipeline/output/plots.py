@@ -17,8 +17,9 @@ NOT_ASKED = "not asked for (--want): not resolved"  # a peak's title when the ru
 def load_matplotlib() -> bool:
     """Import matplotlib with its Agg backend now, and say whether it is installed.
 
-    Why: the import takes about 0.4 s; the drawing process does it while it waits for the
-    run's results, so that the plots, the last thing a run waits for, start at once."""
+    Why: the import takes a good part of a second; the drawing process does it while it
+    waits for the run's results, so that the plots, the last thing a run waits for, start
+    at once (docs/decisions/0039-speed-of-a-run.md)."""
     try:
         import matplotlib
         matplotlib.use("Agg")

@@ -13,8 +13,8 @@ import os
 import sys
 import zlib
 from concurrent.futures import ThreadPoolExecutor
-from typing import Iterator
 from pathlib import Path
+from typing import Iterator
 from xml.sax.saxutils import quoteattr
 
 import numpy as np
@@ -53,6 +53,7 @@ def _machine_wide_pool() -> Iterator[ThreadPoolExecutor]:
 
 
 def _deflate(chunk: bytes) -> bytes:
+    """One chunk compressed as VTK's zlib compressor writes it."""
     return zlib.compress(chunk, ZLIB_LEVEL)
 
 
