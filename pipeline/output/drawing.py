@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import contextlib
 import json
-import os
 import subprocess
 import sys
 import time
@@ -24,6 +23,7 @@ from pipeline.output.closeup import render_closeup
 from pipeline.output.jsonio import json_safe
 from pipeline.output.picture import render_folder
 from pipeline.output.plots import draw_plots, load_matplotlib
+from pipeline.runtime.cores import unbind
 
 @dataclass
 class Drawing:
@@ -78,11 +78,7 @@ def start(folder: Path, scene: dict) -> Drawing:
     proc = subprocess.Popen([sys.executable, "-m", "pipeline.output.drawing", str(folder)],
                             stdin=subprocess.PIPE, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
                             text=True, cwd=Path(__file__).resolve().parents[2])
-    # mpirun binds each rank to one core, and a child inherits its parent's binding: the
-    # drawing then shared rank 0's core while rank 1's core idled once its mesh was
-    # solved. Let it run on any core.
-    with contextlib.suppress(AttributeError, OSError):  # no affinity outside Linux
-        os.sched_setaffinity(proc.pid, range(os.cpu_count() or 1))
+    unbind(proc.pid)  # not on rank 0's core alone, while rank 1's idles once its mesh is solved
     _send(proc, scene)
     return Drawing(proc=proc, started=time.perf_counter())
 

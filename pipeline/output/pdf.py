@@ -25,6 +25,8 @@ import tempfile
 import time
 from pathlib import Path
 
+from pipeline.runtime.cores import unbind
+
 BROWSERS = ("chromium", "chromium-browser", "google-chrome")  # the names a headless Chromium goes by
 TIMEOUT_S = 120.0  # a browser that takes longer to answer is stopped; the run goes on without report.pdf
 NO_PDF_ENV = "CROSSHEAD_NO_PDF"  # set (to anything but empty or 0): no report.pdf
@@ -106,8 +108,8 @@ class Browser:
         finally:
             os.close(to_browser)
             os.close(from_browser)
-        with contextlib.suppress(AttributeError, OSError):  # any core: a rank of mpirun is bound to one
-            os.sched_setaffinity(self.proc.pid, range(os.cpu_count() or 1))
+        if self.proc is not None:
+            unbind(self.proc.pid)  # any core, not the rank's own alone
 
     def print_pdf(self, html: Path, pdf: Path, timeout_s: float = TIMEOUT_S) -> tuple[float, str | None]:
         """Load ``html`` and print it to ``pdf`` with the page's own CSS page size, margins

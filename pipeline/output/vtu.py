@@ -19,6 +19,8 @@ from xml.sax.saxutils import quoteattr
 
 import numpy as np
 
+from pipeline.runtime.cores import unbound
+
 VTK_CELL_TYPES = {"tetra": (10, 4), "tetra10": (24, 10)}  # name -> (VTK type id, nodes per cell)
 _VTK_DTYPES = {np.dtype(np.float64): "Float64", np.dtype(np.float32): "Float32", np.dtype(np.int64): "Int64",
                np.dtype(np.int32): "Int32", np.dtype(np.uint8): "UInt8"}
@@ -34,22 +36,9 @@ def _index_dtype(largest: int) -> np.dtype:
 @contextlib.contextmanager
 def _machine_wide_pool() -> Iterator[ThreadPoolExecutor]:
     """A pool of one thread per core of the machine (at most 4), whatever core this
-    thread is bound to.
-
-    Why: mpirun binds each rank to one core and a new thread inherits its creator's
-    binding, so a rank's pool would share its one core. This thread may run anywhere while
-    the pool lives (it only waits for the pool), and its binding is put back after."""
-    bound = None
-    with contextlib.suppress(AttributeError, OSError):  # no affinity outside Linux
-        bound = os.sched_getaffinity(0)
-        os.sched_setaffinity(0, range(os.cpu_count() or 1))
-    try:
-        with ThreadPoolExecutor(max_workers=min(os.cpu_count() or 1, 4)) as pool:
-            yield pool
-    finally:
-        if bound is not None:
-            with contextlib.suppress(OSError):
-                os.sched_setaffinity(0, bound)
+    thread is bound to (pipeline.runtime.cores: a rank's own pool would share its one core)."""
+    with unbound(), ThreadPoolExecutor(max_workers=min(os.cpu_count() or 1, 4)) as pool:
+        yield pool
 
 
 def _deflate(chunk: bytes) -> bytes:
